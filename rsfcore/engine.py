@@ -1,0 +1,493 @@
+"""Compiled integrator for the spring-slider system: DOP853 with dense output and events.
+
+The system is `eq:psi_T` / `eq:phi_T`, written with the state y = (phi, ln theta, T, s, s_o)
+where ln theta = (psi - phi)/(b/a) is the log of the dimensionless state variable
+V_* theta/Dc, s = delta/Dc the slip and s_o = delta_o/Dc the load-point displacement,
+so that psi = phi + (b/a) ln theta and L = ln(V theta/Dc) = phi + ln theta.
+
+Formulation (nothing overflows, see ../shared/notes/numerics.md): the independent
+variable is a bounded "hybrid" time tau with
+
+    d tau = D(y) (c + e^phi) dT,     c = v_o if v_o > 0 else 1,
+    D(y) = sqrt(1 + (b/a G(L) a_phi)^2),   a_phi = e^phi/(c + e^phi) = sigmoid(phi - ln c),
+
+so that every right-hand side below is bounded by max(kappa (1 + v_o/c), 1) + 1:
+
+    d phi/dtau     = [kappa (v_o (1 - a_phi)/c - a_phi) - (b/a) G(L) a_phi] / D
+    d ln theta/dtau = G(L) a_phi / D
+    dT/dtau        = (1 - a_phi)/(c D)
+    ds/dtau        = a_phi / D
+    ds_o/dtau      = v_o (1 - a_phi)/(c D)
+
+G(L) = expm1(-eps L)/eps is the evolution law (`eq: intermediate state evolution law`),
+with its exponent clipped at 700 (a regime where the rescaling D has already saturated
+the state rate).  The time change D makes the equations bounded when L -> -inf after a
+huge excursion near eps*kappa -> kappa_crit.
+
+Integrator: the explicit Runge-Kutta pair of Dormand & Prince of order 8(5,3) (Hairer,
+Norsett & Wanner, Solving ODEs I, Sec. II.10) with its 7th-order dense output.  The
+Butcher tableau is read at import time from scipy (``scipy.integrate._ivp.
+dop853_coefficients``); the stepping, error control, dense output and event location
+below are this project's own.
+
+Events located on every accepted step with the dense output:
+  * runaway certificate: L = phi + ln theta > L* (absorbing; see laws.py);
+  * return certificate: phi crosses ln v_o downward after having been at or above it;
+  * local maxima of phi (d phi/dtau = 0), giving the true peak, never a sampled one;
+  * optional stop at a given T;
+  * blow-up: phi - ln c > phi_stop, after which the remaining time is < e^-phi_stop.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from scipy.integrate._ivp import dop853_coefficients as _coef
+
+from .laws import G_clipped
+
+__all__ = ["integrate", "STATUS", "NSTATE"]
+
+NSTATE = 5
+_I_PHI, _I_LTH, _I_T, _I_S, _I_SO = 0, 1, 2, 3, 4
+
+# Tableau (facts of the method; values from scipy's copy of Hairer's DOP853).
+_A = np.ascontiguousarray(_coef.A, dtype=np.float64)  # 16 x 16 incl. dense-output stages
+_B = np.ascontiguousarray(_coef.B, dtype=np.float64)  # 12
+_C = np.ascontiguousarray(_coef.C, dtype=np.float64)  # 16
+_E3 = np.ascontiguousarray(_coef.E3, dtype=np.float64)  # 13
+_E5 = np.ascontiguousarray(_coef.E5, dtype=np.float64)  # 13
+_D = np.ascontiguousarray(_coef.D, dtype=np.float64)  # 4 x 16
+_NS = 12  # stages of the step proper
+_NSE = 16  # stages with the dense-output extension
+
+#: Outcome codes returned by :func:`integrate`.
+STATUS = {
+    0: "t_end",  # reached the requested final time T
+    1: "runaway",  # L > L*: certain finite-time instability; integrated to blow-up
+    2: "returned",  # phi fell back below ln v_o after an excursion
+    3: "peak_passed",  # v_o = 0 and phi is past its (unique) maximum
+    4: "budget",  # step budget exhausted without a certificate
+    5: "step_underflow",  # step size fell below the spacing of doubles
+}
+
+_SAFETY = 0.9
+_MIN_FACTOR = 0.2
+_MAX_FACTOR = 10.0
+
+
+@nb.njit(cache=True, nogil=True)
+def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
+    """Hybrid-time right-hand side (module docstring). Writes into ``out``."""
+    zz = y[0] - lnc
+    e = math.exp(-abs(zz))
+    inv = 1.0 / (1.0 + e)
+    # a_phi = sigmoid(zz) and om = 1 - a_phi, each to full relative precision
+    if zz >= 0.0:
+        ap = inv
+        om = e * inv
+    else:
+        ap = e * inv
+        om = inv
+    g = G_clipped(y[0] + y[1], eps)
+    z = ba * g * ap
+    inv_d = 1.0 / math.sqrt(1.0 + z * z)
+    load = vo * om / c
+    out[0] = (kappa * (load - ap) - z) * inv_d
+    out[1] = g * ap * inv_d
+    out[2] = om / c * inv_d
+    out[3] = ap * inv_d
+    out[4] = load * inv_d
+
+
+@nb.njit(cache=True, nogil=True)
+def _dense_coeffs(K, y0, y1, f0, f1, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp):
+    """Fill F (7 x n) with the DOP853 dense-output polynomial of the last step."""
+    n = y0.shape[0]
+    for s in range(_NS + 1, _NSE):
+        for j in range(n):
+            acc = 0.0
+            for m in range(s):
+                acc += _A[s, m] * K[m, j]
+            tmp[j] = y0[j] + h * acc
+        _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+        for j in range(n):
+            K[s, j] = ftmp[j]
+    for j in range(n):
+        dy = y1[j] - y0[j]
+        F[0, j] = dy
+        F[1, j] = h * f0[j] - dy
+        F[2, j] = 2.0 * dy - h * (f1[j] + f0[j])
+        for r in range(4):
+            acc = 0.0
+            for m in range(_NSE):
+                acc += _D[r, m] * K[m, j]
+            F[3 + r, j] = h * acc
+
+
+@nb.njit(cache=True, nogil=True)
+def _dense_eval(F, y0, x, out):
+    """y(t0 + x h) from the dense-output polynomial, x in [0, 1]."""
+    n = y0.shape[0]
+    for j in range(n):
+        acc = 0.0
+        for i in range(7):
+            acc += F[6 - i, j]
+            if i % 2 == 0:
+                acc *= x
+            else:
+                acc *= 1.0 - x
+        out[j] = acc + y0[j]
+
+
+@nb.njit(cache=True, nogil=True)
+def _root_component(F, y0, idx, target, x0, x1, g0, g1, tmp):
+    """Root in (x0, x1) of y_idx(x) - target, bracketed by g0 = g(x0), g1 = g(x1) (Illinois)."""
+    side = 0
+    xm = x0
+    for _ in range(80):
+        xm = (x0 * g1 - x1 * g0) / (g1 - g0)
+        if not (xm > x0 and xm < x1):
+            xm = 0.5 * (x0 + x1)
+        _dense_eval(F, y0, xm, tmp)
+        gm = tmp[idx] - target
+        if gm == 0.0 or abs(x1 - x0) < 1e-15:
+            break
+        if (gm > 0.0) == (g1 > 0.0):
+            x1, g1 = xm, gm
+            if side == -1:
+                g0 *= 0.5
+            side = -1
+        else:
+            x0, g0 = xm, gm
+            if side == 1:
+                g1 *= 0.5
+            side = 1
+    return xm
+
+
+@nb.njit(cache=True, nogil=True)
+def _root_slope(F, y0, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
+    """Root in (x0, x1) of d phi/dtau evaluated on the dense output (a local maximum of phi)."""
+    side = 0
+    xm = x0
+    for _ in range(80):
+        xm = (x0 * g1 - x1 * g0) / (g1 - g0)
+        if not (xm > x0 and xm < x1):
+            xm = 0.5 * (x0 + x1)
+        _dense_eval(F, y0, xm, tmp)
+        _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+        gm = ftmp[0]
+        if gm == 0.0 or abs(x1 - x0) < 1e-15:
+            break
+        if (gm > 0.0) == (g1 > 0.0):
+            x1, g1 = xm, gm
+            if side == -1:
+                g0 *= 0.5
+            side = -1
+        else:
+            x0, g0 = xm, gm
+            if side == 1:
+                g1 *= 0.5
+            side = 1
+    return xm
+
+
+@nb.njit(cache=True, nogil=True)
+def integrate(
+    y0,
+    ba,
+    kappa,
+    eps,
+    vo,
+    rtol,
+    atol,
+    Lstar,
+    check_runaway,
+    stop_on_return,
+    t_end,
+    phi_stop,
+    max_steps,
+    sample_tau,
+    sample_T,
+    samples,
+):
+    """Integrate from y0 = (phi, ln theta, T, s, s_o) until a certificate or a stop.
+
+    Args:
+        y0: initial state (5,), T usually 0.
+        ba, kappa, eps, vo: parameters (validated by the caller).
+        rtol, atol: local error tolerances on every component (DOP853 8(5,3) norm).
+        Lstar: L* of laws.L_star (inf when no runaway is possible).
+        check_runaway: stop the stability question at L > L* (then integrate to blow-up).
+        stop_on_return: stop when phi crosses ln v_o downward after being above it
+            (v_o > 0), or, for v_o = 0, once phi has passed its maximum.
+        t_end: stop at this T (inf for none).
+        phi_stop: blow-up threshold on phi - ln c (remaining time < e^-phi_stop).
+        max_steps: budget of accepted + rejected steps.
+        sample_tau: sorted hybrid-time values at which to record the state (may be empty).
+        sample_T: sorted physical-time values T at which to record the state (may be empty).
+        samples: output array (len(sample_tau) + len(sample_T), 5) filled in order.
+
+    Returns:
+        (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, n_steps, n_rhs,
+         n_rejected, err_sum, n_filled) where T_cert is the T of the runaway
+        certificate (nan if none) and err_sum the sum over accepted steps of the
+        normalised local error estimate times rtol (an a-posteriori accuracy indicator).
+    """
+    n = NSTATE
+    c = vo if vo > 0.0 else 1.0
+    lnc = math.log(c)
+    phi_ss = math.log(vo) if vo > 0.0 else -math.inf
+
+    K = np.empty((_NSE, n))
+    F = np.empty((7, n))
+    y = y0.copy()
+    ynew = np.empty(n)
+    tmp = np.empty(n)
+    ftmp = np.empty(n)
+    f = np.empty(n)
+    fnew = np.empty(n)
+    scale = np.empty(n)
+
+    _rhs(y, f, ba, kappa, eps, vo, c, lnc)
+    n_rhs = 1
+
+    # Initial step (Hairer, Norsett & Wanner II.4 heuristic, order 8).
+    d0 = 0.0
+    d1 = 0.0
+    for j in range(n):
+        sc = atol + abs(y[j]) * rtol
+        d0 += (y[j] / sc) ** 2
+        d1 += (f[j] / sc) ** 2
+    d0 = math.sqrt(d0 / n)
+    d1 = math.sqrt(d1 / n)
+    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+    for j in range(n):
+        tmp[j] = y[j] + h0 * f[j]
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    n_rhs += 1
+    d2 = 0.0
+    for j in range(n):
+        sc = atol + abs(y[j]) * rtol
+        d2 += ((ftmp[j] - f[j]) / sc) ** 2
+    d2 = math.sqrt(d2 / n) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+    h = min(100.0 * h0, h1)
+
+    tau = 0.0
+    status = 4
+    T_cert = math.nan
+    T_return = math.nan
+    peak_phi = y[0]
+    peak_T = y[2]
+    above = vo > 0.0 and y[0] >= phi_ss
+    runaway = False
+    err_sum = 0.0
+    n_steps = 0
+    n_rej = 0
+    i_tau = 0
+    i_T = 0
+    n_tau = sample_tau.shape[0]
+    n_T = sample_T.shape[0]
+    n_filled = 0
+
+    # Samples at tau = 0 / T = T0.
+    while i_tau < n_tau and sample_tau[i_tau] <= 0.0:
+        for j in range(n):
+            samples[n_filled, j] = y[j]
+        n_filled += 1
+        i_tau += 1
+    while i_T < n_T and sample_T[i_T] <= y[2]:
+        for j in range(n):
+            samples[n_filled, j] = y[j]
+        n_filled += 1
+        i_T += 1
+
+    if y[2] >= t_end:
+        return (0, y, tau, T_cert, T_return, peak_phi, peak_T, 0, n_rhs, 0, 0.0, n_filled)
+    if check_runaway and y[0] + y[1] > Lstar:
+        runaway = True
+        T_cert = y[2]
+        peak_phi = math.inf
+
+    rejected_last = False
+    while n_steps + n_rej < max_steps:
+        # ---- one DOP853 step --------------------------------------------------
+        for j in range(n):
+            K[0, j] = f[j]
+        for s in range(1, _NS):
+            for j in range(n):
+                acc = 0.0
+                for m in range(s):
+                    acc += _A[s, m] * K[m, j]
+                tmp[j] = y[j] + h * acc
+            _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+            for j in range(n):
+                K[s, j] = ftmp[j]
+        for j in range(n):
+            acc = 0.0
+            for m in range(_NS):
+                acc += _B[m] * K[m, j]
+            ynew[j] = y[j] + h * acc
+        _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
+        for j in range(n):
+            K[_NS, j] = fnew[j]
+        n_rhs += _NS
+
+        e5 = 0.0
+        e3 = 0.0
+        finite = True
+        for j in range(n):
+            if not math.isfinite(ynew[j]):
+                finite = False
+            sc = atol + max(abs(y[j]), abs(ynew[j])) * rtol
+            a5 = 0.0
+            a3 = 0.0
+            for m in range(_NS + 1):
+                a5 += _E5[m] * K[m, j]
+                a3 += _E3[m] * K[m, j]
+            e5 += (a5 / sc) ** 2
+            e3 += (a3 / sc) ** 2
+        if not finite:
+            err = math.inf
+        elif e5 == 0.0 and e3 == 0.0:
+            err = 0.0
+        else:
+            err = h * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+
+        if not (err <= 1.0):
+            n_rej += 1
+            fac = _MIN_FACTOR if not math.isfinite(err) else max(_MIN_FACTOR, _SAFETY * err ** (-1.0 / 8.0))
+            h *= fac
+            rejected_last = True
+            if not (h > 1e-15 * max(1.0, tau)):  # also catches a NaN step
+                status = 5
+                break
+            continue
+
+        # ---- accepted: events on [tau, tau + h] ----------------------------------
+        n_steps += 1
+        err_sum += err * rtol
+        dense_ready = False
+        stop_x = 2.0  # fraction of the step where integration stops (2 = none)
+        stop_status = -1
+
+        # runaway certificate (checked at the step end: L is absorbing above L*)
+        if check_runaway and not runaway and ynew[0] + ynew[1] > Lstar:
+            runaway = True
+            T_cert = ynew[2]
+
+        if not runaway:
+            # local maximum of phi inside the step
+            if f[0] > 0.0 and fnew[0] <= 0.0:
+                if not dense_ready:
+                    _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                    n_rhs += 3
+                    dense_ready = True
+                xm = _root_slope(F, y, 0.0, 1.0, f[0], fnew[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+                _dense_eval(F, y, xm, tmp)
+                if tmp[0] > peak_phi:
+                    peak_phi = tmp[0]
+                    peak_T = tmp[2]
+            if ynew[0] > peak_phi:
+                peak_phi = ynew[0]
+                peak_T = ynew[2]
+            # return certificate
+            if stop_on_return:
+                if vo > 0.0:
+                    if above and ynew[0] < phi_ss:
+                        if not dense_ready:
+                            _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                            n_rhs += 3
+                            dense_ready = True
+                        xr = _root_component(F, y, 0, phi_ss, 0.0, 1.0, y[0] - phi_ss, ynew[0] - phi_ss, tmp)
+                        _dense_eval(F, y, xr, tmp)
+                        T_return = tmp[2]
+                        stop_x = xr
+                        stop_status = 2
+                    if ynew[0] >= phi_ss:
+                        above = True
+                elif fnew[0] < 0.0:
+                    # v_o = 0: L decreases monotonically below L*, so once d phi/ds < 0
+                    # it stays negative and the maximum is behind us.
+                    stop_x = 1.0
+                    stop_status = 3
+        else:
+            if ynew[0] - lnc > phi_stop:
+                stop_x = 1.0
+                stop_status = 1
+
+        # stop at a requested final time T
+        if ynew[2] >= t_end:
+            if not dense_ready:
+                _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                n_rhs += 3
+                dense_ready = True
+            xt = _root_component(F, y, 2, t_end, 0.0, 1.0, y[2] - t_end, ynew[2] - t_end, tmp)
+            if xt < stop_x:
+                stop_x = xt
+                stop_status = 0
+
+        # samples inside this step (up to the stop point)
+        x_lim = min(stop_x, 1.0)
+        tau_lim = tau + x_lim * h
+        if (i_tau < n_tau and sample_tau[i_tau] <= tau_lim) or (i_T < n_T and sample_T[i_T] <= ynew[2]):
+            if not dense_ready:
+                _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                n_rhs += 3
+                dense_ready = True
+            while i_tau < n_tau and sample_tau[i_tau] <= tau_lim:
+                _dense_eval(F, y, (sample_tau[i_tau] - tau) / h, tmp)
+                for j in range(n):
+                    samples[n_filled, j] = tmp[j]
+                n_filled += 1
+                i_tau += 1
+            if i_T < n_T:
+                if x_lim < 1.0:
+                    _dense_eval(F, y, x_lim, ftmp)
+                    T_lim = ftmp[2]
+                else:
+                    T_lim = ynew[2]
+                while i_T < n_T and sample_T[i_T] <= T_lim:
+                    xs = _root_component(F, y, 2, sample_T[i_T], 0.0, x_lim, y[2] - sample_T[i_T], T_lim - sample_T[i_T], tmp)
+                    _dense_eval(F, y, xs, tmp)
+                    for j in range(n):
+                        samples[n_filled, j] = tmp[j]
+                    n_filled += 1
+                    i_T += 1
+
+        if stop_status >= 0:
+            if stop_x < 1.0:
+                _dense_eval(F, y, stop_x, tmp)
+                for j in range(n):
+                    y[j] = tmp[j]
+                tau += stop_x * h
+            else:
+                for j in range(n):
+                    y[j] = ynew[j]
+                tau += h
+            status = stop_status
+            break
+
+        # advance
+        tau += h
+        for j in range(n):
+            y[j] = ynew[j]
+            f[j] = fnew[j]
+        if err == 0.0:
+            fac = _MAX_FACTOR
+        else:
+            fac = min(_MAX_FACTOR, _SAFETY * err ** (-1.0 / 8.0))
+        if rejected_last:
+            fac = min(1.0, fac)
+        rejected_last = False
+        h *= fac
+
+    if status == 4 and runaway:
+        status = 1 if y[0] - lnc > phi_stop else 4
+    return (status, y, tau, T_cert, T_return, peak_phi, peak_T, n_steps, n_rhs, n_rej, err_sum, n_filled)
