@@ -70,6 +70,7 @@ STATUS = {
     3: "peak_passed",  # v_o = 0 and phi is past its (unique) maximum
     4: "budget",  # step budget exhausted without a certificate
     5: "step_underflow",  # step size fell below the spacing of doubles
+    6: "converged",  # within eq_tol of the steady state (monotone approach)
 }
 
 _SAFETY = 0.9
@@ -144,6 +145,10 @@ def _dense_eval(F, y0, x, out):
 @nb.njit(cache=True, nogil=True)
 def _root_component(F, y0, idx, target, x0, x1, g0, g1, tmp):
     """Root in (x0, x1) of y_idx(x) - target, bracketed by g0 = g(x0), g1 = g(x1) (Illinois)."""
+    if g0 == 0.0:
+        return x0
+    if g1 == 0.0:
+        return x1
     side = 0
     xm = x0
     for _ in range(80):
@@ -170,6 +175,10 @@ def _root_component(F, y0, idx, target, x0, x1, g0, g1, tmp):
 @nb.njit(cache=True, nogil=True)
 def _root_slope(F, y0, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
     """Root in (x0, x1) of d phi/dtau evaluated on the dense output (a local maximum of phi)."""
+    if g0 == 0.0:
+        return x0
+    if g1 == 0.0:
+        return x1
     side = 0
     xm = x0
     for _ in range(80):
@@ -209,6 +218,7 @@ def integrate(
     t_end,
     phi_stop,
     max_steps,
+    eq_tol,
     sample_tau,
     sample_T,
     samples,
@@ -226,6 +236,8 @@ def integrate(
         t_end: stop at this T (inf for none).
         phi_stop: blow-up threshold on phi - ln c (remaining time < e^-phi_stop).
         max_steps: budget of accepted + rejected steps.
+        eq_tol: with stop_on_return and v_o > 0, also stop (status 6) once both
+            |phi - ln v_o| and |L| fall below eq_tol without a crossing.
         sample_tau: sorted hybrid-time values at which to record the state (may be empty).
         sample_T: sorted physical-time values T at which to record the state (may be empty).
         samples: output array (len(sample_tau) + len(sample_T), 5) filled in order.
@@ -412,6 +424,11 @@ def integrate(
                         stop_status = 2
                     if ynew[0] >= phi_ss:
                         above = True
+                    elif stop_status < 0 and abs(ynew[0] - phi_ss) < eq_tol and abs(ynew[0] + ynew[1]) < eq_tol:
+                        # within eq_tol of the (asymptotically stable) steady state
+                        # (phi = ln v_o, L = 0) without crossing it: a node, not a focus.
+                        stop_x = 1.0
+                        stop_status = 6
                 elif fnew[0] < 0.0:
                     # v_o = 0: L decreases monotonically below L*, so once d phi/ds < 0
                     # it stays negative and the maximum is behind us.
@@ -436,6 +453,7 @@ def integrate(
         # samples inside this step (up to the stop point)
         x_lim = min(stop_x, 1.0)
         tau_lim = tau + x_lim * h
+        T_lim = ynew[2]
         if (i_tau < n_tau and sample_tau[i_tau] <= tau_lim) or (i_T < n_T and sample_T[i_T] <= ynew[2]):
             if not dense_ready:
                 _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
@@ -451,8 +469,6 @@ def integrate(
                 if x_lim < 1.0:
                     _dense_eval(F, y, x_lim, ftmp)
                     T_lim = ftmp[2]
-                else:
-                    T_lim = ynew[2]
                 while i_T < n_T and sample_T[i_T] <= T_lim:
                     xs = _root_component(F, y, 2, sample_T[i_T], 0.0, x_lim, y[2] - sample_T[i_T], T_lim - sample_T[i_T], tmp)
                     _dense_eval(F, y, xs, tmp)
@@ -462,6 +478,22 @@ def integrate(
                     i_T += 1
 
         if stop_status >= 0:
+            # samples at the stop time itself (lost to rounding of the located stop)
+            if i_T < n_T:
+                if x_lim < 1.0:
+                    if not dense_ready:
+                        _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                        n_rhs += 3
+                        dense_ready = True
+                    _dense_eval(F, y, x_lim, ftmp)
+                else:
+                    for j in range(n):
+                        ftmp[j] = ynew[j]
+                while i_T < n_T and sample_T[i_T] <= ftmp[2] * (1.0 + 1e-12):
+                    for j in range(n):
+                        samples[n_filled, j] = ftmp[j]
+                    n_filled += 1
+                    i_T += 1
             if stop_x < 1.0:
                 _dense_eval(F, y, stop_x, tmp)
                 for j in range(n):

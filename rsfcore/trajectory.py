@@ -1,0 +1,428 @@
+"""Trajectories and certified stable/unstable classification of the spring-slider.
+
+A trajectory of `eq:psi_T` / `eq:phi_T` is integrated with the compiled DOP853 engine
+(engine.py) until its outcome is certain, using these certificates:
+
+* ``L_above_Lstar``: L = phi + (psi - phi)/(b/a) exceeded L* (laws.L_star). L > L* is
+  absorbing (dL/ds > g(L) > 0) and leads to blow-up in finite time: exact.
+* ``returned_to_steady_state``: for kappa > kappa_crit, phi fell back below ln v_o
+  after its excursion (the trajectory is then inside the basin of steady sliding).
+* ``converged_to_steady_state``: for kappa > kappa_crit, a monotone approach reached
+  |phi - ln v_o|, |L| < 1e-6.
+* ``U_negative_closed_orbit`` / ``U_nonnegative_open_orbit``: kappa = kappa_crit, v_o > 0,
+  sign of the closed-form U of `eq: trajectories 1` (every orbit closed at eps = 1).
+* ``vo0_L_below_Lstar`` / ``vo0_L_at_or_above_Lstar``: v_o = 0, where dL/ds = g(L) exactly,
+  so the outcome is fixed by L at the start (`eq: limiting trajectory2`).
+* ``no_runaway_possible``: eps kappa >= kappa_crit, so L* does not exist.
+* ``linear_instability``: kappa < kappa_crit and the step budget ran out before L > L*
+  (every perturbation grows; Ruina 1983).
+* ``at_equilibrium``: the start is the steady state itself.
+
+The peak of phi is located on every step (never read off an output grid); blow-up
+times include the analytic tail beyond phi - ln c = 40 (< e^-40 of time).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .analytic import U_kcrit
+from .engine import integrate
+from .laws import G, L_star
+from .params import ParameterError, Params, PhysicalParams, check_range
+
+__all__ = [
+    "Perturbation",
+    "TrajectoryResult",
+    "Trajectory",
+    "UndecidedError",
+    "start_point",
+    "classify",
+    "simulate",
+    "DEFAULT_RTOL",
+]
+
+Perturbation = Literal["velocity-jump", "load-point-jump"]
+PERTURBATIONS: tuple[str, ...] = ("velocity-jump", "load-point-jump")
+
+DEFAULT_RTOL = 1e-10
+RTOL_RANGE = (1e-14, 1e-3)
+#: |d| for a velocity jump: e^phi itself is never formed, but beyond 1e4 nothing changes.
+SIZE_MAX = 1.0e4
+PHI_STOP = 40.0
+MAX_STEPS = 2_000_000
+EQ_TOL = 1e-6
+#: Relative tolerance within which kappa is taken to equal kappa_crit (closed-form U applies).
+KCRIT_TOL = 1e-14
+
+
+class UndecidedError(RuntimeError):
+    """The integration could not certify an outcome within its budget."""
+
+
+@dataclass
+class Trajectory:
+    """Sampled trajectory (dimensionless; SI columns when physical parameters were given)."""
+
+    T: NDArray[np.float64]
+    phi: NDArray[np.float64]
+    psi: NDArray[np.float64]
+    ln_theta: NDArray[np.float64]
+    slip: NDArray[np.float64]
+    load_point: NDArray[np.float64]
+    physical: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, list[float]]:
+        out = {
+            "T": self.T.tolist(),
+            "phi": self.phi.tolist(),
+            "psi": self.psi.tolist(),
+            "ln_theta": self.ln_theta.tolist(),
+            "slip": self.slip.tolist(),
+            "load_point": self.load_point.tolist(),
+        }
+        for k, v in self.physical.items():
+            out[k] = v.tolist()
+        return out
+
+
+@dataclass
+class TrajectoryResult:
+    """Outcome of one trajectory.
+
+    Times are dimensionless (T = V_* t/Dc); ``peak_phi`` is the true maximum of
+    phi = ln(V/V_*) up to the decision (inf for a runaway).  ``rel_accuracy`` is the
+    estimated relative accuracy of the reported times and peak: the sum of the
+    normalised local error estimates of the accepted steps, floored at rtol (validated
+    against rtol/1e3 runs in tests/test_trajectory.py).
+    """
+
+    outcome: Literal["stable", "unstable"]
+    certificate: str
+    blowup_time: float | None
+    return_time: float | None
+    peak_phi: float
+    peak_time: float | None
+    rel_accuracy: float
+    n_steps: int
+    n_rhs: int
+    params: Params
+    start: tuple[float, float]
+    perturbation: str | None = None
+    size: float | None = None
+    trajectory: Trajectory | None = None
+    physical: PhysicalParams | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict (no inf/nan: a runaway peak is reported as null)."""
+        d: dict[str, Any] = {
+            "outcome": self.outcome,
+            "certificate": self.certificate,
+            "blowup_time": self.blowup_time,
+            "return_time": self.return_time,
+            "peak_phi": self.peak_phi if math.isfinite(self.peak_phi) else None,
+            "peak_time": self.peak_time,
+            "rel_accuracy": self.rel_accuracy,
+            "n_steps": self.n_steps,
+            "n_rhs": self.n_rhs,
+            "params": self.params.as_dict(),
+            "start": {"phi": self.start[0], "psi": self.start[1]},
+            "perturbation": self.perturbation,
+            "size": self.size,
+            "trajectory": None if self.trajectory is None else self.trajectory.to_dict(),
+        }
+        if self.physical is not None:
+            ph = self.physical
+            d["physical"] = {
+                "time_scale_s": ph.time_scale,
+                "blowup_time_s": None if self.blowup_time is None else self.blowup_time * ph.time_scale,
+                "return_time_s": None if self.return_time is None else self.return_time * ph.time_scale,
+                "peak_time_s": None if self.peak_time is None else self.peak_time * ph.time_scale,
+                "peak_velocity_m_s": ph.velocity(self.peak_phi) if math.isfinite(self.peak_phi) and self.peak_phi < 700 else None,
+            }
+        return d
+
+
+def start_point(params: Params, perturbation: str, size: float) -> tuple[float, float, Params]:
+    """Start (phi0, psi0) and the parameters to run with, for a named perturbation.
+
+    velocity-jump (size d in [-1e4, 1e4]): from steady state (ln v_o, (1 - b/a) ln v_o)
+        (the origin when v_o = 0) phi and psi jump by d at constant state.
+    load-point-jump (size dv in (-1, 1e300/v_o]): from steady state at v_o the load point
+        velocity becomes v_o (1 + dv); needs v_o > 0.
+    """
+    if perturbation not in PERTURBATIONS:
+        raise ParameterError("perturbation", perturbation, "one of " + ", ".join(PERTURBATIONS))
+    vo = params.vo
+    phi_ss = math.log(vo) if vo > 0.0 else 0.0
+    psi_ss = (1.0 - params.ba) * phi_ss
+    if perturbation == "velocity-jump":
+        d = check_range("size", size, -SIZE_MAX, SIZE_MAX)
+        return phi_ss + d, psi_ss + d, params
+    if vo == 0.0:
+        raise ParameterError("vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)")
+    dv = check_range("size", size, -1.0, None, lo_open=True)
+    new_vo = vo * (1.0 + dv)
+    if new_vo == 0.0 or not math.isfinite(new_vo) or new_vo > 1e300:
+        raise ParameterError("size", size, f"(-1, {1e300 / vo:g}] so that v_o (1 + dv) stays in (0, 1e300]")
+    return phi_ss, psi_ss, params.with_(vo=new_vo)
+
+
+def _check_rtol(rtol: float) -> float:
+    return check_range("rtol", rtol, RTOL_RANGE[0], RTOL_RANGE[1])
+
+
+@dataclass
+class _Plan:
+    check_runaway: bool
+    stop_on_return: bool
+    outcome: str | None  # decided in closed form, or None
+    certificate: str | None
+
+
+def _plan(p: Params, phi0: float, psi0: float) -> _Plan:
+    kc = p.kappa_crit
+    Ls = float(L_star(p.kappa, kc, p.eps))
+    L0 = phi0 + (psi0 - phi0) / p.ba
+    if p.vo == 0.0:
+        if L0 >= Ls:
+            return _Plan(True, False, "unstable", "vo0_L_at_or_above_Lstar")
+        return _Plan(False, True, "stable", "vo0_L_below_Lstar" if math.isfinite(Ls) else "no_runaway_possible")
+    phi_ss = math.log(p.vo)
+    if phi0 == phi_ss and L0 == 0.0:
+        return _Plan(False, False, "stable", "at_equilibrium")
+    if abs(p.kappa - kc) <= KCRIT_TOL * kc:
+        if p.eps == 1.0:
+            return _Plan(False, True, "stable", "U_negative_closed_orbit")
+        U0 = float(U_kcrit(phi0, psi0, p.ba, p.eps, p.vo))
+        if U0 < 0.0:
+            return _Plan(False, True, "stable", "U_negative_closed_orbit")
+        return _Plan(True, False, "unstable", "U_nonnegative_open_orbit")
+    if p.kappa < kc:
+        return _Plan(True, False, None, None)
+    if not math.isfinite(Ls):
+        return _Plan(False, True, "stable", "no_runaway_possible")
+    return _Plan(True, True, None, None)
+
+
+_EMPTY = np.empty(0)
+_EMPTY2 = np.empty((0, 5))
+
+
+def _run(
+    p: Params,
+    phi0: float,
+    psi0: float,
+    rtol: float,
+    plan: _Plan,
+    *,
+    t_end: float = math.inf,
+    stop_on_return: bool | None = None,
+    sample_tau: NDArray[np.float64] = _EMPTY,
+    sample_T: NDArray[np.float64] = _EMPTY,
+    max_steps: int = MAX_STEPS,
+) -> tuple:
+    y0 = np.array([phi0, (psi0 - phi0) / p.ba, 0.0, 0.0, 0.0])
+    Ls = float(L_star(p.kappa, p.kappa_crit, p.eps))
+    n_samp = sample_tau.shape[0] + sample_T.shape[0]
+    samples = np.empty((n_samp, 5)) if n_samp else _EMPTY2
+    sor = plan.stop_on_return if stop_on_return is None else stop_on_return
+    res = integrate(
+        y0, p.ba, p.kappa, p.eps, p.vo, rtol, rtol, Ls, plan.check_runaway, sor,
+        t_end, PHI_STOP, max_steps, EQ_TOL, sample_tau, sample_T, samples,
+    )
+    return res, samples
+
+
+def _blowup_tail(p: Params, y: NDArray[np.float64]) -> float:
+    """Remaining time after the engine stopped at phi - ln c > PHI_STOP (tail of dT = dphi/phi_dot)."""
+    phi, L = y[0], y[0] + y[1]
+    rate = -p.ba * G(L, p.eps) - p.kappa  # phi_dot ~ e^phi * rate for phi >> ln v_o
+    if rate <= 0.0 or phi > 700.0:
+        return 0.0
+    return math.exp(-phi) / rate
+
+
+def classify(
+    params: Params,
+    perturbation: str = "velocity-jump",
+    size: float = 1.0,
+    *,
+    start: tuple[float, float] | None = None,
+    rtol: float = DEFAULT_RTOL,
+) -> TrajectoryResult:
+    """Certified stable/unstable outcome of one perturbation (no trajectory returned).
+
+    Args:
+        params: dimensionless parameters.
+        perturbation: "velocity-jump" or "load-point-jump" (ignored when ``start`` given).
+        size: d for a velocity jump ([-1e4, 1e4]) or dv/v_o for a load-point jump ((-1, ..]).
+        start: explicit start (phi0, psi0) instead of a named perturbation.
+        rtol: relative tolerance of the integrator, [1e-14, 1e-3].
+
+    Returns a TrajectoryResult with outcome, certificate, blow-up or return time and the
+    true peak.  Raises UndecidedError if no certificate is reached within the budget
+    (2e6 steps), ParameterError on invalid input.
+    """
+    return simulate(params, perturbation, size, start=start, rtol=rtol)
+
+
+def simulate(
+    params: Params,
+    perturbation: str = "velocity-jump",
+    size: float = 1.0,
+    *,
+    start: tuple[float, float] | None = None,
+    rtol: float = DEFAULT_RTOL,
+    t_end: float | None = None,
+    n_points: int = 0,
+    times: Sequence[float] | None = None,
+    sampling: Literal["tau", "time"] = "tau",
+    physical: PhysicalParams | None = None,
+) -> TrajectoryResult:
+    """Classify a perturbation and optionally return its trajectory.
+
+    The trajectory is returned when ``n_points > 0`` (evenly spaced in the engine's
+    hybrid time when sampling="tau", which resolves both slow creep and the fast
+    excursion, or evenly in T when sampling="time") or when ``times`` (dimensionless T,
+    sorted, >= 0) are given.  Samples come from the 7th-order dense output, so they
+    carry the integrator's accuracy.  Without ``t_end`` the trajectory ends at the
+    decision (return to steady state, blow-up, or the passed peak for v_o = 0); with
+    ``t_end`` it runs to that T (or to blow-up if earlier).  ``physical`` adds SI
+    columns: t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m.
+    """
+    rtol = _check_rtol(rtol)
+    if start is not None:
+        phi0 = check_range("phi0", start[0], -SIZE_MAX, SIZE_MAX)
+        psi0 = check_range("psi0", start[1], -1e8, 1e8)
+        p_run = params
+        pert_name, pert_size = None, None
+    else:
+        phi0, psi0, p_run = start_point(params, perturbation, size)
+        pert_name, pert_size = perturbation, float(size)
+    if n_points:
+        n_points = int(check_range("n_points", n_points, 0, 100_000))
+    if t_end is not None:
+        t_end = check_range("t_end", t_end, 0.0, 1e12, lo_open=True)
+
+    plan = _plan(p_run, phi0, psi0)
+    res, _ = _run(p_run, phi0, psi0, rtol, plan)
+    status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, n_steps, n_rhs, n_rej, err_sum, _ = res
+    n_steps = int(n_steps + n_rej)
+
+    runaway = not math.isnan(T_cert)
+    blowup_time = return_time = None
+    if plan.certificate == "at_equilibrium":
+        outcome, cert = "stable", "at_equilibrium"
+        peak_phi, peak_T = phi0, 0.0
+    elif runaway:
+        if plan.outcome == "stable":  # pragma: no cover - guarded by check_runaway=False
+            raise UndecidedError("integration crossed L* on an orbit that the closed form says is closed")
+        outcome = "unstable"
+        cert = plan.certificate or "L_above_Lstar"
+        peak_phi = math.inf
+        if status == 1:
+            blowup_time = float(y_end[2] + _blowup_tail(p_run, y_end))
+            peak_T = blowup_time
+        else:
+            peak_T = None
+    elif status == 2:
+        outcome, cert = "stable", plan.certificate or "returned_to_steady_state"
+        return_time = float(T_ret)
+    elif status == 6:
+        outcome, cert = "stable", plan.certificate or "converged_to_steady_state"
+    elif status == 3:
+        outcome, cert = "stable", plan.certificate or "vo0_L_below_Lstar"
+    elif plan.outcome is not None:
+        outcome, cert = plan.outcome, plan.certificate
+    elif p_run.kappa < p_run.kappa_crit:
+        outcome, cert = "unstable", "linear_instability"
+        peak_phi, peak_T = math.inf, None
+    else:
+        raise UndecidedError(
+            f"no certificate within {MAX_STEPS} steps ({STATUS_TEXT.get(int(status), status)}); "
+            f"params={p_run.as_dict()}, start=({phi0}, {psi0}), rtol={rtol}"
+        )
+
+    traj = None
+    want = n_points > 0 or (times is not None and len(times) > 0)
+    if want:
+        traj = _sample(p_run, phi0, psi0, rtol, plan, tau_end, t_end, n_points, times, sampling, physical)
+
+    return TrajectoryResult(
+        outcome=outcome,  # type: ignore[arg-type]
+        certificate=cert,  # type: ignore[arg-type]
+        blowup_time=blowup_time,
+        return_time=return_time,
+        peak_phi=float(peak_phi),
+        peak_time=None if peak_T is None else float(peak_T),
+        rel_accuracy=float(max(rtol, err_sum)),
+        n_steps=n_steps,
+        n_rhs=int(n_rhs),
+        params=p_run,
+        start=(float(phi0), float(psi0)),
+        perturbation=pert_name,
+        size=pert_size,
+        trajectory=traj,
+        physical=physical,
+    )
+
+
+STATUS_TEXT = {0: "t_end", 1: "runaway", 2: "returned", 3: "peak_passed", 4: "budget", 5: "step_underflow", 6: "converged"}
+
+
+def _sample(
+    p: Params,
+    phi0: float,
+    psi0: float,
+    rtol: float,
+    plan: _Plan,
+    tau_end: float,
+    t_end: float | None,
+    n_points: int,
+    times: Sequence[float] | None,
+    sampling: str,
+    physical: PhysicalParams | None,
+) -> Trajectory:
+    if sampling not in ("tau", "time"):
+        raise ParameterError("sampling", sampling, "'tau' or 'time'")
+    te = math.inf if t_end is None else t_end
+    sor = None if t_end is None else False
+    if times is not None and len(times) > 0:
+        sT = np.asarray(times, dtype=np.float64)
+        if not np.all(np.isfinite(sT)) or np.any(sT < 0) or np.any(np.diff(sT) < 0):
+            raise ParameterError("times", "...", "finite, non-negative and sorted ascending")
+        res, samples = _run(p, phi0, psi0, rtol, plan, t_end=min(te, float(sT[-1])), stop_on_return=False, sample_T=sT)
+    else:
+        if t_end is not None or sampling == "time":
+            res0, _ = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor)
+            tau_end, T_end = float(res0[2]), float(res0[1][2])
+        else:
+            T_end = math.nan
+        if sampling == "time":
+            sT = np.linspace(0.0, T_end, n_points)
+            res, samples = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_T=sT)
+        else:
+            sTau = np.linspace(0.0, tau_end, n_points)
+            res, samples = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_tau=sTau)
+    n = int(res[-1])
+    s = samples[:n]
+    phi, lth = s[:, 0], s[:, 1]
+    tr = Trajectory(T=s[:, 2].copy(), phi=phi.copy(), psi=phi + p.ba * lth, ln_theta=lth.copy(), slip=s[:, 3].copy(), load_point=s[:, 4].copy())
+    if physical is not None:
+        ph = physical
+        with np.errstate(over="ignore"):
+            tr.physical = {
+                "t_s": tr.T * ph.time_scale,
+                "V_m_s": ph.V_star * np.exp(np.minimum(tr.phi, 709.0)),
+                "tau_change_Pa": ph.a * ph.sigma * tr.psi,
+                "friction": ph.f_star + ph.a * tr.psi,
+                "theta_s": np.exp(np.clip(tr.ln_theta, -745.0, 709.0)) * ph.time_scale,
+                "slip_m": tr.slip * ph.Dc,
+                "load_point_m": tr.load_point * ph.Dc,
+            }
+    return tr

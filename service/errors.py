@@ -1,0 +1,112 @@
+"""RFC 9457 problem+json responses: 422 naming the field and its valid range, 404, etc.
+
+Nothing is written to the cache or the sweep tables before validation passes, so a 422
+never leaves a trace.
+"""
+from __future__ import annotations
+
+import json
+import logging
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.responses import Response
+
+from .schemas import VALID
+
+__all__ = ["ProblemError", "problem", "install_handlers"]
+log = logging.getLogger("rsf.service")
+PROBLEM = "application/problem+json"
+
+
+class ProblemError(Exception):
+    """An error to report as problem+json.
+
+    Args:
+        status: HTTP status (4xx).
+        title: short summary.
+        detail: human-readable explanation.
+        field: dotted name of the offending input (for 422).
+        valid: valid range of that input (for 422).
+    """
+
+    def __init__(self, status: int, title: str, detail: str, *, field: str | None = None,
+                 valid: str | None = None) -> None:
+        super().__init__(detail)
+        self.status, self.title, self.detail, self.field, self.valid = (
+            status, title, detail, field, valid)
+
+
+def problem(status: int, title: str, detail: str, errors: list[dict[str, Any]] | None = None,
+            headers: dict[str, str] | None = None) -> Response:
+    """A problem+json response."""
+    body: dict[str, Any] = {"type": "about:blank", "title": title, "status": status,
+                            "detail": detail}
+    if errors:
+        body["errors"] = errors
+        body["field"] = errors[0]["field"]
+        body["valid"] = errors[0].get("valid")
+    return Response(json.dumps(body, default=str), status_code=status, media_type=PROBLEM,
+                    headers=headers)
+
+
+def _field_of(loc: tuple[Any, ...]) -> str:
+    parts = [p for p in loc if p not in ("body", "query", "path")]
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out or "body"
+
+
+def _valid_of(loc: tuple[Any, ...]) -> str | None:
+    for p in reversed(loc):
+        if isinstance(p, str) and p in VALID:
+            return VALID[p]
+    return None
+
+
+def _safe(v: Any) -> Any:
+    try:
+        json.dumps(v, allow_nan=False)
+        return v
+    except (TypeError, ValueError):
+        return repr(v)
+
+
+def validation_problem(exc: RequestValidationError) -> Response:
+    """422 for a request that failed schema validation."""
+    errors = []
+    for e in exc.errors():
+        loc = tuple(e.get("loc", ()))
+        field = _field_of(loc)
+        valid = _valid_of(loc)
+        msg = str(e.get("msg", "invalid"))
+        errors.append({"field": field, "message": msg, "valid": valid,
+                       "input": _safe(e.get("input"))})
+    first = errors[0] if errors else {"field": "body", "message": "invalid", "valid": None}
+    detail = f"{first['field']}: {first['message']}"
+    if first.get("valid"):
+        detail += f" (valid range: {first['valid']})"
+    return problem(422, "Invalid input", detail, errors or [first])
+
+
+def install_handlers(app: FastAPI) -> None:
+    """Register the problem+json handlers on ``app``."""
+
+    @app.exception_handler(RequestValidationError)
+    async def _validation(_req: Request, exc: RequestValidationError) -> Response:
+        return validation_problem(exc)
+
+    @app.exception_handler(ProblemError)
+    async def _problem(_req: Request, exc: ProblemError) -> Response:
+        errs = None
+        if exc.field:
+            errs = [{"field": exc.field, "message": exc.detail, "valid": exc.valid}]
+        return problem(exc.status, exc.title, exc.detail, errs)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(_req: Request, exc: StarletteHTTPException) -> Response:
+        return problem(exc.status_code, "HTTP error", str(exc.detail),
+                       headers=getattr(exc, "headers", None))

@@ -1,0 +1,1 @@
+"""Celery worker, SQLite/SQLAlchemy result cache and sweep bookkeeping."""
