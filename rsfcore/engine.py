@@ -9,7 +9,7 @@ Formulation (nothing overflows, see ../shared/notes/numerics.md): the independen
 variable is a bounded "hybrid" time tau with
 
     d tau = D(y) (c + e^phi) dT,     c = v_o if v_o > 0 else 1,
-    D(y) = sqrt(1 + (b/a G(L) a_phi)^2),   a_phi = e^phi/(c + e^phi) = sigmoid(phi - ln c),
+    D(y) = hypot(1, (b/a) G(L) a_phi),   a_phi = e^phi/(c + e^phi) = sigmoid(phi - ln c),
 
 so that every right-hand side below is bounded by max(kappa (1 + v_o/c), 1) + 1:
 
@@ -20,7 +20,7 @@ so that every right-hand side below is bounded by max(kappa (1 + v_o/c), 1) + 1:
     ds_o/dtau      = v_o (1 - a_phi)/(c D)
 
 G(L) = expm1(-eps L)/eps is the evolution law (`eq: intermediate state evolution law`),
-with its exponent clipped at 700 (a regime where the rescaling D has already saturated
+with its exponent clipped at 600 (a regime where the rescaling D has already saturated
 the state rate).  The time change D makes the equations bounded when L -> -inf after a
 huge excursion near eps*kappa -> kappa_crit.
 
@@ -78,7 +78,7 @@ _MIN_FACTOR = 0.2
 _MAX_FACTOR = 10.0
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
     """Hybrid-time right-hand side (module docstring). Writes into ``out``."""
     zz = y[0] - lnc
@@ -93,7 +93,7 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
         om = inv
     g = G_clipped(y[0] + y[1], eps)
     z = ba * g * ap
-    inv_d = 1.0 / math.sqrt(1.0 + z * z)
+    inv_d = 1.0 / math.hypot(1.0, z)  # hypot: no overflow of z*z
     load = vo * om / c
     out[0] = (kappa * (load - ap) - z) * inv_d
     out[1] = g * ap * inv_d
@@ -102,7 +102,7 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
     out[4] = load * inv_d
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _dense_coeffs(K, y0, y1, f0, f1, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp):
     """Fill F (7 x n) with the DOP853 dense-output polynomial of the last step."""
     n = y0.shape[0]
@@ -127,7 +127,7 @@ def _dense_coeffs(K, y0, y1, f0, f1, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp
             F[3 + r, j] = h * acc
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _dense_eval(F, y0, x, out):
     """y(t0 + x h) from the dense-output polynomial, x in [0, 1]."""
     n = y0.shape[0]
@@ -142,7 +142,7 @@ def _dense_eval(F, y0, x, out):
         out[j] = acc + y0[j]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _root_component(F, y0, idx, target, x0, x1, g0, g1, tmp):
     """Root in (x0, x1) of y_idx(x) - target, bracketed by g0 = g(x0), g1 = g(x1) (Illinois)."""
     if g0 == 0.0:
@@ -172,7 +172,7 @@ def _root_component(F, y0, idx, target, x0, x1, g0, g1, tmp):
     return xm
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _root_slope(F, y0, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
     """Root in (x0, x1) of d phi/dtau evaluated on the dense output (a local maximum of phi)."""
     if g0 == 0.0:
@@ -203,7 +203,7 @@ def _root_slope(F, y0, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
     return xm
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def integrate(
     y0,
     ba,
@@ -232,7 +232,7 @@ def integrate(
         Lstar: L* of laws.L_star (inf when no runaway is possible).
         check_runaway: stop the stability question at L > L* (then integrate to blow-up).
         stop_on_return: stop when phi crosses ln v_o downward after being above it
-            (v_o > 0), or, for v_o = 0, once phi has passed its maximum.
+            (v_o > 0), or, for v_o = 0 or kappa = 0, once phi has passed its maximum.
         t_end: stop at this T (inf for none).
         phi_stop: blow-up threshold on phi - ln c (remaining time < e^-phi_stop).
         max_steps: budget of accepted + rejected steps.
@@ -251,7 +251,10 @@ def integrate(
     n = NSTATE
     c = vo if vo > 0.0 else 1.0
     lnc = math.log(c)
-    phi_ss = math.log(vo) if vo > 0.0 else -math.inf
+    # With v_o = 0 or kappa = 0, dL/ds = g(L) exactly: L is monotone and the outcome
+    # is fixed at the start; the only stop needed is past the (unique) maximum of phi.
+    fixed_L = vo == 0.0 or kappa == 0.0
+    phi_ss = math.log(vo) if not fixed_L else -math.inf
 
     K = np.empty((_NSE, n))
     F = np.empty((7, n))
@@ -297,7 +300,7 @@ def integrate(
     T_return = math.nan
     peak_phi = y[0]
     peak_T = y[2]
-    above = vo > 0.0 and y[0] >= phi_ss
+    above = (not fixed_L) and y[0] >= phi_ss
     runaway = False
     err_sum = 0.0
     n_steps = 0
@@ -411,7 +414,7 @@ def integrate(
                 peak_T = ynew[2]
             # return certificate
             if stop_on_return:
-                if vo > 0.0:
+                if not fixed_L:
                     if above and ynew[0] < phi_ss:
                         if not dense_ready:
                             _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
@@ -430,7 +433,7 @@ def integrate(
                         stop_x = 1.0
                         stop_status = 6
                 elif fnew[0] < 0.0:
-                    # v_o = 0: L decreases monotonically below L*, so once d phi/ds < 0
+                    # v_o = 0 or kappa = 0: L decreases monotonically below L*, so once d phi/ds < 0
                     # it stays negative and the maximum is behind us.
                     stop_x = 1.0
                     stop_status = 3

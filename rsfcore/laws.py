@@ -37,13 +37,13 @@ __all__ = [
     "EXP_CLIP",
 ]
 
-#: Largest exponent used inside G: exp(700) ~ 1e304 is finite in binary64.
-EXP_CLIP = 700.0
+#: Largest exponent used inside G: exp(600) ~ 4e260, so (b/a) G stays finite for b/a <= 1e6.
+EXP_CLIP = 600.0
 
 _SERIES = 1.0e-4
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def G(L: float, eps: float) -> float:
     """G(L) = expm1(-eps L)/eps of `eq: intermediate state evolution law`.
 
@@ -58,11 +58,11 @@ def G(L: float, eps: float) -> float:
     return math.expm1(-x) / eps
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def G_clipped(L: float, eps: float) -> float:
     """G(L) with the exponent -eps L clipped at EXP_CLIP, so it never overflows.
 
-    Differs from G only where G > e^700/eps, i.e. for theta e^phi < e^(-700/eps):
+    Differs from G only where G > e^600/eps, i.e. for theta e^phi < e^(-600/eps):
     there the engine's time rescaling has already made the state rate saturate.
     """
     if eps * L < -EXP_CLIP:
@@ -81,19 +81,19 @@ def state_rate(V: float, theta: float, Dc: float, eps: float) -> float:
     return G(math.log(omega), eps) * omega
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def x_param(kappa: float, kappa_crit: float, eps: float) -> float:
     """x = eps kappa / kappa_crit; a finite runaway exists only while x < 1."""
     return eps * kappa / kappa_crit
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def runaway_possible(kappa: float, kappa_crit: float, eps: float, tol: float) -> bool:
     """True when x = eps kappa/kappa_crit < 1 - tol (`eq: critical trajectory condition`)."""
     return eps * kappa < kappa_crit * (1.0 - tol)
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def L_star(kappa: float, kappa_crit: float, eps: float) -> float:
     """Root L* of g(L) = -kappa - kappa_crit G(L): L* = -log1p(-x)/eps, x = eps kappa/kappa_crit.
 

@@ -37,10 +37,11 @@ quadrature is needed and every matrix entry is exact to rounding.
 
 Convergence (measured against the reference values, double precision):
 the error of the smallest eigenvalue decays *algebraically*, as n^-6, not
-geometrically: the eigenfunctions are sqrt(d) times a series that contains
-d log d terms (d = distance to the tip), so their coefficients in either basis fall
-off only like j^-4 (checked for B: j^4 c_j -> -2.108).  Doubling n divides the error
-by 64.  Errors of eta_0:
+geometrically.  For B the eigenvector coefficients fall off like j^-4
+(j^4 c_j -> -2.108 with c_1 = 1), the signature of a sqrt(d) * d log d term at the
+tips (d = distance to the tip), so the eigenfunction is not sqrt(d) times an analytic
+function and no polynomial basis of this kind converges geometrically; E shows the
+same n^-6 rate.  Doubling n divides the error by 64.  Errors of eta_0:
 
     n      8        16       32       64       128
     B   1.3e-6   2.3e-8   3.8e-10  6.1e-12  9.5e-14
@@ -267,9 +268,9 @@ def circular_operator(g: Callable[[float], float], r: float) -> float:
     numerator's value there (its principal value is a logarithm; the remainder keeps
     only the weak (s - r) log|s - r| of E); the logarithmic singularity of K is left to
     adaptive quadrature split at s = r, K being evaluated through ``ellipkm1`` with
-    1 - m = ((r - s)/(r + s))^2 so that it stays accurate there.  Measured accuracy 3e-13 absolute for polynomial g on
-    1e-3 <= r <= 0.999 (~20 ms a point); meant for checking the printed kernel, not
-    for solving (use :func:`eigen_stiffness`).
+    1 - m = ((r - s)/(r + s))^2 so that it stays accurate there.  Measured accuracy
+    3e-13 absolute for polynomial g on 1e-3 <= r <= 0.999 (~20 ms a point); meant for
+    checking the printed kernel, not for solving (use :func:`eigen_stiffness`).
 
     Args:
         g: s -> sqrt(1 - s^2) d delta/ds, for s in [0, 1].
@@ -441,6 +442,7 @@ def stiffness_summary(case: str, mode: int = 0, **physical: object) -> dict[str,
         missing = [f for f in _PHYSICAL[:-1] if physical.get(f) is None]
         if missing:
             raise ParameterError(missing[0], None, "required when physical parameters are given")
-        out["critical_dimension_m"] = critical_dimension(case, mode=mode, **physical)  # type: ignore[arg-type]
+        dimension = critical_dimension(case, mode=mode, **physical)  # type: ignore[arg-type]
+        out["critical_dimension_m"] = dimension
         out["critical_dimension_name"] = _DIM_NAME[case]
     return out

@@ -11,8 +11,9 @@ A trajectory of `eq:psi_T` / `eq:phi_T` is integrated with the compiled DOP853 e
   |phi - ln v_o|, |L| < 1e-6.
 * ``U_negative_closed_orbit`` / ``U_nonnegative_open_orbit``: kappa = kappa_crit, v_o > 0,
   sign of the closed-form U of `eq: trajectories 1` (every orbit closed at eps = 1).
-* ``vo0_L_below_Lstar`` / ``vo0_L_at_or_above_Lstar``: v_o = 0, where dL/ds = g(L) exactly,
-  so the outcome is fixed by L at the start (`eq: limiting trajectory2`).
+* ``vo0_L_below_Lstar`` / ``vo0_L_above_Lstar`` / ``vo0_L_on_Lstar``: v_o = 0, where
+  dL/ds = g(L) exactly, so the outcome is fixed by L at the start (`eq: limiting
+  trajectory2`); ``kappa0_*`` the same for kappa = 0 (the spring never reloads).
 * ``no_runaway_possible``: eps kappa >= kappa_crit, so L* does not exist.
 * ``linear_instability``: kappa < kappa_crit and the step budget ran out before L > L*
   (every perturbation grows; Ruina 1983).
@@ -188,10 +189,17 @@ def _plan(p: Params, phi0: float, psi0: float) -> _Plan:
     kc = p.kappa_crit
     Ls = float(L_star(p.kappa, kc, p.eps))
     L0 = phi0 + (psi0 - phi0) / p.ba
-    if p.vo == 0.0:
-        if L0 >= Ls:
-            return _Plan(True, False, "unstable", "vo0_L_at_or_above_Lstar")
-        return _Plan(False, True, "stable", "vo0_L_below_Lstar" if math.isfinite(Ls) else "no_runaway_possible")
+    if p.vo == 0.0 or p.kappa == 0.0:
+        # dL/ds = g(L) exactly (no reloading by the load point): L is monotone and
+        # the outcome is fixed by L at the start (`eq: limiting trajectory2`).
+        tag = "vo0" if p.vo == 0.0 else "kappa0"
+        if L0 == Ls:
+            if p.kappa == 0.0:  # L* = 0: steady sliding at the constant stress psi0
+                return _Plan(False, False, "stable", "at_equilibrium")
+            return _Plan(True, False, "unstable", f"{tag}_L_on_Lstar")
+        if L0 > Ls:
+            return _Plan(True, False, "unstable", f"{tag}_L_above_Lstar")
+        return _Plan(False, True, "stable", f"{tag}_L_below_Lstar" if math.isfinite(Ls) else "no_runaway_possible")
     phi_ss = math.log(p.vo)
     if phi0 == phi_ss and L0 == 0.0:
         return _Plan(False, False, "stable", "at_equilibrium")
@@ -310,13 +318,26 @@ def simulate(
         t_end = check_range("t_end", t_end, 0.0, 1e12, lo_open=True)
 
     plan = _plan(p_run, phi0, psi0)
-    res, _ = _run(p_run, phi0, psi0, rtol, plan)
+    if plan.certificate in ("at_equilibrium",) or (plan.certificate or "").endswith("_L_on_Lstar"):
+        # decided in closed form; nothing to integrate
+        res = (-1, None, 0.0, math.nan, math.nan, phi0, 0.0, 0, 0, 0, 0.0, 0)
+    else:
+        res, _ = _run(p_run, phi0, psi0, rtol, plan)
     status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, n_steps, n_rhs, n_rej, err_sum, _ = res
     n_steps = int(n_steps + n_rej)
 
     runaway = not math.isnan(T_cert)
     blowup_time = return_time = None
-    if plan.certificate == "at_equilibrium":
+    if plan.certificate is not None and plan.certificate.endswith("_L_on_Lstar"):
+        # On the line L = L* itself dL/ds = 0 and d phi/dT = (kappa/kappa_crit) e^phi
+        # exactly, so the blow-up time is e^-phi0 kappa_crit/kappa (closed form; the
+        # integration cannot follow this repelling line).
+        outcome, cert = "unstable", plan.certificate
+        blowup_time = math.exp(-phi0) * p_run.kappa_crit / p_run.kappa if phi0 > -700 else math.inf
+        peak_phi, peak_T = math.inf, blowup_time
+        if not math.isfinite(blowup_time):
+            blowup_time = peak_T = None
+    elif plan.certificate == "at_equilibrium":
         outcome, cert = "stable", "at_equilibrium"
         peak_phi, peak_T = phi0, 0.0
     elif runaway:

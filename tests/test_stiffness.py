@@ -96,7 +96,8 @@ def test_D_higher_modes_closed_form_and_finite_differences():
         hstep = 2.0 / (m_interior + 1)
         diag = np.full(m_interior, 2.0 / hstep**2)
         off = np.full(m_interior - 1, -1.0 / hstep**2)
-        return linalg.eigh_tridiagonal(diag, off, eigvals_only=True, select="i", select_range=(0, 5))
+        return linalg.eigh_tridiagonal(diag, off, eigvals_only=True,
+                                       select="i", select_range=(0, 5))
 
     coarse, fine = fd(999), fd(1999)  # h and h/2
     extrapolated = (4.0 * fine - coarse) / 3.0

@@ -1,0 +1,1 @@
+"""API routers: computations, sweeps, health and cache statistics."""

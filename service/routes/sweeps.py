@@ -1,0 +1,122 @@
+"""Sweep endpoints: submit (202 + Location), list, status, paged points, cancel.
+
+A sweep's id is derived from its canonical spec and the numerics version, so submitting
+the same sweep twice returns the same sweep (``X-Cache: hit``) instead of recomputing.
+"""
+from __future__ import annotations
+
+import json
+import logging
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Query
+from starlette.concurrency import run_in_threadpool
+from starlette.responses import Response
+
+from worker import cache, sweeps
+
+from ..compute import numerics_version
+from ..errors import ProblemError
+from ..grid import expand
+from ..schemas import SweepRequest
+from ..settings import get_settings
+
+router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
+log = logging.getLogger("rsf.service")
+SweepId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="Sweep id (32 hex).")]
+_R = {422: {"description": "Invalid input (problem+json naming the field and its range)."}}
+_N = {404: {"description": "Unknown sweep (problem+json)."}}
+
+#: Expected seconds of work per point, for the default chunk size.
+_COST_S = {"critical": 0.05, "outcome": 0.01}
+
+
+def _json(obj: object, status: int = 200, headers: dict[str, str] | None = None) -> Response:
+    return Response(json.dumps(obj), status_code=status, media_type="application/json",
+                    headers=headers)
+
+
+def _unknown(sweep_id: str) -> ProblemError:
+    return ProblemError(404, "Not found", f"no sweep with id {sweep_id}")
+
+
+def _enqueue(sweep_id: str, chunk_ids: list[int]) -> str | None:
+    from worker.celery_app import send_chunk
+    try:
+        for c in chunk_ids:
+            send_chunk(sweep_id, c)
+    except Exception as exc:  # noqa: BLE001 - chunks stay queued; a worker start requeues
+        log.exception("could not enqueue sweep %s", sweep_id)
+        return f"broker unavailable ({type(exc).__name__}); queued chunks are sent when " \
+               "a worker starts"
+    return None
+
+
+@router.post("", status_code=202, responses={**_R, 200: {"description": "Already done."}},
+             summary="Submit a sweep")
+async def submit(req: SweepRequest) -> Response:
+    """Start a 2-D sweep over two of {kappa_ratio, eps, ba, size}; answers 202 with a
+    Location to poll. Per point: the critical size (kind, critical_size) or, when a size
+    is given or swept, the outcome. Identical submissions return the same sweep."""
+    s = get_settings()
+    spec = expand(req, s.sweep_max_points)
+    n_total = len(spec["x"]["values"]) * len(spec["y"]["values"])
+    version = numerics_version()
+    sweep_id = cache.cache_key("sweep", spec, version)[:32]
+    size_given = spec["fixed"]["size"] is not None or "size" in (req.x.name, req.y.name)
+    per = _COST_S["outcome" if size_given else "critical"]
+    chunk = req.chunk_points or max(1, min(10_000, int(s.chunk_seconds / per)))
+    created, todo = await run_in_threadpool(sweeps.create, sweep_id, spec, n_total, chunk,
+                                            version)
+    warning = await run_in_threadpool(_enqueue, sweep_id, todo) if todo else None
+    st = await run_in_threadpool(sweeps.status, sweep_id)
+    if st is None:  # pragma: no cover - created just above
+        raise _unknown(sweep_id)
+    st.pop("failures", None)
+    if warning:
+        st["warning"] = warning
+    loc = f"/v1/sweeps/{sweep_id}"
+    code = 200 if st["status"] == "done" else 202
+    return _json(st, code, {"Location": loc, "X-Cache": "miss" if created else "hit"})
+
+
+@router.get("", summary="List sweeps")
+async def list_all(limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+                   offset: Annotated[int, Query(ge=0, le=10**9)] = 0) -> Response:
+    """Sweeps, newest first, with status and progress."""
+    return _json({"sweeps": await run_in_threadpool(sweeps.list_sweeps, limit, offset)})
+
+
+@router.get("/{sweep_id}", responses=_N, summary="Sweep status")
+async def get_status(sweep_id: SweepId) -> Response:
+    """status (queued|running|done|cancelled), n_done, n_total, n_failed, eta_s [s],
+    failures (first 100, with messages)."""
+    st = await run_in_threadpool(sweeps.status, sweep_id)
+    if st is None:
+        raise _unknown(sweep_id)
+    return _json(st)
+
+
+@router.get("/{sweep_id}/points", responses=_N, summary="Sweep points (paged)")
+async def get_points(sweep_id: SweepId,
+                     offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+                     limit: Annotated[int, Query(ge=1, le=10_000)] = 1000) -> Response:
+    """Stored points ordered by flat index idx = i*n_y + j, available while running.
+    Each point: idx, i, j, x, y, kind, critical_size, outcome, rel_accuracy, error."""
+    st = await run_in_threadpool(sweeps.status, sweep_id)
+    if st is None:
+        raise _unknown(sweep_id)
+    pts = await run_in_threadpool(sweeps.page_points, sweep_id, offset, limit)
+    nxt = offset + len(pts) if len(pts) == limit else None
+    return _json({"id": sweep_id, "status": st["status"], "n_done": st["n_done"],
+                  "n_total": st["n_total"], "offset": offset, "limit": limit,
+                  "next_offset": nxt, "points": pts})
+
+
+@router.delete("/{sweep_id}", responses=_N, summary="Cancel a sweep")
+async def cancel(sweep_id: SweepId) -> Response:
+    """Cancel: queued chunks are dropped, running chunks stop at their next point."""
+    new = await run_in_threadpool(sweeps.cancel, sweep_id)
+    if new is None:
+        raise _unknown(sweep_id)
+    return _json(await run_in_threadpool(sweeps.status, sweep_id))

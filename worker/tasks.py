@@ -1,0 +1,91 @@
+"""Celery tasks: compute one chunk of a sweep and store its points.
+
+A chunk is a range [i0, i1) of flat grid indices (idx = i * n_y + j).  Points already
+stored (from a killed earlier attempt) are skipped; writes are idempotent, so a chunk
+may safely run again.  Cancellation is checked between points (at most every 0.2 s).
+"""
+from __future__ import annotations
+
+import logging
+import time
+from itertools import groupby
+from typing import Any
+
+from service.settings import get_settings
+
+from . import sweeps
+from .celery_app import app
+from .sweep_compute import compute_segment
+
+__all__ = ["run_chunk"]
+log = logging.getLogger("rsf.worker")
+
+
+class _CancelProbe:
+    """Callable telling whether the sweep was cancelled, polling the DB at most every dt."""
+
+    def __init__(self, sweep_id: str, dt: float = 0.2) -> None:
+        self.sweep_id, self.dt, self.t, self.state = sweep_id, dt, 0.0, False
+
+    def __call__(self) -> bool:
+        now = time.monotonic()
+        if not self.state and now - self.t >= self.dt:
+            self.t = now
+            self.state = sweeps.is_cancelled(self.sweep_id)
+        return self.state
+
+
+def _segments(todo: list[int], ny: int) -> list[tuple[int, list[int]]]:
+    """Group flat indices by row i: [(i, [j, ...]), ...]."""
+    return [(i, [k % ny for k in grp]) for i, grp in groupby(todo, key=lambda k: k // ny)]
+
+
+def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
+    """Compute and store one chunk; returns a small summary (also for direct calls)."""
+    s = get_settings()
+    rng = sweeps.claim(sweep_id, idx, s.lease_s)
+    if rng is None:
+        return {"skipped": True}
+    i0, i1 = rng
+    spec = sweeps.get_spec(sweep_id)
+    xs, ys = spec["x"]["values"], spec["y"]["values"]
+    ny = len(ys)
+    have = sweeps.done_indices(sweep_id, i0, i1)
+    todo = [k for k in range(i0, i1) if k not in have]
+    probe = _CancelProbe(sweep_id)
+    per_point = bool(spec.get("per_point", True))
+    n_new = 0
+    for i, js in _segments(todo, ny):
+        if probe():
+            sweeps.finish_chunk(sweep_id, idx, complete=False)
+            return {"cancelled": True, "stored": n_new}
+        res = compute_segment(spec, xs[i], [ys[j] for j in js], cancelled=probe,
+                              per_point=per_point)
+        rows = [dict(r, idx=i * ny + j, i=i, j=j, x=xs[i], y=ys[j]) for j, r in zip(js, res)]
+        n_new += sweeps.store_points(sweep_id, idx, rows)
+        if len(res) < len(js):
+            sweeps.finish_chunk(sweep_id, idx, complete=False)
+            return {"cancelled": True, "stored": n_new}
+    sweeps.finish_chunk(sweep_id, idx, complete=True)
+    return {"stored": n_new}
+
+
+@app.task(name="worker.tasks.run_chunk", bind=True, acks_late=True,
+          reject_on_worker_lost=True, max_retries=5)
+def run_chunk(self, sweep_id: str, idx: int) -> dict[str, Any]:  # noqa: ANN001
+    """Celery entry point; on an infrastructure error (e.g. DB locked) retry later."""
+    try:
+        return run_chunk_body(sweep_id, idx)
+    except Exception as exc:  # noqa: BLE001
+        log.exception("chunk %s/%d failed; retrying", sweep_id, idx)
+        try:
+            from sqlalchemy import and_, update
+
+            from . import db
+            with db.write() as conn:
+                conn.execute(update(sweeps.chunks).where(and_(
+                    sweeps.chunks.c.sweep_id == sweep_id, sweeps.chunks.c.idx == idx,
+                    sweeps.chunks.c.status == "running")).values(status="queued", owner=None))
+        except Exception:  # noqa: BLE001
+            log.exception("could not release chunk %s/%d", sweep_id, idx)
+        raise self.retry(exc=exc, countdown=2.0)
