@@ -262,6 +262,7 @@ def classify(
     *,
     start: tuple[float, float] | None = None,
     rtol: float = DEFAULT_RTOL,
+    method: Literal["auto", "integrate"] = "auto",
 ) -> TrajectoryResult:
     """Certified stable/unstable outcome of one perturbation (no trajectory returned).
 
@@ -276,7 +277,7 @@ def classify(
     true peak.  Raises UndecidedError if no certificate is reached within the budget
     (2e6 steps), ParameterError on invalid input.
     """
-    return simulate(params, perturbation, size, start=start, rtol=rtol)
+    return simulate(params, perturbation, size, start=start, rtol=rtol, method=method)
 
 
 def simulate(
@@ -291,6 +292,7 @@ def simulate(
     times: Sequence[float] | None = None,
     sampling: Literal["tau", "time"] = "tau",
     physical: PhysicalParams | None = None,
+    method: Literal["auto", "integrate"] = "auto",
 ) -> TrajectoryResult:
     """Classify a perturbation and optionally return its trajectory.
 
@@ -302,6 +304,8 @@ def simulate(
     decision (return to steady state, blow-up, or the passed peak for v_o = 0); with
     ``t_end`` it runs to that T (or to blow-up if earlier).  ``physical`` adds SI
     columns: t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m.
+    ``method="integrate"`` ignores closed-form decisions (kappa = kappa_crit, v_o = 0)
+    and certifies by integration alone, to check the closed forms.
     """
     rtol = _check_rtol(rtol)
     if start is not None:
@@ -318,6 +322,15 @@ def simulate(
         t_end = check_range("t_end", t_end, 0.0, 1e12, lo_open=True)
 
     plan = _plan(p_run, phi0, psi0)
+    if method == "integrate" and plan.outcome is not None and plan.certificate != "at_equilibrium":
+        # ignore the closed-form decision: certify by integration alone (used to check
+        # the closed forms against direct integration)
+        if p_run.vo == 0.0 or p_run.kappa == 0.0:
+            plan = _Plan(True, True, None, None)
+        else:
+            plan = _Plan(True, True, None, None) if p_run.kappa >= p_run.kappa_crit else _Plan(True, False, None, None)
+    elif method != "auto":
+        raise ParameterError("method", method, "'auto' or 'integrate'")
     if plan.certificate in ("at_equilibrium",) or (plan.certificate or "").endswith("_L_on_Lstar"):
         # decided in closed form; nothing to integrate
         res = (-1, None, 0.0, math.nan, math.nan, phi0, 0.0, 0, 0, 0, 0.0, 0)

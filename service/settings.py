@@ -74,6 +74,7 @@ class Settings(BaseSettings):
             "processed_folder": str(folders["processed"]),
             "control_folder": str(folders["control"]),
             "store_processed": False,
+            "polling_interval": 0.1,
         }
 
 
