@@ -15,7 +15,7 @@ so that every right-hand side below is bounded by max(kappa (1 + v_o/c), 1) + 1:
 
     d phi/dtau     = [kappa (v_o (1 - a_phi)/c - a_phi) - (b/a) G(L) a_phi] / D
     d ln theta/dtau = G(L) a_phi / D
-    dT/dtau        = (1 - a_phi)/(c D)
+    d(cT)/dtau     = (1 - a_phi)/D       (the engine carries c T internally)
     ds/dtau        = a_phi / D
     ds_o/dtau      = v_o (1 - a_phi)/(c D)
 
@@ -97,7 +97,7 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
     load = vo * om / c
     out[0] = (kappa * (load - ap) - z) * inv_d
     out[1] = g * ap * inv_d
-    out[2] = om / c * inv_d
+    out[2] = om * inv_d  # d(c T)/dtau: the engine carries c T, which is O(tau) for any v_o
     out[3] = ap * inv_d
     out[4] = load * inv_d
 
@@ -220,7 +220,7 @@ def integrate(
     max_steps,
     eq_tol,
     sample_tau,
-    sample_T,
+    sample_T_in,
     samples,
 ):
     """Integrate from y0 = (phi, ln theta, T, s, s_o) until a certificate or a stop.
@@ -256,9 +256,15 @@ def integrate(
     fixed_L = vo == 0.0 or kappa == 0.0
     phi_ss = math.log(vo) if not fixed_L else -math.inf
 
+    # Internally the time component is c T (so that it stays O(tau) for any v_o);
+    # inputs and outputs are in T.
+    t_end = t_end * c
+    sample_T = sample_T_in * c
+
     K = np.empty((_NSE, n))
     F = np.empty((7, n))
     y = y0.copy()
+    y[2] *= c
     ynew = np.empty(n)
     tmp = np.empty(n)
     ftmp = np.empty(n)
@@ -324,7 +330,10 @@ def integrate(
         i_T += 1
 
     if y[2] >= t_end:
-        return (0, y, tau, T_cert, T_return, peak_phi, peak_T, 0, n_rhs, 0, 0.0, n_filled)
+        y[2] /= c
+        for i in range(n_filled):
+            samples[i, 2] /= c
+        return (0, y, tau, T_cert, T_return, peak_phi, peak_T / c, 0, n_rhs, 0, 0.0, n_filled)
     if check_runaway and y[0] + y[1] > Lstar:
         runaway = True
         T_cert = y[2]
@@ -360,7 +369,10 @@ def integrate(
         for j in range(n):
             if not math.isfinite(ynew[j]):
                 finite = False
-            sc = atol + max(abs(y[j]), abs(ynew[j])) * rtol
+            # phi, ln theta: mixed absolute/relative; T, s, s_o (non-decreasing
+            # integrals from 0): purely relative, so that short blow-up times keep
+            # their relative accuracy.
+            sc = (atol if j < 2 else 1e-300) + max(abs(y[j]), abs(ynew[j])) * rtol
             a5 = 0.0
             a3 = 0.0
             for m in range(_NS + 1):
@@ -525,4 +537,7 @@ def integrate(
 
     if status == 4 and runaway:
         status = 1 if y[0] - lnc > phi_stop else 4
-    return (status, y, tau, T_cert, T_return, peak_phi, peak_T, n_steps, n_rhs, n_rej, err_sum, n_filled)
+    y[2] /= c
+    for i in range(n_filled):
+        samples[i, 2] /= c
+    return (status, y, tau, T_cert / c, T_return / c, peak_phi, peak_T / c, n_steps, n_rhs, n_rej, err_sum, n_filled)

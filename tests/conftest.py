@@ -137,6 +137,12 @@ class Worker(Proc):
         self.stop()
         raise RuntimeError("celery worker did not become ready:\n" + self.tail())
 
+    def stop(self, timeout: float = 10.0) -> None:
+        """SIGKILL: the sweeps survive it by design, and a Celery warm or cold shutdown
+        on the filesystem transport takes seconds (its loop blocks in drain_events)."""
+        self.kill(signal.SIGKILL)
+        self.p.wait(timeout)
+
 
 class Redis(Proc):
     """redis-server on 127.0.0.1:<free port>, no persistence."""

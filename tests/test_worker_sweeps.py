@@ -11,7 +11,7 @@ from typing import Any, Callable
 
 import httpx
 import pytest
-from conftest import Redis, Server, Worker
+from tests.conftest import Redis, Server, Worker
 
 pytestmark = pytest.mark.timeout(180)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 
 from celery import Celery
-from celery.signals import worker_ready
+from celery.signals import worker_init, worker_ready
 
 from service.settings import get_settings
 
@@ -50,6 +50,18 @@ app = make_app()
 def send_chunk(sweep_id: str, idx: int) -> None:
     """Enqueue chunk ``idx`` of sweep ``sweep_id``."""
     app.send_task("worker.tasks.run_chunk", args=[sweep_id, idx], queue=get_settings().queue)
+
+
+@worker_init.connect
+def _warm_up(**_kw: object) -> None:
+    """Load rsfcore's compiled kernels once, before the pool forks."""
+    try:
+        from rsfcore import critical, trajectory
+        from rsfcore.params import Params
+        trajectory.classify(Params(2.0, 0.5, 0.5, 1.0), "velocity-jump", 0.1)
+        critical.critical_perturbation(Params(2.0, 1.5, 0.5, 1.0))
+    except Exception:  # noqa: BLE001 - warm-up only
+        log.exception("rsfcore warm-up failed")
 
 
 @worker_ready.connect

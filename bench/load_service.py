@@ -1,0 +1,218 @@
+#!/usr/bin/env python3
+"""Load test of the service on loopback (bounded in requests and time).
+
+    python bench/load_service.py                 # starts `rsf serve` (embedded worker) itself
+    python bench/load_service.py --url http://127.0.0.1:8000   # an already running server
+
+Prints p50/p99 latency [ms] and throughput [req/s] for: cached lookups (repeated
+classify queries), closed-form queries (analytic U at fresh points), fresh
+classifications (new parameters each time), and the wall time of a 100 x 100 = 10^4-point
+critical-size sweep through the worker against the same sweep computed by rsfcore alone
+in this process.  Targets (2-core machine): cached >= 500 req/s with p99 <= 50 ms;
+sweep within 3x of rsfcore alone.  Every phase stops at --max-requests or --seconds.
+"""
+from __future__ import annotations
+
+import argparse
+import http.client
+import json
+import multiprocessing as mp
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from urllib.parse import urlparse
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _client_loop(args: tuple) -> tuple[list[float], int]:
+    """One client process: keep-alive connection, closed loop; (latencies [s], errors)."""
+    host, port, kind, n_max, t_end, seed, bodies = args
+    rnd = random.Random(seed)
+    conn = http.client.HTTPConnection(host, port, timeout=30)
+    lat: list[float] = []
+    errors = 0
+    i = 0
+    while i < n_max and time.perf_counter() < t_end:
+        if kind == "cached":
+            path, body = "/v1/classify", bodies[i % len(bodies)]
+        elif kind == "closed":
+            path, body = "/v1/analytic/u", {"eps": rnd.random(), "ba": 1.5 + rnd.random(),
+                                            "points": [{"phi": rnd.uniform(-3, 3),
+                                                        "psi": rnd.uniform(-3, 3)}]}
+        else:
+            path, body = "/v1/classify", {"ba": 1.5 + 2 * rnd.random(),
+                                          "kappa": 3 * rnd.random(), "eps": rnd.random(),
+                                          "size": rnd.uniform(0.1, 3)}
+        data = json.dumps(body)
+        t0 = time.perf_counter()
+        conn.request("POST", path, data, {"Content-Type": "application/json"})
+        r = conn.getresponse()
+        r.read()
+        lat.append(time.perf_counter() - t0)
+        if r.status != 200 or (kind == "cached" and r.getheader("X-Cache") != "hit"):
+            errors += 1
+        i += 1
+    conn.close()
+    return lat, errors
+
+
+def _pct(xs: list[float], q: float) -> float:
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(q * len(xs)))] if xs else float("nan")
+
+
+def phase(url: str, kind: str, clients: int, max_requests: int, seconds: float,
+          bodies: list[dict]) -> dict:
+    u = urlparse(url)
+    t0 = time.perf_counter()
+    t_end = t0 + seconds
+    per = max(1, max_requests // clients)
+    with mp.get_context("fork").Pool(clients) as pool:
+        res = pool.map(_client_loop, [(u.hostname, u.port, kind, per, t_end, 1000 * k + 7,
+                                       bodies) for k in range(clients)])
+    wall = time.perf_counter() - t0
+    lat = [x for r in res for x in r[0]]
+    return {"kind": kind, "n": len(lat), "errors": sum(r[1] for r in res),
+            "req_per_s": len(lat) / wall, "p50_ms": 1e3 * _pct(lat, 0.5),
+            "p99_ms": 1e3 * _pct(lat, 0.99)}
+
+
+def _req(url: str, method: str, path: str, body: dict | None = None) -> tuple[int, dict, dict]:
+    u = urlparse(url)
+    c = http.client.HTTPConnection(u.hostname, u.port, timeout=60)
+    c.request(method, path, None if body is None else json.dumps(body),
+              {"Content-Type": "application/json"})
+    r = c.getresponse()
+    data = json.loads(r.read() or b"{}")
+    headers = dict(r.getheaders())
+    c.close()
+    return r.status, data, headers
+
+
+def sweep_vs_core(url: str, n: int, timeout: float) -> dict:
+    """Wall time of an n x n critical-size sweep via the service and via rsfcore alone."""
+    ba = round(random.uniform(1.5, 4.0), 6)  # fresh spec: no cache hit
+    kr = [0.5 + 2.5 * i / (n - 1) for i in range(n)]
+    eps = [i / (n - 1) for i in range(n)]
+    body = {"x": {"name": "kappa_ratio", "values": kr}, "y": {"name": "eps", "values": eps},
+            "fixed": {"ba": ba, "vo": 1.0}}
+    t0 = time.perf_counter()
+    code, st, h = _req(url, "POST", "/v1/sweeps", body)
+    if code not in (200, 202):
+        raise SystemExit(f"sweep submit failed: {code} {st}")
+    loc = h.get("location") or h.get("Location")
+    while st.get("status") not in ("done", "cancelled") and time.perf_counter() - t0 < timeout:
+        time.sleep(0.02)
+        _, st, _ = _req(url, "GET", loc)
+    t_service = time.perf_counter() - t0
+    from rsfcore import critical
+    from rsfcore.params import Params
+    critical.critical_perturbation(Params(2.0, 1.5, 0.5, 1.0))  # compiled kernels loaded
+    t0 = time.perf_counter()
+    try:
+        from rsfcore import diagram
+        diagram.stability_diagram("kappa_ratio", kr, "eps", eps, ba=ba, vo=1.0)
+        how = "rsfcore.diagram.stability_diagram"
+    except ImportError:
+        for x in kr:
+            for y in eps:
+                critical.critical_perturbation(Params.from_ratio(ba, x, y, 1.0))
+        how = "rsfcore.critical per point"
+    t_core = time.perf_counter() - t0
+    return {"points": n * n, "status": st.get("status"), "n_done": st.get("n_done"),
+            "n_failed": st.get("n_failed"), "service_s": t_service, "core_s": t_core,
+            "core_how": how, "ratio": t_service / t_core}
+
+
+def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
+    port = _free_port()
+    code = f"from rsfcli.serve import serve; serve('127.0.0.1', {port}, {data_dir!r})"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
+    log = open(Path(data_dir) / "serve.log", "wb")  # noqa: SIM115
+    p = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env, stdout=log,
+                         stderr=log, start_new_session=True)
+    url = f"http://127.0.0.1:{port}"
+    for _ in range(300):
+        try:
+            if _req(url, "GET", "/health")[0] == 200:
+                break
+        except OSError:
+            time.sleep(0.1)
+    else:
+        raise SystemExit("server did not start; see " + str(Path(data_dir) / "serve.log"))
+    # Wait for the embedded worker to be ready.
+    wlog = Path(data_dir) / "worker.log"
+    for _ in range(300):
+        if wlog.exists() and " ready." in wlog.read_text(errors="replace"):
+            break
+        time.sleep(0.1)
+    return p, url
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--url", help="running server (default: start rsf serve on a free port)")
+    ap.add_argument("--clients", type=int, default=4, help="client processes (1..32)")
+    ap.add_argument("--max-requests", type=int, default=5000, help="per phase (<= 10^5)")
+    ap.add_argument("--seconds", type=float, default=5.0, help="per phase (<= 60)")
+    ap.add_argument("--sweep-n", type=int, default=100, help="sweep is n x n (2..200)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    a = ap.parse_args()
+    clients = min(max(a.clients, 1), 32)
+    max_req = min(max(a.max_requests, 1), 100_000)
+    secs = min(max(a.seconds, 0.5), 60.0)
+    proc = None
+    url = a.url
+    if url is None:
+        tmp = tempfile.mkdtemp(prefix="rsf-bench-")
+        proc, url = start_server(tmp)
+    try:
+        bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0}
+                  for k in range(50)]
+        for b in bodies:  # warm the cache
+            _req(url, "POST", "/v1/classify", b)
+        out = {"url": url, "clients": clients, "phases": [
+            phase(url, k, clients, max_req, secs, bodies)
+            for k in ("cached", "closed", "fresh")]}
+        out["sweep"] = sweep_vs_core(url, min(max(a.sweep_n, 2), 200), 600)
+    finally:
+        if proc is not None:
+            os.killpg(proc.pid, signal.SIGTERM)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+    if a.json:
+        print(json.dumps(out))
+        return 0
+    print(f"server {url}, {clients} client processes, <= {max_req} requests / {secs:g} s "
+          "per phase")
+    print(f"{'phase':<8} {'requests':>9} {'errors':>7} {'req/s':>9} {'p50 ms':>8} {'p99 ms':>8}")
+    for p in out["phases"]:
+        print(f"{p['kind']:<8} {p['n']:>9} {p['errors']:>7} {p['req_per_s']:>9.0f} "
+              f"{p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}")
+    s = out["sweep"]
+    print(f"sweep {s['points']} points: service {s['service_s']:.2f} s ({s['status']}, "
+          f"{s['n_done']} done, {s['n_failed']} failed) vs {s['core_how']} {s['core_s']:.2f} s"
+          f" -> {s['ratio']:.2f}x")
+    c = out["phases"][0]
+    ok = c["req_per_s"] >= 500 and c["p99_ms"] <= 50 and s["ratio"] <= 3
+    print("targets (cached >= 500 req/s, p99 <= 50 ms; sweep <= 3x):", "MET" if ok else "NOT MET")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,671 @@
+"""Critical perturbation sizes: velocity jumps and load-point jumps (Ciardo & Viesca).
+
+For given (b/a, kappa, eps, v_o) the critical size of a perturbation is the smallest size
+that makes the slip rate run away in finite time.  Its *kind* is
+
+* ``zero``: every perturbation, however small, grows (kappa < kappa_crit, v_o > 0; linear
+  instability, Ruina 1983; or kappa = 0, v_o = 0);
+* ``infinite``: no perturbation of that kind ever runs away (eps kappa >= kappa_crit,
+  `eq: critical trajectory condition`; in particular the aging law at kappa = kappa_crit);
+* ``finite``: sizes above ``critical_size`` run away, smaller ones return.
+
+Sizes: a velocity jump of size d moves (phi, psi) by (d, d) from steady sliding (slip rate
+times e^d at constant state); a load-point jump of size dv changes v_o to v_o (1 + dv).
+Both critical sizes are independent of v_o > 0 (the system is invariant under
+phi -> phi + ln v_o, psi -> psi + (1 - b/a) ln v_o, T -> v_o T).
+
+Methods, in the order they are tried:
+
+1. exact decisions: zero / infinite as above (O(1));
+2. closed forms: v_o = 0 velocity jump, d_crit = L* (`eq: analytical phi crit`);
+   kappa = kappa_crit velocity jump, the intersection of psi = phi with the critical
+   trajectory U = 0 (`eq: limiting trajectory 1`, solved by safeguarded Newton to 1e-15;
+   Lambert W at eps = 0); kappa = kappa_crit load-point jump, dv = 1/(kappa_crit (1 - eps));
+3. otherwise (kappa > kappa_crit, x = eps kappa/kappa_crit < 1, v_o > 0) the *separatrix*
+   method: with s_theta = ln theta = (psi - phi)/(b/a) and u = L = phi + s_theta, the
+   trajectory that separates return from runaway is the one with L -> L* as phi -> +inf.
+   Along it s_theta is monotone while L > 0, and it solves the scalar ODE
+
+       du/ds_theta = kappa expm1(s_theta - u)/G(u) - kappa_crit,        (A)
+
+   which is integrated from its asymptotic expansion far out (phi ~ L* - s_theta >= 30),
+
+       u = L* - c1 z - c2 z^2 + O(z^3),   z = e^(s_theta - L*),
+       c1 = kappa/(lambda + mu),  lambda = kappa_crit - eps kappa,  mu = kappa/kappa_crit,
+       c2 = kappa_crit c1 [1 + (1 - x) c1/mu - ((1 - x)^2/mu^2 + eps (1 - x)/(2 mu)) c1^2 ... ]
+
+   (see :func:`asymptotic_start`), towards increasing s_theta, where the separatrix
+   attracts its neighbours, so errors decay.  The velocity-jump start points are the line
+   s_theta = 0 (there u = L = d), so d_crit = u(0).  The load-point jump start, in the
+   v_o = 1 frame, is (phi, psi) = (-l, (b/a - 1) l), l = ln(1 + dv): s_theta = l and L = 0.
+   The separatrix reaches L = 0 where s_theta has its maximum (d s_theta/ds = G(L) = 0),
+   so (A) is singular there; near it the roles are swapped and
+
+       d s_theta/du = G(u) / (kappa expm1(s_theta - u) - kappa_crit G(u))      (B)
+
+   is integrated down to u = 0 exactly; then dv = expm1(s_theta).  Both are run by a
+   compiled scalar DOP853 (Dormand-Prince 8(5,3), tableau from scipy's copy of Hairer's
+   coefficients, stepping and error control written here).  The separatrix method finds
+   the crossing nearest to infinity; whenever its assumptions fail (u reaches 0 before
+   s_theta = 0 for a velocity jump, u stops decreasing before L = 0 for a load-point
+   jump, step-size underflow) it reports failure and :func:`bisect_critical` is used.
+4. :func:`bisect_critical`: bisection on the certified outcomes of
+   :func:`rsfcore.trajectory.classify` (independent cross-check and fallback).
+
+Delivered accuracy: ``rel_accuracy`` of the separatrix method is the sum of the absolute
+local error estimates of the accepted steps divided by the result (an upper bound in
+practice, because the separatrix attracts; see tests/test_critical.py), plus the
+truncation of the asymptotic start (< 1e-17 by construction).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numba as nb
+import numpy as np
+from scipy.integrate._ivp import dop853_coefficients as _coef
+
+from .laws import G, L_star
+from .params import ParameterError, Params, check_range
+
+__all__ = [
+    "CriticalResult",
+    "critical_perturbation",
+    "bisect_critical",
+    "asymptotic_start",
+    "separatrix_raw",
+    "PERTURBATIONS",
+    "KINDS",
+    "METHODS",
+    "BOUNDARY_RTOL",
+    "DEFAULT_RTOL",
+]
+
+PERTURBATIONS: tuple[str, ...] = ("velocity-jump", "load-point-jump")
+#: kind codes used by the compiled kernels and by rsfcore.diagram
+KIND_ZERO, KIND_FINITE, KIND_INFINITE = 0, 1, 2
+KINDS: tuple[str, ...] = ("zero", "finite", "infinite")
+
+# method codes (index into METHODS)
+M_ZERO_LINEAR = 0
+M_INF_NO_RUNAWAY = 1
+M_CF_VJUMP_KCRIT = 2
+M_CF_LJUMP_KCRIT = 3
+M_CF_VO0 = 4
+M_SEPARATRIX = 5
+M_BISECTION = 6
+M_ZERO_VO0 = 7
+M_INF_BEYOND_RANGE = 8
+METHODS: tuple[str, ...] = (
+    "zero: kappa < kappa_crit with a moving load point (linear instability)",
+    "infinite: eps*kappa >= kappa_crit, no runaway possible (eq: critical trajectory condition)",
+    "closed form: eq: limiting trajectory 1 with psi = phi (kappa = kappa_crit)",
+    "closed form: load-point jump at kappa = kappa_crit, dv = 1/(kappa_crit (1 - eps)) (eq: trajectories 1)",
+    "closed form: eq: analytical phi crit (v_o = 0), d_crit = L*",
+    "separatrix: backward integration of the separatrix from its asymptote (compiled DOP853)",
+    "bisection on certified classify() outcomes",
+    "zero: kappa = 0 with a stationary load point (L* = 0)",
+    "infinite within double range: the separatrix reaches L = 0 only beyond ln(1 + dv) = 709 (dv > 8e307), so no representable load-point jump runs away",
+)
+
+# flag bits of the compiled kernel
+FLAG_ON_X1 = 1  # eps*kappa/kappa_crit = 1 up to rounding
+FLAG_ON_KCRIT = 2  # kappa = kappa_crit up to rounding
+FLAG_FALLBACK = 4  # separatrix method failed: use bisection
+
+#: Relative band within which x = eps kappa/kappa_crit = 1 or kappa = kappa_crit are taken
+#: as exact (rounding of the inputs: ~450 ulp).  Points inside are flagged ``on_boundary``.
+BOUNDARY_RTOL = 1.0e-13
+DEFAULT_RTOL = 1.0e-10
+RTOL_RANGE = (1.0e-13, 1.0e-3)
+
+# --- DOP853 tableau (facts of the method; values from scipy's copy of Hairer's DOP853) ---
+_A = np.ascontiguousarray(_coef.A[:13, :13], dtype=np.float64)
+_B = np.ascontiguousarray(_coef.B, dtype=np.float64)
+_C = np.ascontiguousarray(_coef.C[:13], dtype=np.float64)
+_E3 = np.ascontiguousarray(_coef.E3, dtype=np.float64)
+_E5 = np.ascontiguousarray(_coef.E5, dtype=np.float64)
+
+#: internal tolerance = requested rtol times this factor (calibrated in the tests: the
+#: delivered error stays below the requested rtol over the test sample)
+_TOL_FACTOR = 0.1
+#: c z0 of the asymptotic start at rtol = 1e-10 (scaled as rtol^(1/3) for other rtol)
+_Z_TARGET = 1.0e-5
+_S0_MAX = -5.0
+_MAX_STEPS = 200_000
+
+# separatrix status codes
+S_OK = 0
+S_U_NONPOSITIVE = 1  # velocity jump: separatrix reached L = 0 before s_theta = 0
+S_TURNING = 2  # load-point jump: L stopped decreasing before L = 0
+S_UNDERFLOW = 3  # step size underflow
+S_BUDGET = 4  # step budget exhausted
+S_OVERFLOW = 5  # s_theta - u beyond the double range
+S_NO_START = 6  # asymptotic start not usable
+
+
+@nb.njit(cache=True, nogil=True)
+def _log1p_over(eps, x):
+    """log1p(eps x)/eps with the exact limit x at eps = 0 (series for |eps x| < 1e-4)."""
+    ex = eps * x
+    if abs(ex) < 1.0e-4:
+        return x * (1.0 - ex * (0.5 - ex * (1.0 / 3.0 - ex * 0.25)))
+    return math.log1p(ex) / eps
+
+
+@nb.njit(cache=True, nogil=True)
+def _vjump_kcrit(ba, eps):
+    """Critical velocity jump at kappa = kappa_crit, v_o > 0 (compiled).
+
+    Root of h(d) = d + log1p(eps R)/eps, R = (1 - eps) kc e^(-d)/D - 1, D = ba(1 - eps) + eps,
+    which is psi_crit(d) = d for `eq: limiting trajectory 1` (psi_crit - d = -ba h).
+    h(0) < 0 <= h(L*); safeguarded Newton (bisection fallback) to |dd| <= 4e-16 d.
+    Returns inf at eps = 1.
+    """
+    if eps >= 1.0:
+        return math.inf
+    kc = ba - 1.0
+    D = ba * (1.0 - eps) + eps
+    q = (1.0 - eps) * kc / D
+    lo = 0.0
+    hi = L_star(kc, kc, eps)
+    # h(hi) >= 0 (the critical trajectory stays below L = L*); guard anyway
+    for _ in range(60):
+        R = q * math.exp(-hi) - 1.0
+        if hi + _log1p_over(eps, R) >= 0.0:
+            break
+        hi *= 2.0
+    d = 0.5 * (lo + hi)
+    for _ in range(200):
+        e = q * math.exp(-d)
+        R = e - 1.0
+        h = d + _log1p_over(eps, R)
+        if h == 0.0:
+            return d
+        if h < 0.0:
+            lo = d
+        else:
+            hi = d
+        # h'(d) = 1 - e/(1 + eps R)
+        dh = 1.0 - e / (1.0 + eps * R)
+        dn = d - h / dh if dh > 0.0 else 0.5 * (lo + hi)
+        if not (dn > lo and dn < hi):
+            dn = 0.5 * (lo + hi)
+        if abs(dn - d) <= 4.0e-16 * abs(dn) or hi - lo <= 4.0e-16 * hi:
+            return dn
+        d = dn
+    return d
+
+
+@nb.njit(cache=True, nogil=True)
+def _asym_coeffs(kappa, kc, eps):
+    """(L*, c1, c2) of the asymptotic expansion u = L* - c1 z - c2 z^2 + O(z^3)."""
+    Ls = L_star(kappa, kc, eps)
+    x = eps * kappa / kc
+    omx = 1.0 - x
+    lam = kc * omx
+    mu = kappa / kc
+    c1 = kappa / (lam + mu)
+    br = 1.0 + omx * c1 / mu - (omx * omx / (mu * mu) + eps * omx / (2.0 * mu)) * c1 * c1
+    c2 = kc * c1 * br / (2.0 + lam / mu)
+    return Ls, c1, c2
+
+
+@nb.njit(cache=True, nogil=True)
+def _f_theta(t, u, kappa, kc, eps):
+    """(A): du/ds_theta on the separatrix; inf where u <= 0 (G(u) >= 0: outside its domain)."""
+    g = G(u, eps)
+    if not (g < 0.0):
+        return math.inf
+    return kappa * math.expm1(t - u) / g - kc
+
+
+@nb.njit(cache=True, nogil=True)
+def _f_u(u, t, kappa, kc, eps):
+    """(B): d s_theta/du on the separatrix; inf where dL/ds <= 0 (turning point)."""
+    g = G(u, eps)
+    den = kappa * math.expm1(t - u) - kc * g
+    if not (den > 0.0):
+        return math.inf
+    return g / den
+
+
+@nb.njit(cache=True, nogil=True)
+def _jac(mode, x, y, kappa, kc, eps):
+    """d(rhs)/dy of (A) (mode 0) or (B) (mode 1), analytic; used to propagate error estimates."""
+    g = G(y if mode == 0 else x, eps)
+    if mode == 0:
+        # f = kappa expm1(t - u)/G(u) - kc, G'(u) = -e^(-eps u)
+        e = math.exp(x - y)
+        return -kappa * e / g + kappa * math.expm1(x - y) * math.exp(-eps * y) / (g * g)
+    # f = G(u)/(kappa expm1(t - u) - kc G(u)), derivative in t
+    den = kappa * math.expm1(y - x) - kc * g
+    return -g * kappa * math.exp(y - x) / (den * den)
+
+
+@nb.njit(cache=True, nogil=True)
+def _rhs(mode, x, y, kappa, kc, eps):
+    if mode == 0:
+        return _f_theta(x, y, kappa, kc, eps)
+    return _f_u(x, y, kappa, kc, eps)
+
+
+@nb.njit(cache=True, nogil=True)
+def _dop853_scalar(mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K):
+    """Integrate the scalar ODE (mode 0: (A), mode 1: (B)) from (x0, y0) towards x_end.
+
+    Error scale per step: atol + rtol * min(max(|y|, |y_new|), ycap).
+    Stops exactly at x_end, or (mode 0 with switch_slope > 0) after the first accepted step
+    whose end slope |dy/dx| exceeds switch_slope.  Returns (status, x, y, err_prop, n_rhs, h).
+    err_prop is the propagated absolute error estimate: after each accepted step
+    err <- err * exp(h (J0 + J1)/2) + |local error estimate|, with J the analytic
+    d(rhs)/dy at the step ends (the separatrix attracts: J h < 0, old errors shrink).
+    """
+    x = x0
+    y = y0
+    direction = 1.0 if x_end >= x0 else -1.0
+    f = _rhs(mode, x, y, kappa, kc, eps)
+    n_rhs = 1
+    if not math.isfinite(f):
+        return S_NO_START, x, y, 0.0, n_rhs, h0
+    h = abs(h0)
+    err_sum = 0.0
+    J = _jac(mode, x, y, kappa, kc, eps)
+    n = 0
+    last_rejected = False
+    while n < _MAX_STEPS:
+        n += 1
+        rem = (x_end - x) * direction
+        if rem <= 0.0:
+            return S_OK, x, y, err_sum, n_rhs, h
+        final = False
+        if 1.3 * h >= rem:
+            # land exactly on x_end (stretching the step by up to 30 %: error control
+            # rejects it if that was too much)
+            h = rem
+            final = True
+        hs = h * direction
+        K[0] = f
+        ok = True
+        for s in range(1, 12):
+            acc = 0.0
+            for m in range(s):
+                acc += _A[s, m] * K[m]
+            k = _rhs(mode, x + _C[s] * hs, y + hs * acc, kappa, kc, eps)
+            if not math.isfinite(k):
+                ok = False
+                break
+            K[s] = k
+        n_rhs += 12
+        ynew = 0.0
+        fnew = 0.0
+        err = math.inf
+        if ok:
+            acc = 0.0
+            for m in range(12):
+                acc += _B[m] * K[m]
+            ynew = y + hs * acc
+            fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
+            if math.isfinite(fnew) and math.isfinite(ynew):
+                K[12] = fnew
+                a5 = 0.0
+                a3 = 0.0
+                for m in range(13):
+                    a5 += _E5[m] * K[m]
+                    a3 += _E3[m] * K[m]
+                sc = atol + min(max(abs(y), abs(ynew)), ycap) * rtol
+                e5 = (a5 / sc) ** 2
+                e3 = (a3 / sc) ** 2
+                if e5 == 0.0 and e3 == 0.0:
+                    err = 0.0
+                else:
+                    err = h * e5 / math.sqrt(e5 + 0.01 * e3)
+        if not (err <= 1.0):
+            if math.isfinite(err):
+                fac = max(0.2, 0.9 * err ** (-0.125))
+            else:
+                fac = 0.2
+            h *= fac
+            last_rejected = True
+            if h < 1e-15 * max(1.0, abs(x)):
+                return S_UNDERFLOW, x, y, err_sum, n_rhs, h
+            continue
+        Jn = _jac(mode, x + hs, ynew, kappa, kc, eps)
+        prop = 0.5 * hs * (J + Jn)
+        err_sum = err_sum * math.exp(min(prop, 50.0)) + err * sc
+        J = Jn
+        x = x_end if final else x + hs
+        y = ynew
+        f = fnew
+        if final:
+            return S_OK, x, y, err_sum, n_rhs, h
+        if switch_slope > 0.0 and abs(f) > switch_slope:
+            return S_OK, x, y, err_sum, n_rhs, h
+        if err == 0.0:
+            fac = 10.0
+        else:
+            fac = min(10.0, 0.9 * err ** (-0.125))
+        if last_rejected:
+            fac = min(1.0, fac)
+        last_rejected = False
+        h *= fac
+    return S_BUDGET, x, y, err_sum, n_rhs, h
+
+
+@nb.njit(cache=True, nogil=True)
+def _separatrix(kappa, kc, eps, pert, rtol, K):
+    """Critical size by the separatrix method (kappa > kappa_crit, x < 1, v_o > 0).
+
+    pert 0: velocity jump (returns d_crit); pert 1: load-point jump (returns dv_crit).
+    Returns (status, value, abs_err, n_rhs).
+    """
+    Ls, c1, c2 = _asym_coeffs(kappa, kc, eps)
+    if not (Ls > 0.0) or not math.isfinite(Ls):
+        return S_NO_START, math.nan, math.nan, 0
+    # start far enough out that the neglected O(z^3) terms are ~1e-3 rtol: measured
+    # truncation ~1e-13 relative at c z0 = 1e-5, scaling as z0^3 (tests/test_critical.py)
+    cz = max(abs(c1), math.sqrt(abs(c2)), 1e-300)
+    zt = min(max(_Z_TARGET * (rtol / 1e-10) ** (1.0 / 3.0), 1e-7), 1e-4)
+    s0 = min(Ls + math.log(zt / cz), _S0_MAX)
+    z0 = math.exp(s0 - Ls)
+    u0 = Ls - z0 * (c1 + c2 * z0)
+    rt = rtol * _TOL_FACTOR
+    if pert == 0:
+        # (A) from s0 to s_theta = 0; atol keeps a floor for tiny d_crit
+        st, t, u, es, nr, h = _dop853_scalar(0, s0, u0, 0.0, kappa, kc, eps, rt, rt * 1e-3 * Ls, math.inf, 0.0, 1.0, K)
+        if st != S_OK:
+            if st == S_NO_START:
+                st = S_U_NONPOSITIVE
+            return st, math.nan, math.nan, nr
+        if not (u > 0.0):
+            return S_U_NONPOSITIVE, math.nan, math.nan, nr
+        return S_OK, u, es, nr
+    # load-point jump: (A) until the slope |du/ds_theta| exceeds 1, then (B) down to u = 0.
+    # The relative error of dv is the absolute error of l = ln(1 + dv) times
+    # e^l/(e^l - 1), so errors are controlled in absolute terms (scale capped at 1).
+    t_far = 709.0  # s_theta beyond any representable load-point jump (expm1(709) ~ 8e307)
+    st, t, u, es, nr, h = _dop853_scalar(0, s0, u0, t_far, kappa, kc, eps, rt, rt * 1e-3, 1.0, 1.0, 1.0, K)
+    if st != S_OK:
+        if st == S_NO_START:
+            st = S_TURNING
+        return st, math.nan, math.nan, nr
+    if t >= t_far:
+        return S_OVERFLOW, math.nan, math.nan, nr
+    if not (u > 0.0):
+        return S_TURNING, math.nan, math.nan, nr
+    st2, u2, t2, es2, nr2, h2 = _dop853_scalar(1, u, t, 0.0, kappa, kc, eps, rt, rt * 1e-3, 1.0, 0.0, 0.1 * u, K)
+    nr += nr2
+    if st2 != S_OK:
+        if st2 == S_NO_START:
+            st2 = S_TURNING
+        return st2, math.nan, math.nan, nr
+    if t2 > t_far:
+        return S_OVERFLOW, math.nan, math.nan, nr
+    dv = math.expm1(t2)
+    if not (dv > 0.0):
+        return S_TURNING, math.nan, math.nan, nr
+    # the phase-A error in u at the switch moves the end point by (dt/du) * du there;
+    # propagate it as an error in t through phase B, then d dv = e^t dt
+    es_t = es * abs(_f_u(u, t, kappa, kc, eps))
+    return S_OK, dv, (es_t + es2) * math.exp(t2), nr
+
+
+@nb.njit(cache=True, nogil=True)
+def _critical_point(ba, kappa, eps, vo, pert, rtol, K):
+    """Decision logic for one point.  Returns (kind, value, rel_acc, method, flags, n_rhs).
+
+    value is 0 for zero, inf for infinite; on FLAG_FALLBACK value is nan.
+    """
+    kc = ba - 1.0
+    r = kappa / kc
+    x = eps * r
+    flags = 0
+    if abs(r - 1.0) <= BOUNDARY_RTOL:
+        flags |= FLAG_ON_KCRIT
+    if abs(x - 1.0) <= BOUNDARY_RTOL:
+        flags |= FLAG_ON_X1
+    on_kc = (flags & FLAG_ON_KCRIT) != 0
+    if vo > 0.0 and r < 1.0 and not on_kc:
+        return KIND_ZERO, 0.0, 0.0, M_ZERO_LINEAR, flags, 0
+    if x >= 1.0 - BOUNDARY_RTOL:
+        return KIND_INFINITE, math.inf, 0.0, M_INF_NO_RUNAWAY, flags, 0
+    if vo == 0.0:
+        # velocity jump only (the caller rejects load-point jumps with v_o = 0)
+        Ls = L_star(kappa, kc, eps)
+        if Ls == 0.0:
+            return KIND_ZERO, 0.0, 0.0, M_ZERO_VO0, flags, 0
+        return KIND_FINITE, Ls, 4.0e-16, M_CF_VO0, flags, 0
+    if on_kc:
+        # closed forms evaluated at kappa = kappa_crit; inside the rounding band the
+        # error is |r - 1| times the sensitivity d ln(size)/d r at r = 1, measured (separatrix
+        # at r = 1 + h) to stay below 20 + 2/(1 - eps) + 2 sqrt(b/a)
+        sens = 20.0 + 2.0 / (1.0 - eps) + 2.0 * math.sqrt(ba)
+        acc = max(4.0e-16, sens * abs(r - 1.0))
+        if pert == 0:
+            return KIND_FINITE, _vjump_kcrit(ba, eps), acc, M_CF_VJUMP_KCRIT, flags, 0
+        return KIND_FINITE, 1.0 / (kc * (1.0 - eps)), acc, M_CF_LJUMP_KCRIT, flags, 0
+    st, val, aerr, nr = _separatrix(kappa, kc, eps, pert, rtol, K)
+    if st == S_OVERFLOW and pert == 1:
+        return KIND_INFINITE, math.inf, 0.0, M_INF_BEYOND_RANGE, flags, nr
+    if st != S_OK:
+        return KIND_FINITE, math.nan, math.nan, M_SEPARATRIX, flags | FLAG_FALLBACK, nr
+    return KIND_FINITE, val, max(aerr / val, 1.0e-15), M_SEPARATRIX, flags, nr
+
+
+@nb.njit(cache=True, nogil=True)
+def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method, flags):
+    """Compiled loop over 1-D arrays ba, kappa, eps (same length): fills the outputs.
+
+    Points with FLAG_FALLBACK set in ``flags`` need :func:`bisect_critical`.
+    """
+    K = np.empty(13)
+    n_total = 0
+    for i in range(ba.shape[0]):
+        k, v, a, m, fl, nr = _critical_point(ba[i], kappa[i], eps[i], vo, pert, rtol, K)
+        kind[i] = k
+        value[i] = v
+        rel_acc[i] = a
+        method[i] = m
+        flags[i] = fl
+        n_total += nr
+    return n_total
+
+
+def separatrix_raw(params: Params, perturbation: str = "velocity-jump", rtol: float = DEFAULT_RTOL) -> tuple[int, float, float, int]:
+    """Run the separatrix method alone: (status, value, absolute error estimate, n_rhs).
+
+    Requires kappa > kappa_crit, eps kappa < kappa_crit and v_o > 0 (else ParameterError).
+    status 0 = success; otherwise value is nan (see the S_* codes).  For tests and study.
+    """
+    pert = _pert_code(perturbation)
+    if not (params.vo > 0.0 and params.kappa >= params.kappa_crit and params.eps * params.kappa < params.kappa_crit):
+        raise ParameterError("params", params.as_dict(), "kappa >= kappa_crit, eps*kappa < kappa_crit, v_o > 0")
+    st, v, e, nr = _separatrix(params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(13))
+    return int(st), float(v), float(e), int(nr)
+
+
+def asymptotic_start(params: Params, s0: float) -> dict[str, float]:
+    """The separatrix's asymptotic start at s_theta = s0: {'L_star', 'c1', 'c2', 'z', 'u', 'phi'}.
+
+    u = L* - c1 z - c2 z^2 with z = e^(s0 - L*); the neglected terms are O((c1 z)^3).
+    """
+    Ls, c1, c2 = _asym_coeffs(params.kappa, params.kappa_crit, params.eps)
+    z = math.exp(s0 - Ls)
+    u = Ls - z * (c1 + c2 * z)
+    return {"L_star": float(Ls), "c1": float(c1), "c2": float(c2), "z": z, "u": float(u), "phi": float(u - s0)}
+
+
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CriticalResult:
+    """Critical perturbation of one kind at one parameter point.
+
+    Attributes:
+        kind: "zero" | "finite" | "infinite".
+        critical_size: d_crit (velocity jump, in ln V units: the jump multiplies V by e^d)
+            or (dv/v_o)_crit (load-point jump); 0.0 for "zero", None for "infinite".
+        rel_accuracy: estimated relative accuracy of critical_size (0 for exact decisions).
+        method: how it was obtained (one of METHODS).
+        perturbation: "velocity-jump" | "load-point-jump".
+        params: the parameters.
+        on_boundary: the point lies on x = eps kappa/kappa_crit = 1 or kappa = kappa_crit
+            up to rounding (BOUNDARY_RTOL), where the kind may flip.
+    """
+
+    kind: str
+    critical_size: float | None
+    rel_accuracy: float
+    method: str
+    perturbation: str
+    params: Params
+    on_boundary: bool = False
+    n_rhs: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict (no inf/nan)."""
+        return {
+            "kind": self.kind,
+            "critical_size": self.critical_size,
+            "rel_accuracy": float(self.rel_accuracy),
+            "method": self.method,
+            "perturbation": self.perturbation,
+            "params": self.params.as_dict(),
+            "on_boundary": bool(self.on_boundary),
+        }
+
+
+def _pert_code(perturbation: str) -> int:
+    if perturbation not in PERTURBATIONS:
+        raise ParameterError("perturbation", perturbation, "one of " + ", ".join(PERTURBATIONS))
+    return PERTURBATIONS.index(perturbation)
+
+
+def _check_rtol(rtol: float) -> float:
+    return check_range("rtol", rtol, RTOL_RANGE[0], RTOL_RANGE[1])
+
+
+def critical_perturbation(params: Params, perturbation: str = "velocity-jump", *, rtol: float = DEFAULT_RTOL) -> CriticalResult:
+    """Critical size of a velocity jump or load-point jump (module docstring for methods).
+
+    Args:
+        params: Params(ba, kappa, eps, vo); any ba in (1, 1e6], kappa >= 0, eps in [0, 1],
+            vo = 0 or > 0.
+        perturbation: "velocity-jump" (size d: (phi, psi) += (d, d)) or "load-point-jump"
+            (size dv: v_o -> v_o (1 + dv); needs vo > 0, else ParameterError).
+        rtol: requested relative accuracy of a numerical result, [1e-13, 1e-3].
+
+    Returns a CriticalResult.  Never returns nan: if the separatrix method cannot be
+    applied, bisection on classify() is used (slower, same accuracy target).
+    """
+    if not isinstance(params, Params):
+        raise ParameterError("params", params, "an rsfcore.Params")
+    pert = _pert_code(perturbation)
+    rtol = _check_rtol(rtol)
+    if pert == 1 and params.vo == 0.0:
+        raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
+    kind, val, acc, meth, flags, nr = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(13))
+    on_b = bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
+    if flags & FLAG_FALLBACK:
+        res = bisect_critical(params, perturbation, rtol=rtol)
+        return CriticalResult(res.kind, res.critical_size, res.rel_accuracy, res.method, perturbation, params, on_b, res.n_rhs)
+    return _make_result(int(kind), float(val), float(acc), int(meth), perturbation, params, on_b, int(nr))
+
+
+def _make_result(kind: int, val: float, acc: float, meth: int, perturbation: str, params: Params, on_b: bool, nr: int = 0) -> CriticalResult:
+    size: float | None
+    if kind == KIND_INFINITE:
+        size = None
+    elif kind == KIND_ZERO:
+        size = 0.0
+    else:
+        size = val
+    return CriticalResult(KINDS[kind], size, acc, METHODS[meth], perturbation, params, on_b, nr)
+
+
+def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: float = DEFAULT_RTOL, *, integrate_only: bool = False) -> CriticalResult:
+    """Critical size by bisection on certified :func:`rsfcore.trajectory.classify` outcomes.
+
+    The exact decisions (zero: kappa < kappa_crit with v_o > 0; infinite: eps kappa >=
+    kappa_crit) are taken as in :func:`critical_perturbation`; every finite value, closed
+    forms included, is recomputed by bisection.  Velocity jump: bracket [0, L*] (L >= L* is
+    absorbing).  Load-point jump: bracket grown by factors of 4 in dv until a runaway, then
+    bisection in ln(1 + dv).  Stops when the bracket is below rtol relative; rel_accuracy
+    is the final bracket width relative to the result (plus the classify tolerance).
+    If classify cannot decide a midpoint (UndecidedError: step underflow within ~1e-10
+    of the separatrix when excursions reach phi ~ 1e7), the bisection stops there and
+    rel_accuracy reports the bracket reached.
+
+    integrate_only=True asks classify to certify by integration alone (ignoring its
+    closed-form shortcuts at kappa = kappa_crit and v_o = 0), to check closed forms.
+    """
+    from .trajectory import UndecidedError, classify
+
+    pert = _pert_code(perturbation)
+    rtol = _check_rtol(rtol)
+    if pert == 1 and params.vo == 0.0:
+        raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
+    kind, val, acc, meth, flags, _ = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(13))
+    on_b = bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
+    if kind != KIND_FINITE:
+        return _make_result(int(kind), float(val), float(acc), int(meth), perturbation, params, on_b)
+
+    crtol = max(1e-13, min(1e-10, rtol))
+    kw: dict[str, Any] = {"method": "integrate"} if integrate_only else {}
+    n_rhs = 0
+
+    def unstable(size: float) -> bool:
+        nonlocal n_rhs
+        r = classify(params, perturbation, size, rtol=crtol, **kw)
+        n_rhs += r.n_rhs
+        return r.outcome == "unstable"
+
+    if pert == 0:
+        from .trajectory import SIZE_MAX
+
+        Ls = float(L_star(params.kappa, params.kappa_crit, params.eps))
+        lo, hi = 0.0, min(Ls * (1.0 + 1e-12) + 1e-300, SIZE_MAX)
+        if not unstable(hi):
+            raise UndecidedError(
+                f"velocity jump of size {hi} (L* = {Ls}) not classified unstable; classify accepts"
+                f" |d| <= {SIZE_MAX:g} (params {params.as_dict()})"
+            )
+        while hi - lo > rtol * 0.25 * hi:
+            mid = 0.5 * (lo + hi)
+            try:
+                u = unstable(mid)
+            except UndecidedError:
+                # within ~1e-10 of the separatrix with excursions to phi ~ 1e7 and more
+                # the engine's step can underflow: stop with the bracket reached so far
+                break
+            if u:
+                hi = mid
+            else:
+                lo = mid
+        value = 0.5 * (lo + hi)
+        width = (hi - lo) / value
+    else:
+        # bisection on l = ln(1 + dv)
+        l_lo, l_hi = 0.0, math.log(2.0)
+        vmax = 1e300 / params.vo
+        l_max = math.log1p(vmax) if math.isfinite(vmax) else 690.0
+        while not unstable(math.expm1(l_hi)):
+            l_lo = l_hi
+            if l_hi >= l_max:
+                return CriticalResult("infinite", None, 0.0, METHODS[M_BISECTION] + " (no runaway up to the largest v_o)", perturbation, params, on_b, n_rhs)
+            l_hi = min(l_hi + math.log(4.0), l_max)
+        while math.expm1(l_hi) - math.expm1(l_lo) > rtol * 0.25 * math.expm1(l_hi):
+            mid = 0.5 * (l_lo + l_hi)
+            try:
+                u = unstable(math.expm1(mid))
+            except UndecidedError:
+                break
+            if u:
+                l_hi = mid
+            else:
+                l_lo = mid
+        lo, hi = math.expm1(l_lo), math.expm1(l_hi)
+        value = 0.5 * (lo + hi)
+        width = (hi - lo) / value
+    return CriticalResult("finite", value, max(width, crtol), METHODS[M_BISECTION], perturbation, params, on_b, n_rhs)

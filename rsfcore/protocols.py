@@ -1,0 +1,757 @@
+"""Laboratory loading protocols in physical (SI) units: load histories, velocity steps,
+slide-hold-slide tests.
+
+These are the forward models rate-and-state lab users run, here for the whole
+aging-to-slip family of `eq: intermediate state evolution law` (eps in [0, 1]) and with
+exact peaks.  The spring-slider obeys `eq: rate and state friction`, `eq: MC criterion`
+and `eq: equation of motion2` (quasi-static, d tau/dt = k (V_o - V)); every segment is
+integrated with the compiled DOP853 engine (rsfcore.engine.integrate) in the
+dimensionless variables of `eq: characteristic scales`:
+
+    psi = (tau - tau_*)/(a sigma),  phi = ln(V/V_*),  T = V_* t/Dc,  v_o = V_o/V_*.
+
+Units: times t [s], velocities [m/s], slip and load-point displacement [m], state
+theta [s], shear stress change tau - tau_* [Pa], friction f = f_* + a psi (-).
+
+Peaks (never read off the output grid):
+
+* peak slip rate of a segment: the engine's event-located maximum of phi (a root of
+  d phi/dtau on the 7th-order dense output of every accepted step);
+* peak friction of a segment: psi is maximal where d psi/dT = kappa (v_o - e^phi) = 0
+  changes sign from + to -, i.e. where V crosses V_o upward.  The engine has no event for
+  that crossing, so each segment is sampled on a fine grid of the engine's bounded hybrid
+  time (where nothing is faster than the grid spacing allows), brackets of the crossing
+  are taken from those dense samples and the crossing time is refined by Brent's method,
+  each evaluation being a re-integration from the bracketing dense sample to the trial
+  time (the engine locates the stop time on its dense output).  At the maximum psi is
+  insensitive (to first order) to the located time, so the peak friction carries the
+  integration accuracy: relative ~1e-10 in psi at rtol 1e-10 (tests/test_protocols.py
+  compares against runs at rtol 1e-12 with 10x the samples).  Segment end points are
+  candidates too (e.g. during a hold, V_o = 0, friction only decreases).
+
+Runaway: when L = ln(V theta/Dc) exceeds L* (rsfcore.laws.L_star) slip is certain to
+run away in finite time (the region is absorbing for every v_o >= 0); the engine then
+integrates to phi - ln c = 40 (remaining time < e^-40 of the time scale).  The history
+stops there and the result reports the segment index, the time of the certificate and
+the blow-up time; no NaN or inf is ever returned.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import brentq, minimize_scalar
+
+from .analytic import delta_tau
+from .engine import integrate
+from .laws import G_clipped, L_star
+from .params import VO_MAX, ParameterError, PhysicalParams, check_range
+
+__all__ = [
+    "ProtocolResult",
+    "SegmentSummary",
+    "Runaway",
+    "VelocityStepResult",
+    "SlideHoldSlideResult",
+    "IntegrationBudgetError",
+    "load_history",
+    "velocity_step",
+    "slide_hold_slide",
+    "steady_state_friction",
+]
+
+#: Blow-up threshold on phi - ln c (remaining time after it < e^-40 time scales).
+PHI_STOP = 40.0
+#: Budget of accepted + rejected steps per segment.
+MAX_STEPS = 5_000_000
+RTOL_RANGE = (1e-14, 1e-3)
+N_POINTS_RANGE = (2, 100_000)
+#: Hybrid-time samples per segment used to bracket the friction peaks.
+N_DETECT = 4000
+
+_EMPTY = np.empty(0)
+_EMPTY2 = np.empty((0, 5))
+
+
+class IntegrationBudgetError(RuntimeError):
+    """A segment needed more than MAX_STEPS steps (no runaway was certified)."""
+
+
+def _finite_or_none(x: float | None) -> float | None:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _list(a: NDArray[np.float64]) -> list[float | None]:
+    return [v if math.isfinite(v) else None for v in np.asarray(a, dtype=np.float64).tolist()]
+
+
+def steady_state_friction(phys: PhysicalParams, V: float) -> float:
+    """Steady-state friction f_ss = f_* + (a - b) ln(V/V_*) at slip rate V > 0 [m/s] (`eq: steady state`)."""
+    V = check_range("V", V, 0.0, None, lo_open=True)
+    return phys.f_star + (phys.a - phys.b) * math.log(V / phys.V_star)
+
+
+# ---------------------------------------------------------------------------------------
+# Result types
+# ---------------------------------------------------------------------------------------
+@dataclass
+class Runaway:
+    """Certified unstable slip (finite-time runaway of V).
+
+    Attributes:
+        segment: index of the segment in which L > L* was first reached.
+        t_certificate_s: time [s] at which L = ln(V theta/Dc) was found above L* (from
+            then on the runaway is certain, whatever the load point does); the end of the
+            integration step in which L crossed L* (an upper bound within one step), or
+            the segment end if the crossing was in that segment's last step.
+        blowup_segment: segment in which V reached V_o e^40 (None if the history ended first).
+        t_blowup_s: time [s] at which V -> infinity (time at V = c e^40 V_* plus the
+            analytic tail, < e^-40 Dc/V_*), or None if the history ended before.
+    """
+
+    segment: int
+    t_certificate_s: float
+    blowup_segment: int | None
+    t_blowup_s: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "segment": self.segment,
+            "t_certificate_s": _finite_or_none(self.t_certificate_s),
+            "blowup_segment": self.blowup_segment,
+            "t_blowup_s": _finite_or_none(self.t_blowup_s),
+        }
+
+
+@dataclass
+class SegmentSummary:
+    """One constant-V_o segment and its true peaks.
+
+    Attributes:
+        index: segment index (0-based).
+        duration_s: requested duration [s].
+        Vo_m_s: load-point velocity [m/s] (0 = hold).
+        t_start_s, t_end_s: start and actual end time [s] (end < start + duration only
+            after a runaway).
+        status: "completed", "runaway" (L > L* inside or before this segment) or
+            "not_run" (after a blow-up).
+        peak_friction: maximum of f over the segment (-), with its time
+            peak_friction_time_s [s] and peak_friction_where in {"start", "end",
+            "interior"} ("interior": located at the V = V_o crossing).
+        peak_V_m_s: maximum slip rate [m/s] over the segment with its time
+            peak_V_time_s [s]; None when the segment runs away (V -> infinity).
+    """
+
+    index: int
+    duration_s: float
+    Vo_m_s: float
+    t_start_s: float
+    t_end_s: float | None = None
+    status: str = "not_run"
+    peak_friction: float | None = None
+    peak_friction_time_s: float | None = None
+    peak_friction_where: str | None = None
+    peak_V_m_s: float | None = None
+    peak_V_time_s: float | None = None
+    n_steps: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "index": self.index,
+            "duration_s": float(self.duration_s),
+            "Vo_m_s": float(self.Vo_m_s),
+            "t_start_s": _finite_or_none(self.t_start_s),
+            "t_end_s": _finite_or_none(self.t_end_s),
+            "status": self.status,
+            "peak_friction": _finite_or_none(self.peak_friction),
+            "peak_friction_time_s": _finite_or_none(self.peak_friction_time_s),
+            "peak_friction_where": self.peak_friction_where,
+            "peak_V_m_s": _finite_or_none(self.peak_V_m_s),
+            "peak_V_time_s": _finite_or_none(self.peak_V_time_s),
+            "n_steps": int(self.n_steps),
+        }
+
+
+@dataclass
+class ProtocolResult:
+    """Output of :func:`load_history` (all arrays share one time axis, SI units).
+
+    Arrays (length n, first point = start of the history, junctions not repeated):
+        t_s: time [s]; friction: f = f_* + a psi (-); tau_change_Pa: tau - tau_* [Pa]
+        (tau_* = f_* sigma); V_m_s: slip rate [m/s]; theta_s: state theta [s];
+        slip_m: slip since the start [m]; load_point_m: load-point displacement since
+        the start [m] (= sum of V_o dt exactly, up to rtol); segment: segment index of
+        each point; Vo_m_s: load-point velocity of that segment [m/s].
+
+    Samples come from the integrator's 7th-order dense output (same accuracy as the
+    steps).  Per-segment true peaks are in ``segments``; ``runaway`` is set when slip
+    became unstable.  ``rel_accuracy`` is the engine's a-posteriori indicator (sum of
+    local error estimates, floored at rtol): the relative accuracy of psi, ln(V/V_*)
+    and ln theta.
+    """
+
+    t_s: NDArray[np.float64]
+    friction: NDArray[np.float64]
+    tau_change_Pa: NDArray[np.float64]
+    V_m_s: NDArray[np.float64]
+    theta_s: NDArray[np.float64]
+    slip_m: NDArray[np.float64]
+    load_point_m: NDArray[np.float64]
+    segment: NDArray[np.int64]
+    Vo_m_s: NDArray[np.float64]
+    segments: list[SegmentSummary]
+    runaway: Runaway | None
+    params: PhysicalParams
+    rtol: float
+    rel_accuracy: float
+    psi: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.empty(0))
+    phi: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.empty(0))
+    ln_theta: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.empty(0))
+
+    @property
+    def unstable(self) -> bool:
+        return self.runaway is not None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict (no NaN/inf: non-finite values, which never occur, would be null)."""
+        p = self.params
+        return {
+            "params": {
+                "a": p.a, "b": p.b, "Dc_m": p.Dc, "sigma_Pa": p.sigma, "k_Pa_m": p.k,
+                "V_star_m_s": p.V_star, "eps": p.eps, "f_star": p.f_star,
+            },
+            "rtol": self.rtol,
+            "rel_accuracy": _finite_or_none(self.rel_accuracy),
+            "unstable": self.unstable,
+            "runaway": None if self.runaway is None else self.runaway.to_dict(),
+            "segments": [s.to_dict() for s in self.segments],
+            "t_s": _list(self.t_s),
+            "friction": _list(self.friction),
+            "tau_change_Pa": _list(self.tau_change_Pa),
+            "V_m_s": _list(self.V_m_s),
+            "theta_s": _list(self.theta_s),
+            "slip_m": _list(self.slip_m),
+            "load_point_m": _list(self.load_point_m),
+            "segment": [int(i) for i in self.segment],
+            "Vo_m_s": _list(self.Vo_m_s),
+        }
+
+
+# ---------------------------------------------------------------------------------------
+# Segment integration and peak location
+# ---------------------------------------------------------------------------------------
+@dataclass
+class _Ctx:
+    ba: float
+    kappa: float
+    eps: float
+    vo: float
+    rtol: float
+    Ls: float
+
+
+def _run(y0: NDArray[np.float64], c: _Ctx, t_end: float, sample_T=_EMPTY, sample_tau=_EMPTY):
+    n = sample_T.shape[0] + sample_tau.shape[0]
+    samples = np.empty((n, 5)) if n else _EMPTY2
+    res = integrate(
+        np.ascontiguousarray(y0, dtype=np.float64), c.ba, c.kappa, c.eps, c.vo, c.rtol, c.rtol,
+        c.Ls, True, False, t_end, PHI_STOP, MAX_STEPS, 0.0, sample_tau, sample_T, samples,
+    )
+    return res, samples[: int(res[-1])]
+
+
+def _state_at(y_a: NDArray[np.float64], T: float, c: _Ctx) -> NDArray[np.float64]:
+    """State at dimensionless time T >= y_a[2], integrated from the (dense-output) state y_a."""
+    if T <= y_a[2]:
+        return y_a.copy()
+    res, _ = _run(y_a, c, T)
+    return np.asarray(res[1])
+
+
+def _psi(y, c: _Ctx) -> float:
+    return float(y[0] + c.ba * y[1])
+
+
+def _psi_slope_sign(y, c: _Ctx) -> float:
+    """Sign carrier of d psi/dT = kappa (v_o - e^phi): ln v_o - phi (-inf for a hold)."""
+    return (math.log(c.vo) if c.vo > 0.0 else -math.inf) - float(y[0])
+
+
+def _phi_slope(y, c: _Ctx) -> float:
+    """(d phi/dT) e^-phi = kappa (v_o e^-phi - 1) - (b/a) G(L) (`eq:phi_T`), overflow-free."""
+    phi = float(y[0])
+    load = c.vo * math.exp(min(-phi, 700.0)) if c.vo > 0.0 else 0.0
+    return c.kappa * (load - 1.0) - c.ba * float(G_clipped(phi + float(y[1]), c.eps))
+
+
+def _refine_max(y_a, T_b, c: _Ctx, value, slope) -> tuple[float, float]:
+    """Maximum of value(y(T)) on [y_a[2], T_b]; slope(y) changes sign + -> - inside.
+
+    Brent's root of slope(y(T)) (each evaluation a re-integration from y_a, the stop time
+    being located on the engine's dense output); falls back to a bounded maximisation
+    when rounding hides the bracket.  Returns (value, T).
+    """
+    T_a = float(y_a[2])
+    span = T_b - T_a
+    if not span > 0.0:
+        return value(y_a), T_a
+
+    def g(T: float) -> float:
+        return slope(_state_at(y_a, T, c))
+
+    ga, gb = slope(y_a), g(T_b)
+    xtol = 1e-13 * span + 4e-16 * abs(T_b)
+    if ga > 0.0 and gb < 0.0:
+        T = brentq(g, T_a, T_b, xtol=xtol, rtol=1e-15, maxiter=200)
+    else:
+        r = minimize_scalar(lambda T: -value(_state_at(y_a, T, c)), bounds=(T_a, T_b), method="bounded",
+                            options={"xatol": max(xtol, 1e-9 * span)})
+        T = float(r.x)
+    y = _state_at(y_a, T, c)
+    return value(y), T
+
+
+def _grid_peak(grid: NDArray[np.float64], c: _Ctx, value, slope, bound: float,
+               best: tuple[float, float]) -> tuple[float, float]:
+    """Refine every bracket on the hybrid-time grid that could beat ``best``.
+
+    grid: dense samples (m, 5) evenly spaced in hybrid time; bound: the largest possible
+    rise of ``value`` over one grid interval (|d value/dtau| times the spacing).
+    Candidates are the + -> - sign changes of ``slope`` between samples and the sampled
+    local maxima of ``value`` (which also catch two crossings within one interval).
+    """
+    m = grid.shape[0]
+    if m < 2:
+        return best
+    vals = np.array([value(grid[i]) for i in range(m)])
+    sl = np.array([slope(grid[i]) for i in range(m)])
+    cand: set[int] = set()
+    for j in range(m - 1):
+        if sl[j] > 0.0 and not sl[j + 1] > 0.0:
+            cand.add(j)
+    for i in range(1, m - 1):
+        if vals[i] >= vals[i - 1] and vals[i] >= vals[i + 1] and (vals[i] > vals[i - 1] or vals[i] > vals[i + 1]):
+            cand.add(i - 1)
+            cand.add(i)
+    top = max(best[0], float(np.max(vals)))
+    for j in sorted(cand):
+        j1 = min(j + 1, m - 1)
+        if max(vals[j], vals[j1]) < top - bound:
+            continue
+        y_a = grid[j].copy()
+        T_b = float(grid[j1][2])
+        v, T = _refine_max(y_a, T_b, c, value, slope)
+        if v > best[0]:
+            best = (v, T)
+    return best
+
+
+# ---------------------------------------------------------------------------------------
+# Public protocols
+# ---------------------------------------------------------------------------------------
+def _check_rtol(rtol: float) -> float:
+    return check_range("rtol", rtol, RTOL_RANGE[0], RTOL_RANGE[1])
+
+
+def load_history(
+    phys: PhysicalParams,
+    segments: Sequence[tuple[float, float]],
+    *,
+    n_points_per_segment: int = 200,
+    rtol: float = 1e-10,
+    start: str | tuple[float, float] = "steady",
+) -> ProtocolResult:
+    """Spring-slider response to a piecewise-constant load-point velocity history.
+
+    Args:
+        phys: physical parameters (a, b, Dc [m], sigma [Pa], k [Pa/m], V_* [m/s], eps,
+            f_*).  ``phys.Vo`` is not used: the segments set the load-point velocity.
+        segments: list of (duration_s > 0, Vo_m_s >= 0) pairs; Vo = 0 is a hold.
+            Vo/V_* <= 1e300.
+        n_points_per_segment: output samples per segment, evenly spaced in time
+            (both ends included), [2, 100000].
+        rtol: relative (and absolute) local tolerance of the DOP853 engine, [1e-14, 1e-3].
+        start: "steady" (steady state at the first segment's V_o, or at V_* if that V_o
+            is 0: V = V_o, theta = Dc/V_o, f = f_ss(V_o), `eq: steady state`) or an
+            explicit (V_m_s > 0, theta_s > 0) with tau on the friction law
+            `eq: rate and state friction`.
+
+    Each segment is integrated by rsfcore.engine.integrate with v_o = V_o/V_*, chained
+    through the full state (phi, ln theta, T, slip, load point; the last three are
+    cumulative) and stopped at the segment's end time, which the engine locates on its
+    dense output.  Returns a :class:`ProtocolResult` with arrays against t [s] and the
+    true per-segment peaks (module docstring).  On a runaway (L > L*, unstable slip) the
+    history stops at blow-up and ``result.runaway`` names the segment and the times.
+    Raises ParameterError for invalid input and IntegrationBudgetError if a segment
+    needs more than 5e6 steps.
+    """
+    if not isinstance(phys, PhysicalParams):
+        raise ParameterError("phys", phys, "a PhysicalParams instance")
+    rtol = _check_rtol(rtol)
+    npts = int(check_range("n_points_per_segment", n_points_per_segment, *N_POINTS_RANGE))
+    segs: list[tuple[float, float]] = []
+    try:
+        seg_list = list(segments)
+    except TypeError:
+        raise ParameterError("segments", segments, "a list of (duration_s, Vo_m_s) pairs") from None
+    if not seg_list:
+        raise ParameterError("segments", segments, "a non-empty list of (duration_s, Vo_m_s) pairs")
+    for i, sg in enumerate(seg_list):
+        try:
+            d, v = sg
+        except (TypeError, ValueError):
+            raise ParameterError(f"segments[{i}]", sg, "a (duration_s, Vo_m_s) pair") from None
+        d = check_range(f"segments[{i}].duration_s", d, 0.0, None, lo_open=True)
+        v = check_range(f"segments[{i}].Vo_m_s", v, 0.0, phys.V_star * VO_MAX)
+        if d / phys.time_scale > 1e15:
+            raise ParameterError(f"segments[{i}].duration_s", d, f"<= 1e15 Dc/V_* = {1e15 * phys.time_scale:g} s")
+        segs.append((d, v))
+
+    p = phys
+    ba = p.b / p.a
+    kappa = p.k * p.Dc / (p.a * p.sigma)
+    kc = ba - 1.0
+    Ls = float(L_star(kappa, kc, p.eps))
+    ts = p.time_scale
+
+    # initial state
+    if isinstance(start, str):
+        if start != "steady":
+            raise ParameterError("start", start, "'steady' or (V_m_s, theta_s)")
+        v0 = segs[0][1] / p.V_star
+        phi0 = math.log(v0) if v0 > 0.0 else 0.0
+        lth0 = -phi0
+    else:
+        try:
+            V0, th0 = start
+        except (TypeError, ValueError):
+            raise ParameterError("start", start, "'steady' or (V_m_s, theta_s)") from None
+        V0 = check_range("start.V_m_s", V0, 0.0, None, lo_open=True)
+        th0 = check_range("start.theta_s", th0, 0.0, None, lo_open=True)
+        phi0 = math.log(V0 / p.V_star)
+        lth0 = math.log(th0 / ts)
+        if abs(phi0) > 690.0 or abs(lth0) > 690.0:
+            raise ParameterError("start", start, "|ln(V/V_*)| and |ln(theta V_*/Dc)| <= 690")
+    y = np.array([phi0, lth0, 0.0, 0.0, 0.0])
+
+    summaries = [SegmentSummary(index=i, duration_s=d, Vo_m_s=v, t_start_s=math.nan) for i, (d, v) in enumerate(segs)]
+    chunks: list[NDArray[np.float64]] = []
+    seg_idx: list[NDArray[np.int64]] = []
+    runaway: Runaway | None = None
+    err_total = 0.0
+    T_now = 0.0
+    for i, (dur, Vo) in enumerate(segs):
+        sm = summaries[i]
+        sm.t_start_s = T_now * ts
+        vo = Vo / p.V_star
+        ctx = _Ctx(ba, kappa, p.eps, vo, rtol, Ls)
+        T_end = T_now + dur / ts
+        y_start = y.copy()
+        sT = np.linspace(T_now, T_end, npts)
+        sT[0] = T_now
+        sT[-1] = T_end
+        res, samp = _run(y_start, ctx, T_end, sample_T=sT)
+        status, y_end, tau_end, T_cert, _, peak_phi, peak_T, n_st, _, n_rej, err_sum, _ = res
+        y_end = np.asarray(y_end).copy()
+        sm.n_steps = int(n_st + n_rej)
+        err_total += float(err_sum)
+        flagged = not math.isnan(T_cert)
+        ran_away = flagged
+        if flagged and status == 0 and float(T_cert) > T_end:
+            # The engine tests L > L* at the end of each step, and the last step may
+            # overshoot the segment end: that certificate counts only if L > L* already
+            # holds at the end of the segment (L > L* is absorbing for every v_o >= 0).
+            ran_away = float(y_end[0] + y_end[1]) > Ls
+            T_cert = T_end if ran_away else math.nan
+        if status in (4, 5) and not ran_away:
+            raise IntegrationBudgetError(
+                f"segment {i} (Vo={Vo:g} m/s, {dur:g} s) did not finish: engine status {int(status)} "
+                f"after {sm.n_steps} steps at t={float(y_end[2]) * ts:g} s"
+            )
+        blew_up = status == 1 or (ran_away and status in (4, 5))
+        if blew_up:
+            # append the blow-up state so that the runaway shows in the output
+            samp = np.vstack([samp, y_end[None, :]]) if samp.shape[0] == 0 or samp[-1, 2] < y_end[2] else samp
+        if i > 0 and samp.shape[0] > 0 and chunks and samp[0, 2] <= chunks[-1][-1, 2]:
+            samp = samp[1:]
+        chunks.append(samp)
+        seg_idx.append(np.full(samp.shape[0], i, dtype=np.int64))
+
+        # -- peaks ---------------------------------------------------------------------
+        # detection grid in the bounded hybrid time (same step sequence as above)
+        n_det = max(N_DETECT, 4 * npts)
+        grid_tau = np.linspace(0.0, float(tau_end), n_det)
+        _, grid = _run(y_start, ctx, T_end, sample_tau=grid_tau)
+        if grid.shape[0] == 0 or grid[-1, 2] < y_end[2]:
+            grid = np.vstack([grid, y_end[None, :]])
+        dtau = float(tau_end) / (n_det - 1)
+        # friction: max of psi, candidates the ends and the V = V_o crossings
+        best = max(((_psi(y_start, ctx), T_now, "start"), (_psi(y_end, ctx), float(y_end[2]), "end")),
+                   key=lambda t: t[0])
+        if vo > 0.0:
+            v_in, T_in = _grid_peak(grid, ctx, lambda yy: _psi(yy, ctx), lambda yy: _psi_slope_sign(yy, ctx),
+                                    kappa * dtau, (-math.inf, math.nan))
+            if v_in > best[0]:
+                best = (v_in, T_in, "interior")
+        sm.peak_friction = p.f_star + p.a * best[0]
+        sm.peak_friction_time_s = best[1] * ts
+        sm.peak_friction_where = best[2]
+        # slip rate: the engine's event-located maximum, unless it came from the part of
+        # the last step beyond the segment end (then located here on the grid)
+        if ran_away:
+            sm.peak_V_m_s = None
+            sm.peak_V_time_s = None
+        else:
+            T_seg_end = float(y_end[2])
+            engine_ok = float(peak_T) <= T_seg_end and math.isfinite(float(peak_phi))
+            if engine_ok and not flagged:
+                bphi = (float(peak_phi), float(peak_T))
+            else:
+                # (a certificate dismissed above also stopped the engine's peak tracking)
+                cands = [(float(y_start[0]), T_now), (float(y_end[0]), T_seg_end)]
+                if engine_ok:
+                    cands.append((float(peak_phi), float(peak_T)))
+                bphi = max(cands, key=lambda t: t[0])
+                bphi = _grid_peak(grid, ctx, lambda yy: float(yy[0]), lambda yy: _phi_slope(yy, ctx),
+                                  (2.0 * kappa + 2.0) * dtau, bphi)
+            sm.peak_V_m_s = p.V_star * math.exp(bphi[0])
+            sm.peak_V_time_s = bphi[1] * ts
+
+        if ran_away:
+            sm.status = "runaway"
+            if runaway is None:
+                runaway = Runaway(segment=i, t_certificate_s=float(T_cert) * ts, blowup_segment=None, t_blowup_s=None)
+        else:
+            sm.status = "completed"
+        y = y_end
+        T_now = float(y_end[2])
+        sm.t_end_s = T_now * ts
+        if blew_up:
+            assert runaway is not None
+            runaway.blowup_segment = i
+            runaway.t_blowup_s = (T_now + _blowup_tail(y_end, ctx)) * ts
+            break
+
+    s = np.vstack(chunks) if chunks else np.empty((0, 5))
+    idx = np.concatenate(seg_idx) if seg_idx else np.empty(0, dtype=np.int64)
+    phi, lth = s[:, 0], s[:, 1]
+    psi = phi + ba * lth
+    with np.errstate(over="ignore", under="ignore"):
+        V = p.V_star * np.exp(np.minimum(phi, 709.0))
+        theta = ts * np.exp(np.clip(lth, -745.0, 709.0))
+    return ProtocolResult(
+        t_s=s[:, 2] * ts,
+        friction=p.f_star + p.a * psi,
+        tau_change_Pa=p.a * p.sigma * psi,
+        V_m_s=V,
+        theta_s=theta,
+        slip_m=s[:, 3] * p.Dc,
+        load_point_m=s[:, 4] * p.Dc,
+        segment=idx,
+        Vo_m_s=np.array([segs[i][1] for i in idx], dtype=np.float64),
+        segments=summaries,
+        runaway=runaway,
+        params=phys,
+        rtol=rtol,
+        rel_accuracy=max(rtol, err_total),
+        psi=psi,
+        phi=phi.copy(),
+        ln_theta=lth.copy(),
+    )
+
+
+def _blowup_tail(y, c: _Ctx) -> float:
+    """Remaining time T after the engine stopped at phi - ln c > 40 (tail of dT = d phi/phi_dot)."""
+    phi, L = float(y[0]), float(y[0] + y[1])
+    rate = -c.ba * float(G_clipped(L, c.eps)) - c.kappa
+    if rate <= 0.0 or phi > 700.0:
+        return 0.0
+    return math.exp(-phi) / rate
+
+
+@dataclass
+class VelocityStepResult:
+    """Load-point velocity step V1 -> V2 from steady state at V1, with `eq: delta tau`.
+
+    Attributes:
+        protocol: the full :class:`ProtocolResult` (one segment at V2).
+        V1_m_s, V2_m_s: velocities before and after the step [m/s].
+        slip_since_step_m: slip since the step [m] at the output points.
+        delta_tau_over_b_sigma: simulated (tau - tau_ss(V2))/(b sigma) (-).
+        analytic_over_b_sigma: `eq: delta tau` (infinitely stiff machine) at the same
+            slip (rsfcore.analytic.delta_tau).
+        slip_after_m: deviations are measured where slip >= slip_after_m (the elastic
+            boundary layer of width ~ a sigma/k = Dc/kappa, where V climbs from V1 to V2,
+            is excluded; default 20 a sigma/k).
+        max_deviation: max |simulated - analytic| over slip >= slip_after_m (-), in
+            units of b sigma.  It is O(1/kappa) (a finite machine lags the imposed
+            velocity; measured in tests/test_protocols.py), not an integration error.
+        kappa: k Dc/(a sigma).
+    """
+
+    protocol: ProtocolResult
+    V1_m_s: float
+    V2_m_s: float
+    slip_since_step_m: NDArray[np.float64]
+    delta_tau_over_b_sigma: NDArray[np.float64]
+    analytic_over_b_sigma: NDArray[np.float64]
+    slip_after_m: float
+    max_deviation: float
+    kappa: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "V1_m_s": self.V1_m_s,
+            "V2_m_s": self.V2_m_s,
+            "kappa": self.kappa,
+            "slip_after_m": self.slip_after_m,
+            "max_deviation": _finite_or_none(self.max_deviation),
+            "slip_since_step_m": _list(self.slip_since_step_m),
+            "delta_tau_over_b_sigma": _list(self.delta_tau_over_b_sigma),
+            "analytic_over_b_sigma": _list(self.analytic_over_b_sigma),
+            "protocol": self.protocol.to_dict(),
+        }
+
+
+def velocity_step(
+    phys: PhysicalParams,
+    V1: float,
+    V2: float,
+    *,
+    slip_after_m: float | None = None,
+    slip_total_m: float | None = None,
+    n_points: int = 400,
+    rtol: float = 1e-10,
+) -> VelocityStepResult:
+    """Load-point velocity step V1 -> V2 [m/s] from steady state at V1, compared with `eq: delta tau`.
+
+    Args:
+        phys: physical parameters; needs k > 0.
+        V1, V2: load-point velocities before/after the step [m/s], > 0.
+        slip_after_m: start of the comparison window [m] (default 20 a sigma/k).
+        slip_total_m: load-point displacement after the step [m] (default 10 Dc;
+            `eq: delta tau` has then decayed to e^-10 of its initial value).
+        n_points: output samples (evenly spaced in time), [2, 100000].
+        rtol: engine tolerance, [1e-14, 1e-3].
+
+    `eq: delta tau` holds for an infinitely stiff machine (V = V2 right after the step);
+    the simulated curve converges to it as kappa -> infinity with max deviation O(1/kappa)
+    outside the elastic boundary layer.  A runaway (kappa < kappa_crit) is reported in
+    ``protocol.runaway`` and the deviation is then computed on the part before blow-up.
+    """
+    V1 = check_range("V1", V1, 0.0, None, lo_open=True)
+    V2 = check_range("V2", V2, 0.0, None, lo_open=True)
+    if not phys.k > 0.0:
+        raise ParameterError("k", phys.k, "> 0 for a velocity step (the spring transmits the step)")
+    kappa = phys.k * phys.Dc / (phys.a * phys.sigma)
+    layer = 20.0 * phys.a * phys.sigma / phys.k
+    s_after = layer if slip_after_m is None else check_range("slip_after_m", slip_after_m, 0.0, None)
+    s_tot = 10.0 * phys.Dc if slip_total_m is None else check_range("slip_total_m", slip_total_m, 0.0, None, lo_open=True)
+    res = load_history(phys, [(s_tot / V2, V2)], n_points_per_segment=n_points, rtol=rtol, start=(V1, phys.Dc / V1))
+    slip = res.slip_m - res.slip_m[0]
+    psi_ss2 = (1.0 - phys.b / phys.a) * math.log(V2 / phys.V_star)
+    sim = phys.a * (res.psi - psi_ss2) / phys.b
+    ana = delta_tau(slip / phys.Dc, V2 / V1, phys.eps)
+    mask = slip >= s_after
+    if res.runaway is not None:
+        mask &= res.phi < math.log(max(V1, V2) / phys.V_star) + 5.0
+    dev = float(np.max(np.abs(sim[mask] - ana[mask]))) if np.any(mask) else 0.0
+    return VelocityStepResult(
+        protocol=res, V1_m_s=V1, V2_m_s=V2, slip_since_step_m=slip, delta_tau_over_b_sigma=sim,
+        analytic_over_b_sigma=np.asarray(ana, dtype=np.float64), slip_after_m=s_after, max_deviation=dev, kappa=kappa,
+    )
+
+
+@dataclass
+class SlideHoldSlideResult:
+    """Slide-hold-slide test: slide at V, hold (V_o = 0), reslide at V.
+
+    Attributes:
+        protocol: the full :class:`ProtocolResult` (segments 0 slide, 1 hold, 2 reslide).
+        V_m_s, hold_s: sliding velocity [m/s] and hold time [s].
+        f_ss: steady-state friction at V before the hold (-) (`eq: steady state`).
+        peak_friction: true peak friction on reslide (-), at peak_time_s [s] (absolute)
+            = reslide start + peak_time_after_reslide_s [s].
+        healing_delta_f: peak_friction - f_ss (-), the lab "Delta mu" (None if the
+            reslide ran away or was not reached).
+        relaxation_delta_f: f_ss - friction at the end of the hold (-) ("Delta mu_c").
+        peak_V_reslide_m_s: true peak slip rate on reslide [m/s].
+        accuracy: relative ~rtol on psi at the peak (see module docstring).
+    """
+
+    protocol: ProtocolResult
+    V_m_s: float
+    hold_s: float
+    f_ss: float
+    peak_friction: float | None
+    peak_time_s: float | None
+    peak_time_after_reslide_s: float | None
+    healing_delta_f: float | None
+    relaxation_delta_f: float | None
+    peak_V_reslide_m_s: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "V_m_s": self.V_m_s,
+            "hold_s": self.hold_s,
+            "f_ss": self.f_ss,
+            "peak_friction": _finite_or_none(self.peak_friction),
+            "peak_time_s": _finite_or_none(self.peak_time_s),
+            "peak_time_after_reslide_s": _finite_or_none(self.peak_time_after_reslide_s),
+            "healing_delta_f": _finite_or_none(self.healing_delta_f),
+            "relaxation_delta_f": _finite_or_none(self.relaxation_delta_f),
+            "peak_V_reslide_m_s": _finite_or_none(self.peak_V_reslide_m_s),
+            "protocol": self.protocol.to_dict(),
+        }
+
+
+def slide_hold_slide(
+    phys: PhysicalParams,
+    V: float,
+    hold_s: float,
+    *,
+    slide_before_s: float,
+    slide_after_s: float,
+    n_points_per_segment: int = 200,
+    rtol: float = 1e-10,
+) -> SlideHoldSlideResult:
+    """Slide at V [m/s] for slide_before_s [s] from steady state, hold (V_o = 0) for
+    hold_s [s], reslide at V for slide_after_s [s]; report the healing Delta f.
+
+    All durations > 0.  The peak friction on reslide is the true maximum (located at the
+    V = V_o crossing, module docstring), relative accuracy ~rtol in psi.  Aging law
+    (eps = 1): healing grows ~ b ln(hold) for long holds; slip law (eps -> 0): state only
+    evolves with slip, so on a stiff machine healing stays small.
+    """
+    V = check_range("V", V, 0.0, None, lo_open=True)
+    hold_s = check_range("hold_s", hold_s, 0.0, None, lo_open=True)
+    res = load_history(
+        phys, [(slide_before_s, V), (hold_s, 0.0), (slide_after_s, V)],
+        n_points_per_segment=n_points_per_segment, rtol=rtol, start="steady",
+    )
+    f_ss = steady_state_friction(phys, V)
+    rs = res.segments[2]
+    hold = res.segments[1]
+    relax = None
+    if hold.status == "completed":
+        sel = res.segment == 1
+        relax = f_ss - float(res.friction[sel][-1]) if np.any(sel) else None
+    pk = rs.peak_friction if rs.status == "completed" else None
+    return SlideHoldSlideResult(
+        protocol=res,
+        V_m_s=V,
+        hold_s=hold_s,
+        f_ss=f_ss,
+        peak_friction=pk,
+        peak_time_s=rs.peak_friction_time_s if pk is not None else None,
+        peak_time_after_reslide_s=(rs.peak_friction_time_s - rs.t_start_s) if pk is not None else None,
+        healing_delta_f=(pk - f_ss) if pk is not None else None,
+        relaxation_delta_f=relax,
+        peak_V_reslide_m_s=rs.peak_V_m_s if rs.status == "completed" else None,
+    )

@@ -1,0 +1,171 @@
+"""Trajectories: certificates, delivered accuracy, true peaks, sampling, physical units."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rsfcore import ParameterError, Params, PhysicalParams, classify, simulate
+from rsfcore.analytic import velocity_jump_crit_kcrit
+
+from .reference import perturbation_of, reference_cases
+
+ACCURACY_CASES = [
+    (Params(2, 2, 0.25, 1), "velocity-jump", 2.0),
+    (Params(2, 2, 0.25, 1), "velocity-jump", 2.7),
+    (Params(2, 2, 0.25, 1), "velocity-jump", 3.5),
+    (Params(2, 2, 0.25, 1), "load-point-jump", 12.0),
+    (Params(2, 2, 0.25, 1), "load-point-jump", 14.0),
+    (Params(1.25, 0.25, 0.3, 1), "velocity-jump", 0.5),
+    (Params(2, 0.5, 0.3, 1), "velocity-jump", 0.2),
+    (Params(2, 1, 0.3, 0), "velocity-jump", 1.0),
+    (Params(2, 1, 0.3, 0), "velocity-jump", 1.5),
+    (Params(1.01, 0.02, 0.0, 1), "velocity-jump", 1.0),
+    (Params(100, 300, 0.1, 1), "velocity-jump", 5.0),
+]
+
+
+@pytest.mark.parametrize("p, pert, d", ACCURACY_CASES)
+def test_delivered_accuracy_within_reported(p: Params, pert: str, d: float) -> None:
+    """Times and peaks at rtol 1e-6..1e-12 against an rtol = 1e-14 run: error <= rel_accuracy."""
+    ref = classify(p, pert, d, rtol=1e-14)
+    for rtol in (1e-6, 1e-8, 1e-10, 1e-12):
+        r = classify(p, pert, d, rtol=rtol)
+        assert r.outcome == ref.outcome and r.certificate == ref.certificate
+        for k in ("blowup_time", "return_time", "peak_phi", "peak_time"):
+            a, b = getattr(r, k), getattr(ref, k)
+            if a is None or b is None or not math.isfinite(a):
+                assert (a is None) == (b is None)
+                continue
+            # compare with the reference's own uncertainty added (it is not exact)
+            assert abs(a - b) <= (r.rel_accuracy + ref.rel_accuracy) * abs(b), (k, rtol, a, b)
+        assert r.rel_accuracy <= 3 * 1000 * rtol  # and the estimate stays meaningful
+
+
+def test_reference_cases_classified_at_critical_size() -> None:
+    """Every finite reference case: d_crit (1 - 1e-8) is stable and d_crit (1 + 1e-8) unstable.
+
+    1e-8 is 100x above the rtol = 1e-10 used, so the trajectories near the separatrix
+    are resolved; the reference values are trusted to <= 1e-11.
+    """
+    n = 0
+    for c in reference_cases():
+        i = c["inputs"]
+        if c["kind"] != "finite" or not {"ba", "kappa", "eps", "vo"} <= set(i):
+            continue
+        p = Params(i["ba"], i["kappa"], i["eps"], i["vo"])
+        pert = perturbation_of(c)
+        for method in ("auto", "integrate"):
+            lo = classify(p, pert, c["value"] * (1 - 1e-8), method=method)
+            hi = classify(p, pert, c["value"] * (1 + 1e-8), method=method)
+            assert (lo.outcome, hi.outcome) == ("stable", "unstable"), (c["id"], method)
+        n += 1
+    assert n >= 13
+
+
+def test_zero_and_infinite_reference_kinds() -> None:
+    for c in reference_cases():
+        i = c["inputs"]
+        if c["kind"] not in ("zero", "infinite") or not {"ba", "kappa", "eps", "vo"} <= set(i):
+            continue
+        p = Params(i["ba"], i["kappa"], i["eps"], i["vo"])
+        pert = perturbation_of(c)
+        for size in (1e-3, 0.5, 5.0, 50.0):
+            r = classify(p, pert, size)
+            assert r.outcome == ("unstable" if c["kind"] == "zero" else "stable"), (c["id"], size)
+
+
+def test_peak_is_true_peak() -> None:
+    p = Params(2, 2, 0.25, 1)
+    r = simulate(p, "velocity-jump", 2.7, n_points=50)
+    fine = simulate(p, "velocity-jump", 2.7, n_points=20000)
+    assert r.peak_phi >= r.trajectory.phi.max()
+    assert r.peak_phi >= fine.trajectory.phi.max()
+    assert r.peak_phi - fine.trajectory.phi.max() < 1e-3  # fine grid approaches it from below
+    # a grid even in time misses the peak badly (what fixed-rate output reports)
+    coarse = simulate(p, "velocity-jump", 2.7, n_points=100, sampling="time")
+    assert r.peak_phi - coarse.trajectory.phi.max() > 1.0
+    tight = classify(p, "velocity-jump", 2.7, rtol=1e-13)
+    assert r.peak_phi == pytest.approx(tight.peak_phi, rel=r.rel_accuracy)
+    assert r.peak_time == pytest.approx(tight.peak_time, rel=r.rel_accuracy)
+
+
+def test_samples_at_requested_times_match_independent_scipy() -> None:
+    from scipy.integrate import solve_ivp
+
+    ba, kappa, eps = 2.0, 2.0, 0.25
+
+    def rhs(t: float, y: np.ndarray) -> list[float]:  # `eq:psi_T`, `eq:phi_T` in T, plain form
+        phi, psi = y
+        L = phi + (psi - phi) / ba
+        G = math.expm1(-eps * L) / eps
+        return [kappa * (1 - math.exp(phi)) - ba * G * math.exp(phi), kappa * (1 - math.exp(phi))]
+
+    times = np.linspace(0.0, 0.6, 13)
+    r = simulate(Params(ba, kappa, eps, 1.0), "velocity-jump", 2.0, times=times)
+    sol = solve_ivp(rhs, (0, 0.6), [2.0, 2.0], method="DOP853", rtol=1e-13, atol=1e-13, t_eval=times)
+    assert np.allclose(r.trajectory.T, times, rtol=1e-13, atol=1e-15)
+    assert np.allclose(r.trajectory.phi, sol.y[0], rtol=1e-8, atol=1e-8)
+    assert np.allclose(r.trajectory.psi, sol.y[1], rtol=1e-8, atol=1e-8)
+
+
+def test_sampling_modes_and_t_end() -> None:
+    p = Params(2, 2, 0.25, 1)
+    r = simulate(p, "velocity-jump", 2.0, n_points=7)
+    assert len(r.trajectory.T) == 7 and r.trajectory.T[-1] == pytest.approx(r.return_time, rel=1e-12)
+    r = simulate(p, "velocity-jump", 2.0, n_points=5, t_end=5.0, sampling="time")
+    assert np.allclose(r.trajectory.T, np.linspace(0, 5, 5), rtol=1e-12)
+    assert r.outcome == "stable" and np.all(np.abs(r.trajectory.phi[1:]) < r.peak_phi)
+    r = simulate(p, "velocity-jump", 3.0, n_points=5, t_end=5.0, sampling="time")
+    assert r.outcome == "unstable" and r.trajectory.T[-1] <= r.blowup_time
+    assert simulate(p, "velocity-jump", 2.0).trajectory is None  # only when asked
+
+
+def test_physical_units() -> None:
+    ph = PhysicalParams(a=0.01, b=0.02, Dc=1e-5, sigma=1e7, k=2 * 0.01 * 1e7 / 1e-5, V_star=1e-6, Vo=1e-6, eps=0.25)
+    p = ph.to_dimensionless()
+    assert p.kappa == pytest.approx(2.0)
+    r = simulate(p, "velocity-jump", 2.0, n_points=20, physical=ph)
+    t = r.trajectory
+    assert np.allclose(t.physical["t_s"], t.T * 10.0)
+    assert np.allclose(t.physical["V_m_s"], 1e-6 * np.exp(t.phi))
+    assert np.allclose(t.physical["friction"], 0.6 + 0.01 * t.psi)
+    d = r.to_dict()
+    assert d["physical"]["return_time_s"] == pytest.approx(r.return_time * 10.0)
+    assert d["physical"]["peak_velocity_m_s"] == pytest.approx(1e-6 * math.exp(r.peak_phi))
+
+
+def test_to_dict_is_json_safe() -> None:
+    import json
+
+    r = classify(Params(2, 2, 0.25, 1), "velocity-jump", 3.0)
+    d = r.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["peak_phi"] is None and d["blowup_time"] > 0 and d["outcome"] == "unstable"
+
+
+def test_bad_inputs_name_the_field() -> None:
+    p = Params(2, 2, 0.25, 1)
+    for kwargs, field in [
+        (dict(perturbation="kick", size=1.0), "perturbation"),
+        (dict(perturbation="velocity-jump", size=1e5), "size"),
+        (dict(perturbation="load-point-jump", size=-1.0), "size"),
+        (dict(perturbation="velocity-jump", size=1.0, rtol=1e-20), "rtol"),
+        (dict(perturbation="velocity-jump", size=float("nan")), "size"),
+    ]:
+        with pytest.raises(ParameterError) as e:
+            classify(p, **kwargs)
+        assert e.value.field == field
+    with pytest.raises(ParameterError) as e:
+        classify(Params(2, 2, 0.25, 0.0), "load-point-jump", 1.0)
+    assert e.value.field == "vo"
+
+
+def test_kcrit_closed_form_and_integration_agree_on_outcomes() -> None:
+    p = Params(1.25, 0.25, 0.5, 1.0)
+    dc = velocity_jump_crit_kcrit(1.25, 0.5)
+    for f in (0.5, 0.9, 0.99, 1.01, 1.1, 2.0):
+        a = classify(p, "velocity-jump", dc * f)
+        b = classify(p, "velocity-jump", dc * f, method="integrate")
+        assert a.outcome == b.outcome == ("stable" if f < 1 else "unstable")
