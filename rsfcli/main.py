@@ -1,0 +1,277 @@
+"""`rsf`: command-line interface to rsfcore and the service.
+
+Every command prints human-readable text by default and one JSON object with --json.
+Invalid input exits with status 2 and a message naming the field and its valid range.
+Dimensionless parameters follow the paper: --ba = b/a (> 1), --kappa = k Dc/(a sigma)
+(absolute, kappa_crit = b/a - 1), --eps in [0, 1] (0 slip law, 1 aging law),
+--vo = V_o/V_* (0 = stationary load point).
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from enum import Enum
+from pathlib import Path
+from typing import Any, Optional, Tuple
+
+import typer
+
+app = typer.Typer(
+    name="rsf",
+    help="Non-linear slip-stability analysis of rate-and-state friction (spring-slider, "
+    "aging-to-slip evolution laws; Ciardo & Viesca).",
+    no_args_is_help=True,
+    add_completion=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+
+class PerturbationKind(str, Enum):
+    velocity_jump = "velocity-jump"
+    load_point_jump = "load-point-jump"
+
+
+class Sampling(str, Enum):
+    tau = "tau"
+    time = "time"
+
+
+class Case(str, Enum):
+    A = "A"
+    B = "B"
+    C = "C"
+    D = "D"
+    E = "E"
+
+
+BA = typer.Option(2.0, "--ba", help="b/a, rate-weakening ratio, (1, 1e6].")
+KAPPA = typer.Option(2.0, "--kappa", help="k Dc/(a sigma), dimensionless stiffness, [0, 1e6] (kappa_crit = b/a - 1).")
+EPS = typer.Option(0.25, "--eps", help="Evolution-law parameter, [0, 1]: 0 slip law, 1 aging law.")
+VO = typer.Option(1.0, "--vo", help="V_o/V_*, load-point velocity; 0 = stationary load point.")
+PERT = typer.Option(PerturbationKind.velocity_jump, "--perturbation", help="Kind of perturbation from steady state.")
+SIZE = typer.Option(1.0, "--size", help="Velocity jump d = ln(1 + dV/V) in [-1e4, 1e4], or load-point jump dv/v_o in (-1, ..].")
+RTOL = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator, [1e-14, 1e-3].")
+JSON = typer.Option(False, "--json", help="Print one JSON object.")
+
+
+def _fail(exc: Exception) -> None:
+    typer.echo(f"error: {exc}", err=True)
+    raise typer.Exit(code=2)
+
+
+def _emit(obj: dict[str, Any], as_json: bool, lines: list[str]) -> None:
+    if as_json:
+        typer.echo(json.dumps(obj, allow_nan=False))
+    else:
+        typer.echo("\n".join(lines))
+
+
+def _params(ba: float, kappa: float, eps: float, vo: float):  # noqa: ANN202
+    from rsfcore import Params
+
+    return Params(ba=ba, kappa=kappa, eps=eps, vo=vo)
+
+
+@app.command()
+def classify(
+    ba: float = BA,
+    kappa: float = KAPPA,
+    eps: float = EPS,
+    vo: float = VO,
+    perturbation: PerturbationKind = PERT,
+    size: float = SIZE,
+    rtol: float = RTOL,
+    as_json: bool = JSON,
+) -> None:
+    """Certified outcome (stable/unstable) of one perturbation, with blow-up or return time and the true peak."""
+    from rsfcore import ParameterError, UndecidedError
+    from rsfcore import classify as _classify
+
+    try:
+        r = _classify(_params(ba, kappa, eps, vo), perturbation.value, size, rtol=rtol)
+    except (ParameterError, UndecidedError) as e:
+        _fail(e)
+    d = r.to_dict()
+    d.pop("trajectory", None)
+    _emit(
+        d,
+        as_json,
+        [
+            f"outcome      {r.outcome}  (certificate: {r.certificate})",
+            f"blowup_time  {r.blowup_time}",
+            f"return_time  {r.return_time}",
+            f"peak_phi     {r.peak_phi}  at T = {r.peak_time}",
+            f"rel_accuracy {r.rel_accuracy:.2e}   steps {r.n_steps}",
+        ],
+    )
+
+
+@app.command()
+def trajectory(
+    ba: float = BA,
+    kappa: float = KAPPA,
+    eps: float = EPS,
+    vo: float = VO,
+    perturbation: PerturbationKind = PERT,
+    size: float = SIZE,
+    rtol: float = RTOL,
+    n_points: int = typer.Option(200, "--n-points", help="Number of output samples, [1, 100000]."),
+    t_end: Optional[float] = typer.Option(None, "--t-end", help="Run to this dimensionless time T (default: to the decision)."),
+    sampling: Sampling = typer.Option(Sampling.tau, "--sampling", help="Samples even in the engine's hybrid time (tau) or in T (time)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Also write the samples to .csv or .json."),
+    as_json: bool = JSON,
+) -> None:
+    """A trajectory downsampled to --n-points, plus everything `classify` reports."""
+    from rsfcore import ParameterError, UndecidedError, simulate
+
+    try:
+        r = simulate(_params(ba, kappa, eps, vo), perturbation.value, size, rtol=rtol, n_points=n_points, t_end=t_end, sampling=sampling.value)
+    except (ParameterError, UndecidedError) as e:
+        _fail(e)
+    d = r.to_dict()
+    if out is not None:
+        _write_table(out, d["trajectory"])
+    t = r.trajectory
+    assert t is not None
+    lines = [f"outcome {r.outcome} ({r.certificate}); peak_phi {r.peak_phi} at T = {r.peak_time}", "T phi psi"]
+    lines += [f"{a:.10g} {b:.10g} {c:.10g}" for a, b, c in zip(t.T, t.phi, t.psi)]
+    _emit(d, as_json, lines)
+
+
+def _write_table(path: Path, columns: dict[str, list[float]]) -> None:
+    if path.suffix == ".json":
+        path.write_text(json.dumps(columns, allow_nan=False))
+    elif path.suffix == ".csv":
+        keys = list(columns)
+        rows = zip(*(columns[k] for k in keys))
+        path.write_text(",".join(keys) + "\n" + "\n".join(",".join(repr(v) for v in row) for row in rows) + "\n")
+    else:
+        _fail(ValueError(f"out={str(path)!r} is invalid: valid range is a path ending in .csv or .json"))
+
+
+@app.command()
+def critical(
+    ba: float = BA,
+    kappa: float = KAPPA,
+    eps: float = EPS,
+    vo: float = VO,
+    perturbation: PerturbationKind = PERT,
+    rtol: float = RTOL,
+    as_json: bool = JSON,
+) -> None:
+    """Critical perturbation size: kind zero / finite (with value) / infinite, method and accuracy."""
+    from rsfcore import ParameterError
+    from rsfcore.critical import critical_perturbation
+
+    try:
+        r = critical_perturbation(_params(ba, kappa, eps, vo), perturbation.value, rtol=rtol)
+    except ParameterError as e:
+        _fail(e)
+    d = r.to_dict()
+    _emit(
+        d,
+        as_json,
+        [
+            f"kind          {d['kind']}",
+            f"critical_size {d['critical_size']}",
+            f"rel_accuracy  {d['rel_accuracy']:.2e}",
+            f"method        {d['method']}",
+        ],
+    )
+
+
+@app.command()
+def diagram(
+    x: Tuple[str, float, float, int] = typer.Option(..., "--x", help="NAME START STOP N for the first axis (NAME: kappa_ratio, eps, ba, size)."),
+    y: Tuple[str, float, float, int] = typer.Option(..., "--y", help="NAME START STOP N for the second axis."),
+    ba: float = BA,
+    kappa: float = KAPPA,
+    eps: float = EPS,
+    vo: float = VO,
+    perturbation: PerturbationKind = PERT,
+    size: Optional[float] = typer.Option(None, "--size", help="If given, also classify this perturbation size at every point."),
+    rtol: float = RTOL,
+    out: Path = typer.Option(..., "--out", help="Output file: .npz (arrays x, y, critical_size[i, j] at x[i], y[j]; inf = infinite), .csv or .json."),
+    as_json: bool = JSON,
+) -> None:
+    """Stability diagram on a 2-D grid of two of kappa_ratio, eps, ba, size (other parameters as in `critical`)."""
+    import numpy as np
+
+    from rsfcore import ParameterError
+    from rsfcore.diagram import stability_diagram
+
+    try:
+        for label, (_, _, _, n) in (("x", x), ("y", y)):
+            if not 1 <= n <= 2000:
+                raise ParameterError(label, n, "N in [1, 2000]")
+        if out.suffix not in (".npz", ".csv", ".json"):
+            raise ParameterError("out", str(out), "a path ending in .npz, .csv or .json")
+        p = _params(ba, kappa, eps, vo)
+        res = stability_diagram(
+            x[0], np.linspace(x[1], x[2], x[3]), y[0], np.linspace(y[1], y[2], y[3]),
+            ba=p.ba, kappa_ratio=p.kappa_ratio, eps=p.eps, vo=p.vo,
+            perturbation=perturbation.value, size=size, rtol=rtol,
+        )
+    except ParameterError as e:
+        _fail(e)
+    res.save(out)
+    cs = np.asarray(res.critical_size)
+    summary = {
+        "out": str(out),
+        "shape": list(cs.shape),
+        "n_finite": int(np.isfinite(cs).sum() - (cs == 0).sum()),
+        "n_zero": int((cs == 0).sum()),
+        "n_infinite": int(np.isinf(cs).sum()),
+        "rel_accuracy": float(res.rel_accuracy),
+    }
+    _emit(summary, as_json, [f"{k} {v}" for k, v in summary.items()])
+
+
+@app.command()
+def stiffness(
+    case: Case = typer.Option(..., "--case", help="Continuum configuration of `tab: table` (A-E)."),
+    mode: int = typer.Option(0, "--mode", help="Eigenmode index (0 = smallest; B, D, E only)."),
+    mu: Optional[float] = typer.Option(None, "--mu", help="Shear modulus mu [Pa] (> 0)."),
+    nu: float = typer.Option(0.25, "--nu", help="Poisson's ratio, [0, 0.5)."),
+    slip_mode: str = typer.Option("II", "--slip-mode", help="Mode of slip: II (in-plane) or III (anti-plane)."),
+    sigma: Optional[float] = typer.Option(None, "--sigma", help="Normal stress [Pa] (> 0)."),
+    a: Optional[float] = typer.Option(None, "--a", help="Direct-effect coefficient a (> 0)."),
+    b: Optional[float] = typer.Option(None, "--b", help="Evolution-effect coefficient b (> a)."),
+    dc: Optional[float] = typer.Option(None, "--dc", help="Characteristic slip distance Dc [m] (> 0)."),
+    h: Optional[float] = typer.Option(None, "--h", help="Depth of the interface below the free surface [m] (cases C, D)."),
+    as_json: bool = JSON,
+) -> None:
+    """Continuum equivalent stiffness k/k_* (cases A-E) and, with physical parameters, the critical dimension."""
+    from rsfcore import ParameterError
+    from rsfcore.stiffness import stiffness_summary
+
+    phys = {k: v for k, v in dict(mu=mu, nu=nu, mode_of_slip=slip_mode, sigma=sigma, a=a, b=b, Dc=dc, h=h).items() if v is not None}
+    if mu is None or sigma is None or a is None or b is None or dc is None:
+        phys = {}
+    try:
+        d = stiffness_summary(case.value, mode=mode, **phys)
+    except (ParameterError, ValueError) as e:
+        _fail(e)
+    _emit(d, as_json, [f"{k} {v}" for k, v in d.items()])
+
+
+@app.command()
+def serve(
+    host: str = typer.Option("127.0.0.1", "--host", help="Interface to bind."),
+    port: int = typer.Option(8000, "--port", help="TCP port."),
+    data_dir: Path = typer.Option(Path("rsf-data"), "--data-dir", help="Directory for the SQLite cache, sweep store and the filesystem broker."),
+) -> None:
+    """Start the HTTP API (uvicorn) and an embedded Celery worker (filesystem broker unless RSF_BROKER_URL is set)."""
+    from .serve import serve as _serve
+
+    _serve(host=host, port=port, data_dir=data_dir)
+
+
+def main() -> None:
+    """Console entry point."""
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
