@@ -240,9 +240,11 @@ def _run(
     sample_T: NDArray[np.float64] = _EMPTY,
     max_steps: int = MAX_STEPS,
 ) -> tuple:
-    y0 = np.array([phi0, (psi0 - phi0) / p.ba, 0.0, 0.0, 0.0])
-    Ls = float(L_star(p.kappa, p.kappa_crit, p.eps))
     n_samp = sample_tau.shape[0] + sample_T.shape[0]
+    lth0 = (psi0 - phi0) / p.ba
+    # without samples only (phi, ln theta, T) are carried
+    y0 = np.array([phi0, lth0, 0.0, 0.0, 0.0]) if n_samp else np.array([phi0, lth0, 0.0])
+    Ls = float(L_star(p.kappa, p.kappa_crit, p.eps))
     samples = np.empty((n_samp, 5)) if n_samp else _EMPTY2
     sor = plan.stop_on_return if stop_on_return is None else stop_on_return
     res = integrate(

@@ -28,6 +28,8 @@ class Settings(BaseSettings):
         chunk_seconds: target duration of one sweep chunk [s], (0, 600].
         sweep_max_points: largest accepted sweep grid (points), >= 1.
         queue: Celery queue used by the API and the workers.
+        inline_budget_s: a single query still computing after this long [s] is answered
+            202 + Location /v1/results/{key} and finishes in the background.
         lease_s: a running chunk whose worker has not reported for this long [s] is
             requeued when a worker starts.
     """
@@ -41,6 +43,7 @@ class Settings(BaseSettings):
     sweep_max_points: int = Field(default=40_000, ge=1)
     queue: str = "rsf"
     lease_s: float = Field(default=600.0, gt=0)
+    inline_budget_s: float = Field(default=2.0, gt=0, le=3600)
 
     @property
     def data_path(self) -> Path:

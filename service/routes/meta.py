@@ -3,13 +3,17 @@ from __future__ import annotations
 
 import json
 
-from fastapi import APIRouter
+from typing import Annotated
+
+from fastapi import APIRouter, Path
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
 from worker import cache
 
+from .. import cached
 from ..compute import numerics_version
+from ..errors import ProblemError
 
 router = APIRouter(tags=["meta"])
 
@@ -29,3 +33,23 @@ async def stats() -> Response:
     st = await run_in_threadpool(cache.stats)
     st["numerics_version"] = numerics_version()
     return Response(json.dumps(st), media_type="application/json")
+
+
+@router.get("/v1/results/{key}", summary="A deferred (long) computation's result",
+            responses={202: {"description": "Still running."},
+                       404: {"description": "Unknown key (problem+json)."},
+                       422: {"description": "The computation failed (problem+json)."}})
+async def result(key: Annotated[str, Path(pattern=r"^[0-9a-f]{64}$",
+                                          description="cache_key (64 hex)")]) -> Response:
+    """The cached result for ``key`` (as the original endpoint answers it), 202 while it
+    is still being computed in this API process, 422 if it failed, else 404."""
+    hit = await run_in_threadpool(cache.get, key)
+    if hit is not None:
+        return Response(cached.body(cache.canonical(hit), key, True),
+                        media_type="application/json", headers={"X-Cache": "hit"})
+    if key in cached.pending:
+        return Response(json.dumps({"status": "running", "cache_key": key}), status_code=202,
+                        media_type="application/json", headers={"Retry-After": "2"})
+    if key in cached.failed:
+        raise ProblemError(422, "Could not be computed", cached.failed[key])
+    raise ProblemError(404, "Not found", f"no result with key {key}")
