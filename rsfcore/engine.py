@@ -93,7 +93,9 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
         om = inv
     g = G_clipped(y[0] + y[1], eps)
     z = ba * g * ap
-    inv_d = 1.0 / math.hypot(1.0, z)  # hypot: no overflow of z*z
+    az = abs(z)
+    # D = hypot(1, z) without hypot's cost; |z| alone where z*z would overflow
+    inv_d = 1.0 / math.sqrt(1.0 + z * z) if az < 1e150 else 1.0 / az
     load = vo * om / c
     out[0] = (kappa * (load - ap) - z) * inv_d
     out[1] = g * ap * inv_d
@@ -342,6 +344,8 @@ def integrate(
         peak_phi = math.inf
 
     rejected_last = False
+    h_acc_prev = 0.0
+    err_acc_prev = 1.0
     while n_steps + n_rej < max_steps:
         # ---- one DOP853 step --------------------------------------------------
         for j in range(n):
@@ -531,12 +535,17 @@ def integrate(
         for j in range(n):
             y[j] = ynew[j]
             f[j] = fnew[j]
-        if err == 0.0:
-            fac = _MAX_FACTOR
-        else:
-            fac = min(_MAX_FACTOR, _SAFETY * err ** (-1.0 / 8.0))
+        err_c = max(err, 1e-12)
+        fac = min(_MAX_FACTOR, _SAFETY * err_c ** (-1.0 / 8.0))
+        if h_acc_prev > 0.0:
+            # Gustafsson's predictive controller (Hairer & Wanner IV.8): when the error
+            # constant changes steadily from step to step (approaching a sharp peak),
+            # extrapolate the trend instead of retrying a step that fails.
+            fac = min(fac, fac * (h / h_acc_prev) * (err_acc_prev / err_c) ** (1.0 / 8.0))
         if rejected_last:
             fac = min(1.0, fac)
+        h_acc_prev = h
+        err_acc_prev = err_c
         rejected_last = False
         h *= fac
 

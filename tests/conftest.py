@@ -190,7 +190,9 @@ def redis_exe() -> str:
 def fs_stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, Path]]:
     """A uvicorn server on the filesystem broker (no worker) and its data dir."""
     d = tmp_path_factory.mktemp("rsf-fs")
-    srv = Server(d)
+    # A generous inline budget: on a loaded machine a first query may be slow, and these
+    # tests check answers, not deferral (tested on its own server).
+    srv = Server(d, RSF_INLINE_BUDGET_S="120")
     yield srv, d
     srv.stop()
 
