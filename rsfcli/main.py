@@ -257,6 +257,20 @@ def stiffness(
 
 
 @app.command()
+def figure(
+    name: Optional[str] = typer.Argument(None, help="Figure name (see --list)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Output file, .png or .svg."),
+    list_: bool = typer.Option(False, "--list", help="List the figures with the caption each reproduces."),
+) -> None:
+    """Regenerate a figure of the paper from rsfcore (`rsf figure --list` names them)."""
+    from rsfplots.cli import figure_command
+
+    code = figure_command(name, out, list_)
+    if code:
+        raise typer.Exit(code=code)
+
+
+@app.command()
 def serve(
     host: str = typer.Option("127.0.0.1", "--host", help="Interface to bind."),
     port: int = typer.Option(8000, "--port", help="TCP port."),
