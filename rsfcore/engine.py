@@ -274,6 +274,8 @@ def integrate(
     ftmp = np.empty(n)
     f = np.empty(n)
     fnew = np.empty(n)
+    ye = np.empty(n)  # state and slope at the end of the usable part of a step
+    fe = np.empty(n)
     scale = np.empty(n)
 
     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
@@ -406,73 +408,79 @@ def integrate(
                 break
             continue
 
-        # ---- accepted: events on [tau, tau + h] ----------------------------------
+        # ---- accepted: events on [tau, tau + x_end h] ----------------------------
         n_steps += 1
         err_sum += err * rtol
         dense_ready = False
         stop_x = 2.0  # fraction of the step where integration stops (2 = none)
         stop_status = -1
 
+        # A requested final time inside this step is located first, so that no event
+        # (peak, certificate) is taken from beyond it.
+        x_end = 1.0
+        if ynew[2] >= t_end:
+            _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+            n_rhs += 3
+            dense_ready = True
+            x_end = _root_component(F, y, 2, t_end, 0.0, 1.0, y[2] - t_end, ynew[2] - t_end, tmp)
+            _dense_eval(F, y, x_end, ye)
+            _rhs(ye, fe, ba, kappa, eps, vo, c, lnc)
+            n_rhs += 1
+            stop_x = x_end
+            stop_status = 0
+        else:
+            for j in range(n):
+                ye[j] = ynew[j]
+                fe[j] = fnew[j]
+
         # runaway certificate (checked at the step end: L is absorbing above L*)
-        if check_runaway and not runaway and ynew[0] + ynew[1] > Lstar:
+        if check_runaway and not runaway and ye[0] + ye[1] > Lstar:
             runaway = True
-            T_cert = ynew[2]
+            T_cert = ye[2]
 
         if not runaway:
             # local maximum of phi inside the step
-            if f[0] > 0.0 and fnew[0] <= 0.0:
+            if f[0] > 0.0 and fe[0] <= 0.0:
                 if not dense_ready:
                     _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
                     n_rhs += 3
                     dense_ready = True
-                xm = _root_slope(F, y, 0.0, 1.0, f[0], fnew[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+                xm = _root_slope(F, y, 0.0, x_end, f[0], fe[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
                 _dense_eval(F, y, xm, tmp)
                 if tmp[0] > peak_phi:
                     peak_phi = tmp[0]
                     peak_T = tmp[2]
-            if ynew[0] > peak_phi:
-                peak_phi = ynew[0]
-                peak_T = ynew[2]
+            if ye[0] > peak_phi:
+                peak_phi = ye[0]
+                peak_T = ye[2]
             # return certificate
             if stop_on_return:
                 if not fixed_L:
-                    if above and ynew[0] < phi_ss:
+                    if above and ye[0] < phi_ss:
                         if not dense_ready:
                             _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
                             n_rhs += 3
                             dense_ready = True
-                        xr = _root_component(F, y, 0, phi_ss, 0.0, 1.0, y[0] - phi_ss, ynew[0] - phi_ss, tmp)
+                        xr = _root_component(F, y, 0, phi_ss, 0.0, x_end, y[0] - phi_ss, ye[0] - phi_ss, tmp)
                         _dense_eval(F, y, xr, tmp)
                         T_return = tmp[2]
                         stop_x = xr
                         stop_status = 2
-                    if ynew[0] >= phi_ss:
+                    if ye[0] >= phi_ss:
                         above = True
-                    elif stop_status < 0 and abs(ynew[0] - phi_ss) < eq_tol and abs(ynew[0] + ynew[1]) < eq_tol:
+                    elif stop_status < 0 and abs(ye[0] - phi_ss) < eq_tol and abs(ye[0] + ye[1]) < eq_tol:
                         # within eq_tol of the (asymptotically stable) steady state
                         # (phi = ln v_o, L = 0) without crossing it: a node, not a focus.
-                        stop_x = 1.0
+                        stop_x = x_end
                         stop_status = 6
-                elif fnew[0] < 0.0:
+                elif fe[0] < 0.0 and stop_status < 0:
                     # v_o = 0 or kappa = 0: L decreases monotonically below L*, so once d phi/ds < 0
                     # it stays negative and the maximum is behind us.
-                    stop_x = 1.0
+                    stop_x = x_end
                     stop_status = 3
-        else:
-            if ynew[0] - lnc > phi_stop:
-                stop_x = 1.0
-                stop_status = 1
-
-        # stop at a requested final time T
-        if ynew[2] >= t_end:
-            if not dense_ready:
-                _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
-                n_rhs += 3
-                dense_ready = True
-            xt = _root_component(F, y, 2, t_end, 0.0, 1.0, y[2] - t_end, ynew[2] - t_end, tmp)
-            if xt < stop_x:
-                stop_x = xt
-                stop_status = 0
+        elif ye[0] - lnc > phi_stop and stop_status < 0:
+            stop_x = x_end
+            stop_status = 1
 
         # samples inside this step (up to the stop point)
         x_lim = min(stop_x, 1.0)

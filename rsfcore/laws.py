@@ -116,10 +116,16 @@ def nagata_to_intermediate(aN: float, bN: float, DcN: float, cN: float) -> dict[
     Nagata et al. (2012), `eq: Nagata law`:
         f = f_* + aN ln(V/V_*) + bN ln(V_* theta/DcN),
         d theta/dt = 1 - V theta/DcN - cN theta/(sigma bN) d tau/dt.
-    Returns {'a', 'b', 'Dc', 'eps'} with Dc = DcN/(1+cN), a = aN/(1+cN),
-    eps = 1 - aN cN/((1+cN) bN), b = eps bN.  Requires aN > 0, bN > 0, DcN > 0, cN >= 0
-    and aN cN < (1 + cN) bN (eps > 0).  Exact algebra (no approximation); the
-    equivalence of the two laws is checked by integration in the tests.
+    Returns {'a', 'b', 'Dc', 'eps'} with a = aN/(1+cN), eps = 1 - aN cN/((1+cN) bN),
+    b = eps bN and Dc = DcN (1+cN).  Requires aN > 0, bN > 0, DcN > 0, cN >= 0 and
+    aN cN < (1 + cN) bN (eps > 0).
+
+    Correction to the paper: the printed mapping has Dc = DcN/(1+cN).  With
+    Theta' = ln theta + gamma ln V, gamma = aN cN/((1+cN) bN), the Nagata law becomes
+    d Theta'/dt = (1/theta - V/DcN)/(1 + cN), i.e. the intermediate law with the slip
+    distance DcN (1 + cN): the stress-rate term slows the state evolution.  Integrating
+    both laws (tests/test_nagata.py) the corrected map reproduces the Nagata friction to
+    ~1e-11, the printed one is off by ~1e-2.
     """
     from .params import ParameterError, check_range
 
@@ -130,11 +136,11 @@ def nagata_to_intermediate(aN: float, bN: float, DcN: float, cN: float) -> dict[
     eps = 1.0 - aN * cN / ((1.0 + cN) * bN)
     if not eps > 0.0:
         raise ParameterError("cN", cN, "aN*cN/((1+cN)*bN) < 1 (eps > 0)")
-    return {"a": aN / (1.0 + cN), "b": eps * bN, "Dc": DcN / (1.0 + cN), "eps": eps}
+    return {"a": aN / (1.0 + cN), "b": eps * bN, "Dc": DcN * (1.0 + cN), "eps": eps}
 
 
 def intermediate_to_nagata(a: float, b: float, Dc: float, eps: float) -> dict[str, float]:
-    """Inverse of :func:`nagata_to_intermediate`: cN = (1 - eps) b/(a eps), aN = a(1+cN), bN = b/eps, DcN = Dc(1+cN).
+    """Inverse of :func:`nagata_to_intermediate`: cN = (1 - eps) b/(a eps), aN = a(1+cN), bN = b/eps, DcN = Dc/(1+cN).
 
     Requires eps in (0, 1]; the slip law (eps = 0) has no Nagata equivalent (cN -> inf).
     """
@@ -145,4 +151,4 @@ def intermediate_to_nagata(a: float, b: float, Dc: float, eps: float) -> dict[st
     Dc = check_range("Dc", Dc, 0.0, None, lo_open=True)
     eps = check_range("eps", eps, 0.0, 1.0, lo_open=True)
     cN = (1.0 - eps) * b / (a * eps)
-    return {"aN": a * (1.0 + cN), "bN": b / eps, "DcN": Dc * (1.0 + cN), "cN": cN}
+    return {"aN": a * (1.0 + cN), "bN": b / eps, "DcN": Dc / (1.0 + cN), "cN": cN}

@@ -11,7 +11,7 @@ with V solved from the friction law given tau and theta.  The intermediate law r
 through rsfcore.protocols.load_history (compiled DOP853 engine) from the same steady
 state, after the same load-point velocity step.
 
-Finding: the mapping printed in the paper (`eq: mapping Nagata and intermediate
+Finding (now applied in rsfcore.laws): the mapping printed in the paper (`eq: mapping Nagata and intermediate
 evolution law`) has Dc = DcN/(1 + cN); the correct one is Dc = DcN (1 + cN).
 Derivation: with tau = sigma f, d tau/dt = sigma (aN dlnV/dt + bN dln theta/dt), so the
 Nagata law is (1 + cN) dln theta/dt = 1/theta - V/DcN - cN (aN/bN) dlnV/dt.  The state
@@ -144,7 +144,7 @@ def test_corrected_mapping_round_trip(cN: float) -> None:
 @pytest.mark.parametrize("cN", [0.0, 0.3, 2.0, 7.0])
 def test_laws_round_trip(cN: float) -> None:
     """rsfcore.laws: intermediate_to_nagata inverts nagata_to_intermediate, and a, b, eps
-    agree with the corrected mapping (only Dc differs, see the next test)."""
+    agree with the corrected mapping (Dc is checked by the next test)."""
     m = nagata_to_intermediate(AN, BN, DCN, cN)
     back = intermediate_to_nagata(**m)
     assert back == pytest.approx({"aN": AN, "bN": BN, "DcN": DCN, "cN": cN}, rel=1e-13, abs=1e-15)
@@ -153,9 +153,6 @@ def test_laws_round_trip(cN: float) -> None:
         assert m[key] == pytest.approx(mc[key], rel=1e-14)
 
 
-@pytest.mark.xfail(strict=True, reason="rsfcore.laws.nagata_to_intermediate follows the printed paper, "
-                   "Dc = DcN/(1+cN); the correct map is Dc = DcN*(1+cN) (this file's docstring). "
-                   "Remove this marker once laws.py is fixed.")
 def test_laws_mapping_Dc_is_correct() -> None:
     m = nagata_to_intermediate(AN, BN, DCN, 2.0)
     assert m["Dc"] == pytest.approx(DCN * 3.0, rel=1e-14)
