@@ -9,7 +9,6 @@ Dimensionless parameters follow the paper: --ba = b/a (> 1), --kappa = k Dc/(a s
 from __future__ import annotations
 
 import json
-import math
 import sys
 from enum import Enum
 from pathlib import Path

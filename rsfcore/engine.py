@@ -276,7 +276,6 @@ def integrate(
     fnew = np.empty(n)
     ye = np.empty(n)  # state and slope at the end of the usable part of a step
     fe = np.empty(n)
-    scale = np.empty(n)
 
     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
     n_rhs = 1

@@ -291,13 +291,6 @@ def _psi_slope_sign(y, c: _Ctx) -> float:
     return (math.log(c.vo) if c.vo > 0.0 else -math.inf) - float(y[0])
 
 
-def _phi_slope(y, c: _Ctx) -> float:
-    """(d phi/dT) e^-phi = kappa (v_o e^-phi - 1) - (b/a) G(L) (`eq:phi_T`), overflow-free."""
-    phi = float(y[0])
-    load = c.vo * math.exp(min(-phi, 700.0)) if c.vo > 0.0 else 0.0
-    return c.kappa * (load - 1.0) - c.ba * float(G_clipped(phi + float(y[1]), c.eps))
-
-
 def _refine_max(y_a, T_b, c: _Ctx, value, slope) -> tuple[float, float]:
     """Maximum of value(y(T)) on [y_a[2], T_b]; slope(y) changes sign + -> - inside.
 
@@ -469,14 +462,8 @@ def load_history(
         y_end = np.asarray(y_end).copy()
         sm.n_steps = int(n_st + n_rej)
         err_total += float(err_sum)
-        flagged = not math.isnan(T_cert)
-        ran_away = flagged
-        if flagged and status == 0 and float(T_cert) > T_end:
-            # The engine tests L > L* at the end of each step, and the last step may
-            # overshoot the segment end: that certificate counts only if L > L* already
-            # holds at the end of the segment (L > L* is absorbing for every v_o >= 0).
-            ran_away = float(y_end[0] + y_end[1]) > Ls
-            T_cert = T_end if ran_away else math.nan
+        # (the engine takes no event from beyond t_end, so a certificate is within the segment)
+        ran_away = not math.isnan(T_cert)
         if status in (4, 5) and not ran_away:
             raise IntegrationBudgetError(
                 f"segment {i} (Vo={Vo:g} m/s, {dur:g} s) did not finish: engine status {int(status)} "
@@ -510,26 +497,13 @@ def load_history(
         sm.peak_friction = p.f_star + p.a * best[0]
         sm.peak_friction_time_s = best[1] * ts
         sm.peak_friction_where = best[2]
-        # slip rate: the engine's event-located maximum, unless it came from the part of
-        # the last step beyond the segment end (then located here on the grid)
+        # slip rate: the engine's event-located maximum (start, interior maxima, end)
         if ran_away:
             sm.peak_V_m_s = None
             sm.peak_V_time_s = None
         else:
-            T_seg_end = float(y_end[2])
-            engine_ok = float(peak_T) <= T_seg_end and math.isfinite(float(peak_phi))
-            if engine_ok and not flagged:
-                bphi = (float(peak_phi), float(peak_T))
-            else:
-                # (a certificate dismissed above also stopped the engine's peak tracking)
-                cands = [(float(y_start[0]), T_now), (float(y_end[0]), T_seg_end)]
-                if engine_ok:
-                    cands.append((float(peak_phi), float(peak_T)))
-                bphi = max(cands, key=lambda t: t[0])
-                bphi = _grid_peak(grid, ctx, lambda yy: float(yy[0]), lambda yy: _phi_slope(yy, ctx),
-                                  (2.0 * kappa + 2.0) * dtau, bphi)
-            sm.peak_V_m_s = p.V_star * math.exp(bphi[0])
-            sm.peak_V_time_s = bphi[1] * ts
+            sm.peak_V_m_s = p.V_star * math.exp(float(peak_phi))
+            sm.peak_V_time_s = float(peak_T) * ts
 
         if ran_away:
             sm.status = "runaway"
