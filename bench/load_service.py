@@ -102,13 +102,22 @@ def _req(url: str, method: str, path: str, body: dict | None = None) -> tuple[in
     return r.status, data, headers
 
 
-def sweep_vs_core(url: str, n: int, timeout: float) -> dict:
-    """Wall time of an n x n critical-size sweep via the service and via rsfcore alone."""
+def sweep_vs_core(url: str, n: int, timeout: float, kind: str,
+                  use_diagram: bool = False) -> dict:
+    """Wall time of an n x n sweep via the service and via rsfcore alone.
+
+    kind 'outcome': kappa_ratio x eps, velocity jump of size 1 (classify per point);
+    kind 'critical': critical size per point (its cost varies from 10 us to 0.4 s a point).
+    The baseline makes the worker's rsfcore calls in a plain loop; ``use_diagram`` times
+    rsfcore.diagram.stability_diagram instead (which derives outcomes from critical
+    sizes, so an outcome sweep costs it as much as a critical one).
+    """
     ba = round(random.uniform(1.5, 4.0), 6)  # fresh spec: no cache hit
     kr = [0.5 + 2.5 * i / (n - 1) for i in range(n)]
     eps = [i / (n - 1) for i in range(n)]
+    size = 1.0 if kind == "outcome" else None
     body = {"x": {"name": "kappa_ratio", "values": kr}, "y": {"name": "eps", "values": eps},
-            "fixed": {"ba": ba, "vo": 1.0}}
+            "fixed": {"ba": ba, "vo": 1.0, "size": size}}
     t0 = time.perf_counter()
     code, st, h = _req(url, "POST", "/v1/sweeps", body)
     if code not in (200, 202):
@@ -118,23 +127,31 @@ def sweep_vs_core(url: str, n: int, timeout: float) -> dict:
         time.sleep(0.02)
         _, st, _ = _req(url, "GET", loc)
     t_service = time.perf_counter() - t0
-    from rsfcore import critical
+    if st.get("status") != "done":
+        _req(url, "DELETE", loc)
+    from rsfcore import critical, trajectory
     from rsfcore.params import Params
     critical.critical_perturbation(Params(2.0, 1.5, 0.5, 1.0))  # compiled kernels loaded
+    trajectory.classify(Params(2.0, 1.5, 0.5, 1.0), "velocity-jump", 1.0)
     t0 = time.perf_counter()
-    try:
+    if use_diagram:
         from rsfcore import diagram
-        diagram.stability_diagram("kappa_ratio", kr, "eps", eps, ba=ba, vo=1.0)
+        diagram.stability_diagram("kappa_ratio", kr, "eps", eps, ba=ba, vo=1.0, size=size)
         how = "rsfcore.diagram.stability_diagram"
-    except ImportError:
+    else:
         for x in kr:
             for y in eps:
-                critical.critical_perturbation(Params.from_ratio(ba, x, y, 1.0))
-        how = "rsfcore.critical per point"
+                p = Params.from_ratio(ba, x, y, 1.0)
+                if size is None:
+                    critical.critical_perturbation(p)
+                else:
+                    trajectory.classify(p, "velocity-jump", size)
+        how = "rsfcore per point (the worker's calls)"
     t_core = time.perf_counter() - t0
-    return {"points": n * n, "status": st.get("status"), "n_done": st.get("n_done"),
-            "n_failed": st.get("n_failed"), "service_s": t_service, "core_s": t_core,
-            "core_how": how, "ratio": t_service / t_core}
+    return {"kind": kind, "points": n * n, "status": st.get("status"),
+            "n_done": st.get("n_done"), "n_failed": st.get("n_failed"),
+            "service_s": t_service, "core_s": t_core, "core_how": how,
+            "ratio": t_service / t_core}
 
 
 def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
@@ -169,6 +186,10 @@ def main() -> int:
     ap.add_argument("--max-requests", type=int, default=5000, help="per phase (<= 10^5)")
     ap.add_argument("--seconds", type=float, default=5.0, help="per phase (<= 60)")
     ap.add_argument("--sweep-n", type=int, default=100, help="sweep is n x n (2..200)")
+    ap.add_argument("--sweep-kind", choices=("outcome", "critical"), default="outcome")
+    ap.add_argument("--baseline-diagram", action="store_true",
+                    help="time rsfcore.diagram.stability_diagram as the baseline")
+    ap.add_argument("--sweep-timeout", type=float, default=300.0, help="seconds (<= 3600)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     a = ap.parse_args()
     clients = min(max(a.clients, 1), 32)
@@ -179,6 +200,7 @@ def main() -> int:
     if url is None:
         tmp = tempfile.mkdtemp(prefix="rsf-bench-")
         proc, url = start_server(tmp)
+    print(f"driving {url} ...", file=sys.stderr, flush=True)
     try:
         bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0}
                   for k in range(50)]
@@ -187,7 +209,9 @@ def main() -> int:
         out = {"url": url, "clients": clients, "phases": [
             phase(url, k, clients, max_req, secs, bodies)
             for k in ("cached", "closed", "fresh")]}
-        out["sweep"] = sweep_vs_core(url, min(max(a.sweep_n, 2), 200), 600)
+        out["sweep"] = sweep_vs_core(url, min(max(a.sweep_n, 2), 200),
+                                     min(max(a.sweep_timeout, 1.0), 3600.0), a.sweep_kind,
+                                     a.baseline_diagram)
     finally:
         if proc is not None:
             os.killpg(proc.pid, signal.SIGTERM)
@@ -205,7 +229,7 @@ def main() -> int:
         print(f"{p['kind']:<8} {p['n']:>9} {p['errors']:>7} {p['req_per_s']:>9.0f} "
               f"{p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}")
     s = out["sweep"]
-    print(f"sweep {s['points']} points: service {s['service_s']:.2f} s ({s['status']}, "
+    print(f"sweep ({s['kind']}) {s['points']} points: service {s['service_s']:.2f} s ({s['status']}, "
           f"{s['n_done']} done, {s['n_failed']} failed) vs {s['core_how']} {s['core_s']:.2f} s"
           f" -> {s['ratio']:.2f}x")
     c = out["phases"][0]

@@ -29,6 +29,15 @@ def worker_command(concurrency: int | None = None, pool: str = "prefork",
             "-n", f"{name}-{os.getpid()}@%h"]
 
 
+def _die_with_parent() -> None:
+    """In the child (Linux): get SIGTERM if `rsf serve` dies, even by SIGKILL."""
+    try:
+        import ctypes
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 class _Supervisor(threading.Thread):
     """Keeps one worker subprocess alive until :meth:`stop`."""
 
@@ -42,7 +51,7 @@ class _Supervisor(threading.Thread):
     def _start(self) -> None:
         log = open(self.log_path, "ab")  # noqa: SIM115 - owned by the child
         self.proc = subprocess.Popen(self.cmd, env=self.env, stdout=log, stderr=log,
-                                     start_new_session=True)
+                                     start_new_session=True, preexec_fn=_die_with_parent)
         log.close()
 
     def run(self) -> None:
@@ -75,6 +84,10 @@ class _Supervisor(threading.Thread):
             p.wait()
 
 
+def _note(signum: int, _frame: object) -> None:
+    print(f"[rsf serve] signal {signum}: stopping", file=sys.stderr)
+
+
 def serve(host: str = "127.0.0.1", port: int = 8000, data_dir: str | Path = "rsf-data",
           concurrency: int | None = None) -> None:
     """Run the API on host:port and an embedded worker; returns when the API stops.
@@ -94,7 +107,12 @@ def serve(host: str = "127.0.0.1", port: int = 8000, data_dir: str | Path = "rsf
     sup = _Supervisor(worker_command(concurrency), env, data / "worker.log")
     sup.start()
     print(f"[rsf serve] data in {data}; worker log {data / 'worker.log'}", file=sys.stderr)
+    # uvicorn re-raises SIGTERM/SIGINT after its graceful shutdown; with these handlers
+    # that ends in the `finally` below (stopping the worker) instead of killing us.
+    prev = {sig: signal.signal(sig, _note) for sig in (signal.SIGTERM, signal.SIGINT)}
     try:
         uvicorn.run("service.app:app", host=host, port=port, log_level="info")
     finally:
         sup.stop()
+        for sig, h in prev.items():
+            signal.signal(sig, h)

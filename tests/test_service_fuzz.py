@@ -16,7 +16,7 @@ from tests.conftest import Server
 
 pytestmark = pytest.mark.timeout(240)
 
-MAX_EXAMPLES = os.environ.get("RSF_FUZZ_EXAMPLES", "8")
+MAX_EXAMPLES = os.environ.get("RSF_FUZZ_EXAMPLES", "5")
 
 
 def test_schemathesis_finds_no_server_error(tmp_path: Path, procs: list) -> None:

@@ -2,20 +2,20 @@
 
 A chunk is a range [i0, i1) of flat grid indices (idx = i * n_y + j).  Points already
 stored (from a killed earlier attempt) are skipped; writes are idempotent, so a chunk
-may safely run again.  Cancellation is checked between points (at most every 0.2 s).
+may safely run again.  Cancellation is checked between points (the DB at most every
+0.2 s).
 """
 from __future__ import annotations
 
 import logging
 import time
-from itertools import groupby
 from typing import Any
 
 from service.settings import get_settings
 
 from . import sweeps
 from .celery_app import app
-from .sweep_compute import compute_segment
+from .sweep_compute import compute_point
 
 __all__ = ["run_chunk"]
 log = logging.getLogger("rsf.worker")
@@ -35,13 +35,13 @@ class _CancelProbe:
         return self.state
 
 
-def _segments(todo: list[int], ny: int) -> list[tuple[int, list[int]]]:
-    """Group flat indices by row i: [(i, [j, ...]), ...]."""
-    return [(i, [k % ny for k in grp]) for i, grp in groupby(todo, key=lambda k: k // ny)]
-
-
 def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
-    """Compute and store one chunk; returns a small summary (also for direct calls)."""
+    """Compute and store one chunk; returns a small summary (also for direct calls).
+
+    Points are computed one by one (a failing point is recorded and the others go on)
+    and flushed to the database every 0.5 s or 500 points, so a killed worker loses at
+    most that much work; cancellation is checked between points.
+    """
     s = get_settings()
     rng = sweeps.claim(sweep_id, idx, s.lease_s)
     if rng is None:
@@ -51,21 +51,23 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
     xs, ys = spec["x"]["values"], spec["y"]["values"]
     ny = len(ys)
     have = sweeps.done_indices(sweep_id, i0, i1)
-    todo = [k for k in range(i0, i1) if k not in have]
     probe = _CancelProbe(sweep_id)
-    per_point = bool(spec.get("per_point", True))
+    buf: list[dict[str, Any]] = []
     n_new = 0
-    for i, js in _segments(todo, ny):
+    t_flush = time.monotonic()
+    for k in range(i0, i1):
+        if k in have:
+            continue
         if probe():
+            n_new += sweeps.store_points(sweep_id, idx, buf)
             sweeps.finish_chunk(sweep_id, idx, complete=False)
             return {"cancelled": True, "stored": n_new}
-        res = compute_segment(spec, xs[i], [ys[j] for j in js], cancelled=probe,
-                              per_point=per_point)
-        rows = [dict(r, idx=i * ny + j, i=i, j=j, x=xs[i], y=ys[j]) for j, r in zip(js, res)]
-        n_new += sweeps.store_points(sweep_id, idx, rows)
-        if len(res) < len(js):
-            sweeps.finish_chunk(sweep_id, idx, complete=False)
-            return {"cancelled": True, "stored": n_new}
+        i, j = divmod(k, ny)
+        buf.append(dict(compute_point(spec, xs[i], ys[j]), idx=k, i=i, j=j, x=xs[i], y=ys[j]))
+        if len(buf) >= 500 or time.monotonic() - t_flush > 0.5:
+            n_new += sweeps.store_points(sweep_id, idx, buf)
+            buf, t_flush = [], time.monotonic()
+    n_new += sweeps.store_points(sweep_id, idx, buf)
     sweeps.finish_chunk(sweep_id, idx, complete=True)
     return {"stored": n_new}
 

@@ -27,9 +27,9 @@ SweepId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="Sweep id (
 _R = {422: {"description": "Invalid input (problem+json naming the field and its range)."}}
 _N = {404: {"description": "Unknown sweep (problem+json)."}}
 
-#: Expected seconds of work per point (measured: ~35 us critical, ~60 us outcome, with
-#: a margin for slow points), for the default chunk size.
-_COST_S = {"critical": 2e-4, "outcome": 3e-4}
+#: Expected seconds of work per point, for the default chunk size.  Measured: outcome
+#: ~60 us; critical sizes 10 us .. 0.4 s (closed form / separatrix / bisection).
+_COST_S = {"critical": 0.02, "outcome": 1e-4}
 #: Default chunking splits a sweep in at least this many chunks (parallel workers).
 _MIN_CHUNKS = 8
 
