@@ -225,7 +225,7 @@ def stability_diagram(
 
     Returns a DiagramResult; critical_size[i, j] belongs to (x[i], y[j]).  On the
     benchmark grid (100 x 100, kappa_ratio in [1, 5] x eps in [0, 0.99], velocity jump)
-    it takes ~0.04 s on one core after warm-up, with ~2e-12 relative error on the finite
+    it takes ~0.04 s on one core after warm-up, with ~5e-13 relative error on the finite
     points (bench/bench_diagram.py).
     """
     if x_name not in AXIS_NAMES:
