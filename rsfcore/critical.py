@@ -72,6 +72,7 @@ import numba as nb
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _coef
 
+from .analytic import _vjump_kcrit
 from .laws import G, L_star
 from .params import ParameterError, Params, check_range
 
@@ -168,96 +169,6 @@ def _log1p_over(eps, x):
     if abs(ex) < 1.0e-4:
         return x * (1.0 - ex * (0.5 - ex * (1.0 / 3.0 - ex * 0.25)))
     return math.log1p(ex) / eps
-
-
-@nb.njit(cache=True, nogil=True)
-def _em(d):
-    """expm1(-d) + d >= 0 without cancellation (Taylor series below d = 0.5)."""
-    if d >= 0.5:
-        return math.expm1(-d) + d
-    term = 0.5 * d * d
-    acc = 0.0
-    k = 2
-    while abs(term) > 1e-18 * acc or acc == 0.0:
-        acc += term
-        k += 1
-        term *= -d / k
-        if term == 0.0:
-            break
-    return acc
-
-
-@nb.njit(cache=True, nogil=True)
-def _lmr(eps, R, d, kc, D):
-    """(log1p(eps R) - eps R)/eps <= 0 without cancellation (series below |eps R| = 0.1).
-
-    For |eps R| >= 0.1 uses 1 + eps R = (1 - eps)(1 + eps kc e^(-d)/D) (exact identity for
-    R = q e^(-d) - 1), accurate also as eps -> 1 where 1 + eps R -> 0.
-    """
-    y = eps * R
-    if abs(y) >= 0.1:
-        return (math.log1p(-eps) + math.log1p(eps * kc * math.exp(-d) / D) - y) / eps
-    # -eps R^2 (1/2 - y/3 + y^2/4 - ...)
-    acc = 0.0
-    p = 1.0
-    for k in range(2, 40):
-        t = p / k
-        acc += t if k % 2 == 0 else -t
-        p *= y
-        if abs(p) < 1e-18:
-            break
-    return -eps * R * R * acc
-
-
-@nb.njit(cache=True, nogil=True)
-def _vjump_kcrit(ba, eps):
-    """Critical velocity jump at kappa = kappa_crit, v_o > 0 (compiled).
-
-    psi_crit(d) = d for `eq: limiting trajectory 1` (psi_crit - d = -ba h(d)) with
-    h(d) = d + log1p(eps R)/eps, R = q e^(-d) - 1, q = (1 - eps) kc/D, D = ba(1 - eps) + eps.
-    Since 1 - q = 1/D, R = q expm1(-d) - 1/D and h is evaluated without cancellation as
-
-        h(d) = (d - 1)/D + q (expm1(-d) + d) + (log1p(eps R) - eps R)/eps,
-
-    (at b/a = 1e6 the root is ~1e-3 and the naive form loses 5 digits).  h(0) < 0 <= h(L*);
-    safeguarded Newton (bisection fallback) to |dd| <= 4e-16 d.  inf at eps = 1.
-    Accuracy: ~1e-15 relative (checked against mpmath in the tests).
-    """
-    if eps >= 1.0:
-        return math.inf
-    kc = ba - 1.0
-    D = ba * (1.0 - eps) + eps
-    q = (1.0 - eps) * kc / D
-    lo = 0.0
-    hi = L_star(kc, kc, eps)
-    for _ in range(60):
-        R = q * math.expm1(-hi) - 1.0 / D
-        if (hi - 1.0) / D + q * _em(hi) + _lmr(eps, R, hi, kc, D) >= 0.0:
-            break
-        hi *= 2.0
-    # start from the small-d asymptote d^2 (1 - eps)/2 ~ 1/D when it is inside the bracket
-    d = math.sqrt(2.0 / (D * max(q * (1.0 - eps), 1e-300)))
-    if not (d > lo and d < hi):
-        d = 0.5 * (lo + hi)
-    for _ in range(200):
-        R = q * math.expm1(-d) - 1.0 / D
-        h = (d - 1.0) / D + q * _em(d) + _lmr(eps, R, d, kc, D)
-        if h == 0.0:
-            return d
-        if h < 0.0:
-            lo = d
-        else:
-            hi = d
-        # h'(d) = 1 - q e^(-d)/(1 + eps R) = (1/D + eps R - q expm1(-d))/(1 + eps R) ... use
-        # the direct form (its rounding only slows Newton, not the root)
-        dh = 1.0 - q * math.exp(-d) / (1.0 + eps * R)
-        dn = d - h / dh if dh > 0.0 else 0.5 * (lo + hi)
-        if not (dn > lo and dn < hi):
-            dn = 0.5 * (lo + hi)
-        if abs(dn - d) <= 4.0e-16 * abs(dn) or hi - lo <= 4.0e-16 * hi:
-            return dn
-        d = dn
-    return d
 
 
 @nb.njit(cache=True, nogil=True)
