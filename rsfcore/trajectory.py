@@ -56,6 +56,8 @@ RTOL_RANGE = (1e-14, 1e-3)
 SIZE_MAX = 1.0e4
 PHI_STOP = 40.0
 MAX_STEPS = 10_000_000
+#: Step budget when a closed form has already decided the outcome (~0.5 s).
+DECIDED_BUDGET = 500_000
 EQ_TOL = 1e-6
 #: rel_accuracy = ACCURACY_FACTOR * max(rtol, sum of accepted local error estimates).  Against
 #: rtol = 1e-14 reference runs the delivered relative error of blow-up/return/peak times
@@ -105,7 +107,9 @@ class TrajectoryResult:
     estimated relative accuracy of the reported times and peak: 3 x the sum of the
     normalised local error estimates of the accepted steps (floored at rtol), an upper
     bound on the delivered error in all validation runs against rtol = 1e-14
-    (tests/test_trajectory.py).
+    (tests/test_trajectory.py).  ``complete`` is False when the outcome is certain but
+    the step budget ran out before the return/blow-up time (then None) and the final peak
+    (then the largest phi reached so far, a lower bound): stiff corners, kappa ~ 1e6.
     """
 
     outcome: Literal["stable", "unstable"]
@@ -123,6 +127,7 @@ class TrajectoryResult:
     size: float | None = None
     trajectory: Trajectory | None = None
     physical: PhysicalParams | None = None
+    complete: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dict (no inf/nan: a runaway peak is reported as null)."""
@@ -141,6 +146,7 @@ class TrajectoryResult:
             "perturbation": self.perturbation,
             "size": self.size,
             "trajectory": None if self.trajectory is None else self.trajectory.to_dict(),
+            "complete": self.complete,
         }
         if self.physical is not None:
             ph = self.physical
@@ -343,12 +349,16 @@ def simulate(
         # decided in closed form; nothing to integrate
         res = (-1, None, 0.0, math.nan, math.nan, phi0, 0.0, 0, 0, 0, 0.0, 0)
     else:
-        res, _ = _run(p_run, phi0, psi0, rtol, plan)
+        # when the closed form already decided the outcome, only the times and the peak
+        # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
+        budget = DECIDED_BUDGET if plan.outcome is not None else MAX_STEPS
+        res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget)
     status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, n_steps, n_rhs, n_rej, err_sum, _ = res
     n_steps = int(n_steps + n_rej)
 
     runaway = not math.isnan(T_cert)
     blowup_time = return_time = None
+    complete = True
     if plan.certificate is not None and plan.certificate.endswith("_L_on_Lstar"):
         # On the line L = L* itself dL/ds = 0 and d phi/dT = (kappa/kappa_crit) e^phi
         # exactly, so the blow-up time is e^-phi0 kappa_crit/kappa (closed form; the
@@ -372,6 +382,7 @@ def simulate(
             peak_T = blowup_time
         else:
             peak_T = None
+            complete = False
     elif status == 2:
         outcome, cert = "stable", plan.certificate or "returned_to_steady_state"
         return_time = float(T_ret)
@@ -380,10 +391,13 @@ def simulate(
     elif status == 3:
         outcome, cert = "stable", plan.certificate or "vo0_L_below_Lstar"
     elif plan.outcome is not None:
+        # budget reached; the outcome is certain, the times and the peak are not final
         outcome, cert = plan.outcome, plan.certificate
+        complete = False
     elif p_run.kappa < p_run.kappa_crit:
         outcome, cert = "unstable", "linear_instability"
         peak_phi, peak_T = math.inf, None
+        complete = False
     else:
         raise UndecidedError(
             f"no certificate within {MAX_STEPS} steps ({STATUS_TEXT.get(int(status), status)}); "
@@ -411,6 +425,7 @@ def simulate(
         size=pert_size,
         trajectory=traj,
         physical=physical,
+        complete=complete,
     )
 
 
