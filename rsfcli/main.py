@@ -222,8 +222,12 @@ def diagram(
         "n_finite": int(np.isfinite(cs).sum() - (cs == 0).sum()),
         "n_zero": int((cs == 0).sum()),
         "n_infinite": int(np.isinf(cs).sum()),
-        "rel_accuracy": float(res.rel_accuracy),
+        "n_on_boundary": int(np.asarray(res.on_boundary).sum()),
+        "max_rel_accuracy": float(np.max(np.asarray(res.rel_accuracy, dtype=float), initial=0.0)),
     }
+    if getattr(res, "outcome", None) is not None:
+        oc = np.asarray(res.outcome)
+        summary["n_unstable"] = int((oc == "unstable").sum()) if oc.dtype.kind in "US" else int(oc.sum())
     _emit(summary, as_json, [f"{k} {v}" for k, v in summary.items()])
 
 
