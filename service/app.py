@@ -9,7 +9,7 @@ from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 
 from .errors import install_handlers
-from .routes import compute, meta, sweeps
+from .routes import compute, figures, meta, sweeps, ui
 
 __all__ = ["create_app", "app"]
 log = logging.getLogger("rsf.service")
@@ -50,6 +50,8 @@ def create_app() -> FastAPI:
     a.include_router(meta.router)
     a.include_router(compute.router)
     a.include_router(sweeps.router)
+    a.include_router(figures.router)
+    a.include_router(ui.router)
     return a
 
 

@@ -3,12 +3,14 @@
 Each function takes a validated request model, calls rsfcore and returns a JSON-safe
 dict.  rsfcore's ``ParameterError`` becomes a 422 naming the field; a numerical failure
 (e.g. ``UndecidedError``) becomes :class:`ComputeError` (reported as 422 "could not be
-computed" by the API, recorded per point by sweeps).  Nothing here does I/O.
+computed" by the API, recorded per point by sweeps).  Nothing here does I/O; the
+``*_png``/``figure`` functions encode images in memory through :mod:`rsfplots`.
 """
 from __future__ import annotations
 
 import importlib
 import math
+import threading
 from typing import Any
 
 import numpy as np
@@ -21,7 +23,9 @@ from .schemas import (AnalyticRequest, BoundariesRequest, ClassifyRequest, Criti
                       StiffnessRequest, TrajectoryRequest)
 
 __all__ = ["ComputeError", "numerics_version", "classify", "trajectory", "critical",
-           "analytic_u", "boundaries", "stiffness", "jsonsafe", "guard"]
+           "analytic_u", "boundaries", "stiffness", "jsonsafe", "guard", "trajectory_png",
+           "analytic_u_png", "figure", "figure_list", "figure_names", "sweep_diagram",
+           "diagram_png"]
 
 
 class ComputeError(RuntimeError):
@@ -165,3 +169,119 @@ def stiffness(req: StiffnessRequest) -> dict[str, Any]:
     if phys and phys.get("h") is None:
         phys.pop("h")
     return jsonsafe(guard(st.stiffness_summary, req.case, req.mode, **phys))
+
+
+# ------------------------------------------------------------------ images (?format=png)
+# Plots come from rsfplots (matplotlib Agg, no pyplot), imported lazily so that the JSON
+# API does not load matplotlib.  Matplotlib's shared state (font cache, mathtext parser)
+# is not guaranteed thread-safe, so every render holds one process-wide lock.
+
+_render_lock = threading.Lock()
+
+
+def _plots() -> Any:
+    try:
+        return importlib.import_module("rsfplots")
+    except ImportError as exc:  # pragma: no cover - only while rsfplots is being written
+        raise ComputeError(f"rsfplots is not available: {exc}") from exc
+
+
+def render_locked(fn, *args: Any, **kwargs: Any) -> bytes:  # noqa: ANN001
+    """Call the plotting function ``fn`` under the render lock, with :func:`guard`."""
+    with _render_lock:
+        try:
+            return guard(fn, *args, **kwargs)
+        except (ProblemError, ComputeError):
+            raise
+        except Exception as exc:  # noqa: BLE001 - a plot that fails is a 422, never a 500
+            raise ComputeError(f"could not be plotted: {type(exc).__name__}: {exc}") from exc
+
+
+def trajectory_png(result: dict[str, Any]) -> bytes:
+    """Phase plane (phi, psi) and phi(T) of a trajectory answer (JSON dict) as PNG."""
+    return render_locked(_plots().plot_trajectory, result, "png")
+
+
+def analytic_u_png(result: dict[str, Any]) -> bytes:
+    """Contours of U (red: U = 0) of a grid answer of ``analytic_u`` as PNG."""
+    if result.get("shape") is None:
+        raise ProblemError(422, "Invalid input", "format: png needs U on a grid (give 'grid', "
+                           "not 'points')", field="format", valid="'json' (points or grid) "
+                           "or 'png' (grid only)")
+    title = f"U ({result.get('function')}): U = const., red: U = 0"
+    return render_locked(_plots().plot_u_field, result, title=title, fmt="png")
+
+
+def figure(name: str, fmt: str, quality: str) -> bytes:
+    """Paper figure ``name`` regenerated from rsfcore (rsfplots.render) as png/svg bytes."""
+    plots = _plots()
+    return render_locked(plots.render, name, fmt, quality=quality)
+
+
+def figure_list() -> list[dict[str, Any]]:
+    """[{name, caption, label, note}] of every reproducible figure of the paper."""
+    plots = _plots()
+    out = []
+    for item in plots.list_figures():
+        spec = plots.FIGURES.get(item["name"])
+        out.append({"name": item["name"], "caption": item["caption"],
+                    "label": getattr(spec, "label", None), "note": getattr(spec, "note", "")})
+    return out
+
+
+def figure_names() -> list[str]:
+    """Names of the reproducible figures."""
+    return list(_plots().FIGURES)
+
+
+_OUTCOME_CODE = {"stable": 0.0, "unstable": 1.0}
+_KIND_CODE = {"zero": 0, "finite": 1, "infinite": 2}
+
+
+def sweep_diagram(status: dict[str, Any], pts: list[dict[str, Any]]) -> dict[str, Any]:
+    """Assemble a (finished or partial) sweep into a stability diagram.
+
+    The same layout as ``rsfcore.diagram.DiagramResult.to_dict()``: ``critical_size[i][j]``
+    at (x[i], y[j]) (null where infinite or missing), ``kind`` codes 0 zero / 1 finite /
+    2 infinite, ``outcome`` codes 0 stable / 1 unstable (null where missing) when the sweep
+    classifies a size; plus ``present[i][j]`` (point computed without error), ``status``,
+    ``n_done``, ``n_total``, ``n_failed``.
+    """
+    spec = status["spec"]
+    xs, ys = spec["x"]["values"], spec["y"]["values"]
+    nx, ny = len(xs), len(ys)
+    axes = (spec["x"]["name"], spec["y"]["name"])
+    size_mode = spec["fixed"].get("size") is not None or "size" in axes
+    cs: list[list[float | None]] = [[None] * ny for _ in range(nx)]
+    kind = [[1] * ny for _ in range(nx)]
+    outcome: list[list[float | None]] = [[None] * ny for _ in range(nx)]
+    present = [[False] * ny for _ in range(nx)]
+    for p in pts:
+        i, j = int(p["i"]), int(p["j"])
+        if not (0 <= i < nx and 0 <= j < ny) or p.get("error"):
+            continue
+        if size_mode:
+            if p.get("outcome") in _OUTCOME_CODE:
+                outcome[i][j] = _OUTCOME_CODE[p["outcome"]]
+                present[i][j] = True
+        elif p.get("kind") in _KIND_CODE:
+            kind[i][j] = _KIND_CODE[p["kind"]]
+            v = p.get("critical_size")
+            cs[i][j] = float(v) if v is not None and math.isfinite(v) else None
+            present[i][j] = True
+    fixed = {k: v for k, v in spec["fixed"].items() if k not in axes and v is not None}
+    return {"x_name": axes[0], "x": xs, "y_name": axes[1], "y": ys, "critical_size": cs,
+            "kind": kind, "kind_legend": list(_KIND_CODE), "outcome": outcome if size_mode
+            else None, "outcome_legend": list(_OUTCOME_CODE), "present": present,
+            "perturbation": spec["perturbation"], "rtol": spec["rtol"], "fixed": fixed,
+            "id": status["id"], "status": status["status"], "n_done": status["n_done"],
+            "n_total": status["n_total"], "n_failed": status["n_failed"],
+            "numerics_version": status.get("numerics_version")}
+
+
+def diagram_png(diagram: dict[str, Any]) -> bytes:
+    """A sweep diagram (:func:`sweep_diagram`) as PNG; missing or failed points are blank."""
+    d = dict(diagram)
+    if d["outcome"] is not None:
+        d["outcome"] = [[math.nan if v is None else v for v in row] for row in d["outcome"]]
+    return render_locked(_plots().plot_diagram, d, "png")

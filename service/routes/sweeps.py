@@ -1,4 +1,5 @@
-"""Sweep endpoints: submit (202 + Location), list, status, paged points, cancel.
+"""Sweep endpoints: submit (202 + Location), list, status, paged points, stability
+diagram (JSON or PNG, also while the sweep runs), cancel.
 
 A sweep's id is derived from its canonical spec and the numerics version, so submitting
 the same sweep twice returns the same sweep (``X-Cache: hit``) instead of recomputing.
@@ -15,11 +16,13 @@ from starlette.responses import Response
 
 from worker import cache, sweeps
 
+from .. import compute
 from ..compute import numerics_version
 from ..errors import ProblemError
 from ..grid import expand
 from ..schemas import SweepRequest
 from ..settings import get_settings
+from .figures import choice, format_query, image, image_response, png_content
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 log = logging.getLogger("rsf.service")
@@ -115,6 +118,51 @@ async def get_points(sweep_id: SweepId,
     return _json({"id": sweep_id, "status": st["status"], "n_done": st["n_done"],
                   "n_total": st["n_total"], "offset": offset, "limit": limit,
                   "next_offset": nxt, "points": pts})
+
+
+_JSON_OR_PNG = ("json", "png")
+_PAGE = 10_000
+
+
+def _all_points(sweep_id: str) -> list[dict[str, object]]:
+    out: list[dict[str, object]] = []
+    while True:
+        page = sweeps.page_points(sweep_id, len(out), _PAGE)
+        out += page
+        if len(page) < _PAGE:
+            return out
+
+
+@router.get("/{sweep_id}/diagram", summary="Stability diagram of a sweep (JSON or PNG)",
+            responses={**_N, **png_content(
+                "The sweep assembled on its grid (JSON), or with format=png the stability "
+                "diagram image (critical size, or stable/unstable when a size is given).",
+                {422: {"description": "Invalid format (problem+json naming the field)."}})})
+async def get_diagram(sweep_id: SweepId,
+                      format: Annotated[str, format_query(  # noqa: A002
+                          _JSON_OR_PNG, "json", "'png': the stability diagram image.")]
+                      = "json") -> Response:
+    """The finished or partial sweep as a stability diagram on its (x, y) grid, laid out
+    like ``rsfcore.diagram.DiagramResult.to_dict()``: ``critical_size[i][j]`` at (x[i], y[j])
+    (null where infinite or not yet computed), ``kind`` 0 zero / 1 finite / 2 infinite,
+    ``outcome`` 0 stable / 1 unstable when the sweep classifies a size, ``present[i][j]``
+    (computed without error), with status, n_done, n_total, n_failed.
+    ``?format=png``: the image, points not computed yet (or failed) left blank; headers
+    ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``.  Images of finished
+    sweeps are cached."""
+    fmt = choice(format, _JSON_OR_PNG, "format")
+    st = await run_in_threadpool(sweeps.status, sweep_id)
+    if st is None:
+        raise _unknown(sweep_id)
+    pts = await run_in_threadpool(_all_points, sweep_id)
+    d = compute.sweep_diagram(st, pts)
+    if fmt == "json":
+        return _json(d)
+    final = d["status"] in ("done", "cancelled")
+    key = f"sweep-{sweep_id}-{d['status']}-{d['n_done']}-{d['n_failed']}.png"
+    data, hit = await image(key, lambda: compute.diagram_png(d), store=final)
+    return image_response(data, "png", hit, final=final, headers={
+        "X-Sweep-Status": d["status"], "X-Sweep-Progress": f"{d['n_done']}/{d['n_total']}"})
 
 
 @router.delete("/{sweep_id}", responses=_N, summary="Cancel a sweep")
