@@ -65,12 +65,12 @@ def check_range(
 ) -> float:
     """Return ``float(value)`` or raise :class:`ParameterError` naming ``name`` and the range."""
     v = _finite(name, value)
-    lo_s = "(" if lo_open else "["
-    hi_s = ")" if hi_open else "]"
-    desc = f"{lo_s}{'-inf' if lo is None else repr(lo)}, {'inf' if hi is None else repr(hi)}{hi_s}"
-    if lo is not None and (v < lo or (lo_open and v == lo)):
-        raise ParameterError(name, value, desc)
-    if hi is not None and (v > hi or (hi_open and v == hi)):
+    if (lo is not None and (v < lo or (lo_open and v == lo))) or (
+        hi is not None and (v > hi or (hi_open and v == hi))
+    ):
+        lo_s = "(" if lo_open else "["
+        hi_s = ")" if hi_open else "]"
+        desc = f"{lo_s}{'-inf' if lo is None else repr(lo)}, {'inf' if hi is None else repr(hi)}{hi_s}"
         raise ParameterError(name, value, desc)
     return v
 
