@@ -154,8 +154,12 @@ def _dense_eval(F, y0, x, out):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _root_component(F, y0, idx, target, x0, x1, g0, g1, tmp):
-    """Root in (x0, x1) of y_idx(x) - target, bracketed by g0 = g(x0), g1 = g(x1) (Illinois)."""
+def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
+    """Root in (x0, x1) on the dense output, bracketed by g0 = g(x0), g1 = g(x1) (Illinois).
+
+    idx >= 0: g(x) = y_idx(x) - target (an event on a state component);
+    idx = -1: g(x) = d phi/dtau at y(x) (a local maximum of phi).
+    """
     if g0 == 0.0:
         return x0
     if g1 == 0.0:
@@ -167,38 +171,11 @@ def _root_component(F, y0, idx, target, x0, x1, g0, g1, tmp):
         if not (xm > x0 and xm < x1):
             xm = 0.5 * (x0 + x1)
         _dense_eval(F, y0, xm, tmp)
-        gm = tmp[idx] - target
-        if gm == 0.0 or abs(x1 - x0) < 1e-15:
-            break
-        if (gm > 0.0) == (g1 > 0.0):
-            x1, g1 = xm, gm
-            if side == -1:
-                g0 *= 0.5
-            side = -1
+        if idx >= 0:
+            gm = tmp[idx] - target
         else:
-            x0, g0 = xm, gm
-            if side == 1:
-                g1 *= 0.5
-            side = 1
-    return xm
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _root_slope(F, y0, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
-    """Root in (x0, x1) of d phi/dtau evaluated on the dense output (a local maximum of phi)."""
-    if g0 == 0.0:
-        return x0
-    if g1 == 0.0:
-        return x1
-    side = 0
-    xm = x0
-    for _ in range(80):
-        xm = (x0 * g1 - x1 * g0) / (g1 - g0)
-        if not (xm > x0 and xm < x1):
-            xm = 0.5 * (x0 + x1)
-        _dense_eval(F, y0, xm, tmp)
-        _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-        gm = ftmp[0]
+            _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+            gm = ftmp[0]
         if gm == 0.0 or abs(x1 - x0) < 1e-15:
             break
         if (gm > 0.0) == (g1 > 0.0):
@@ -433,7 +410,7 @@ def integrate(
             _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
             n_rhs += 3
             dense_ready = True
-            x_end = _root_component(F, y, 2, t_end, 0.0, 1.0, y[2] - t_end, ynew[2] - t_end, tmp)
+            x_end = _root(F, y, 2, t_end, 0.0, 1.0, y[2] - t_end, ynew[2] - t_end, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
             _dense_eval(F, y, x_end, ye)
             _rhs(ye, fe, ba, kappa, eps, vo, c, lnc)
             n_rhs += 1
@@ -456,7 +433,7 @@ def integrate(
                     _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
                     n_rhs += 3
                     dense_ready = True
-                xm = _root_slope(F, y, 0.0, x_end, f[0], fe[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+                xm = _root(F, y, -1, 0.0, 0.0, x_end, f[0], fe[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
                 _dense_eval(F, y, xm, tmp)
                 if tmp[0] > peak_phi:
                     peak_phi = tmp[0]
@@ -472,7 +449,7 @@ def integrate(
                             _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
                             n_rhs += 3
                             dense_ready = True
-                        xr = _root_component(F, y, 0, phi_ss, 0.0, x_end, y[0] - phi_ss, ye[0] - phi_ss, tmp)
+                        xr = _root(F, y, 0, phi_ss, 0.0, x_end, y[0] - phi_ss, ye[0] - phi_ss, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
                         _dense_eval(F, y, xr, tmp)
                         T_return = tmp[2]
                         stop_x = xr
@@ -513,7 +490,7 @@ def integrate(
                     _dense_eval(F, y, x_lim, ftmp)
                     T_lim = ftmp[2]
                 while i_T < n_T and sample_T[i_T] <= T_lim:
-                    xs = _root_component(F, y, 2, sample_T[i_T], 0.0, x_lim, y[2] - sample_T[i_T], T_lim - sample_T[i_T], tmp)
+                    xs = _root(F, y, 2, sample_T[i_T], 0.0, x_lim, y[2] - sample_T[i_T], T_lim - sample_T[i_T], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
                     _dense_eval(F, y, xs, tmp)
                     for j in range(n):
                         samples[n_filled, j] = tmp[j]

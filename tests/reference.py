@@ -17,7 +17,8 @@ _CANDIDATES = [
 def reference_path() -> Path | None:
     env = os.environ.get("RSF_REFERENCE")
     if env:
-        return Path(env)
+        p = Path(env)
+        return p / "values.json" if p.is_dir() else p
     for p in _CANDIDATES:
         if p.exists():
             return p
@@ -30,6 +31,14 @@ def reference_cases() -> list[dict[str, Any]]:
     if p is None or not p.exists():
         pytest.skip("reference values not found (set RSF_REFERENCE to shared/reference/values.json)")
     return json.loads(p.read_text())["cases"]
+
+
+def reference_case(case_id: str) -> dict[str, Any]:
+    """One reference case by id (fails the test if the id is missing)."""
+    for c in reference_cases():
+        if c["id"] == case_id:
+            return c
+    pytest.fail(f"reference case {case_id} missing")
 
 
 def perturbation_of(case: dict[str, Any]) -> str:

@@ -3,8 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,23 +11,11 @@ from rsfcore import ParameterError, Params, classify
 from rsfcore import boundaries as bd
 from rsfcore.critical import critical_perturbation
 from rsfcore.laws import G
+from .reference import reference_case
 
 
 def _reference(case_id: str) -> dict:
-    path = Path(__file__).resolve().parents[2] / "shared/reference/values.json"
-    if not path.exists():
-        env = os.environ.get("RSF_REFERENCE")
-        if not env:
-            pytest.skip(f"reference values not found at {path} and RSF_REFERENCE is not set")
-        path = Path(env)
-        if path.is_dir():
-            path = path / "values.json"
-        if not path.exists():
-            pytest.skip(f"RSF_REFERENCE points to {path}, which does not exist")
-    for c in json.loads(path.read_text())["cases"]:
-        if c["id"] == case_id:
-            return c
-    pytest.fail(f"reference case {case_id} missing")
+    return reference_case(case_id)
 
 
 def test_reference_eps_crit_and_ab_crit():

@@ -10,8 +10,6 @@ from __future__ import annotations
 import inspect
 import json
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,8 +17,6 @@ import pytest
 from rsfcore import ParameterError, Params, classify
 from rsfcore import analytic
 from rsfcore.critical import (
-    BOUNDARY_RTOL,
-    KIND_FINITE,
     METHODS,
     _asym_coeffs,
     _dop853_scalar,
@@ -31,23 +27,14 @@ from rsfcore.critical import (
     separatrix_raw,
 )
 from rsfcore.laws import L_star
+from .reference import reference_cases
 
 VJ, LJ = "velocity-jump", "load-point-jump"
 HAS_INTEGRATE = "method" in inspect.signature(classify).parameters
 
 
 def _reference_cases() -> list[dict]:
-    path = Path(__file__).resolve().parents[2] / "shared/reference/values.json"
-    if not path.exists():
-        env = os.environ.get("RSF_REFERENCE")
-        if not env:
-            pytest.skip(f"reference values not found at {path} and RSF_REFERENCE is not set")
-        path = Path(env)
-        if path.is_dir():
-            path = path / "values.json"
-        if not path.exists():
-            pytest.skip(f"RSF_REFERENCE points to {path}, which does not exist")
-    return json.loads(path.read_text())["cases"]
+    return reference_cases()
 
 
 def _critical_cases() -> list[dict]:

@@ -1,34 +1,22 @@
 """Tests of rsfcore.stiffness: eigenstiffnesses of `tab: table` and `eq: critical dimensions`."""
 from __future__ import annotations
 
-import json
 import math
-import os
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import linalg, special
 
 from rsfcore import stiffness as st
+from .reference import reference_cases
 
 REFERENCE_ID = {"B": "eig_interval_B", "E": "eig_disk_E"}
 PAPER_VALUE = {"B": 1.157773882, "E": 1.003059516}  # as printed in tab: table
 
 
 def _reference_cases() -> dict[str, dict]:
-    path = Path(__file__).resolve().parents[2] / "shared/reference/values.json"
-    if not path.exists():
-        env = os.environ.get("RSF_REFERENCE")
-        if not env:
-            pytest.skip(f"reference values not found at {path} and RSF_REFERENCE is not set")
-        path = Path(env)
-        if path.is_dir():
-            path = path / "values.json"
-        if not path.exists():
-            pytest.skip(f"RSF_REFERENCE points to {path}, which does not exist")
-    return {c["id"]: c for c in json.loads(path.read_text())["cases"]}
+    return {c["id"]: c for c in reference_cases()}
 
 
 @pytest.fixture(scope="module")
