@@ -6,8 +6,6 @@ canvas, so rendering is thread-safe and never touches a display or global state.
 from __future__ import annotations
 
 import io
-import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,6 +13,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from rsfcore import ParameterError
+from rsfcore.jsonsafe import jsonsafe  # noqa: F401  (re-exported for rsfplots modules)
 
 __all__ = [
     "FORMATS",
@@ -68,28 +67,6 @@ def figure_bytes(fig: Figure, fmt: str = "png", dpi: int | None = None) -> bytes
         kw["metadata"] = {"Date": None}  # reproducible SVG
     fig.savefig(buf, **kw)
     return buf.getvalue()
-
-
-def jsonsafe(x: Any) -> Any:
-    """Convert numpy arrays/scalars to lists/floats, nan and +-inf to None, recursively."""
-    if isinstance(x, dict):
-        return {str(k): jsonsafe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonsafe(v) for v in x]
-    if isinstance(x, np.ndarray):
-        if x.dtype.kind in "fc":
-            return [jsonsafe(v) for v in x.tolist()]
-        return x.tolist()
-    if isinstance(x, (np.bool_, bool)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, Path):
-        return str(x)
-    return x
 
 
 def thin(n: int, max_points: int = MAX_DATA_POINTS) -> np.ndarray:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 import rsfcore
+from rsfcore.jsonsafe import jsonsafe
 from rsfcore.params import ParameterError, Params, PhysicalParams
 
 from .errors import ProblemError
@@ -43,24 +44,6 @@ def _mod(name: str) -> Any:
         return importlib.import_module(f"rsfcore.{name}")
     except ImportError as exc:  # pragma: no cover - only while the core is being written
         raise ComputeError(f"rsfcore.{name} is not available: {exc}") from exc
-
-
-def jsonsafe(x: Any) -> Any:
-    """Recursively convert numpy types to Python and non-finite floats to None."""
-    if isinstance(x, dict):
-        return {str(k): jsonsafe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonsafe(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return jsonsafe(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
 
 
 def guard(fn, *args: Any, **kwargs: Any) -> Any:  # noqa: ANN001
