@@ -136,3 +136,19 @@ def test_vo_far_from_one() -> None:
         assert b.outcome == a.outcome
         assert b.return_time * vo == pytest.approx(a.return_time, rel=1e-8)
         assert b.peak_phi - math.log(vo) == pytest.approx(a.peak_phi, rel=1e-8, abs=1e-8)
+
+
+@pytest.mark.parametrize("ba, kr, eps, pert", [(2.0, 2.0, 0.25, "velocity-jump"), (2.0, 1.5, 0.05, "load-point-jump"), (10.0, 3.0, 0.0, "velocity-jump")])
+def test_starts_hugging_the_separatrix_general_kappa(ba: float, kr: float, eps: float, pert: str) -> None:
+    """kappa != kappa_crit: sizes 1e-10 (relative) either side of the separatrix method's
+    critical size (computed at rtol 1e-13, delivered error <= ~1e-13), classified by
+    integration at rtol 1e-13."""
+    from rsfcore.critical import critical_perturbation
+
+    p = Params.from_ratio(ba, kr, eps, 1.0)
+    dc = critical_perturbation(p, pert, rtol=1e-13).critical_size
+    lo = classify(p, pert, dc * (1 - 1e-10), rtol=1e-13)
+    hi = classify(p, pert, dc * (1 + 1e-10), rtol=1e-13)
+    assert (lo.outcome, hi.outcome) == ("stable", "unstable")
+    # it really hugged the separatrix: the excursion is far larger than 1 % below critical
+    assert lo.peak_phi > classify(p, pert, dc * 0.99, rtol=1e-13).peak_phi + 1.0
