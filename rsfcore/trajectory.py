@@ -69,7 +69,15 @@ KCRIT_TOL = 1e-14
 
 
 class UndecidedError(RuntimeError):
-    """The integration could not certify an outcome within its budget."""
+    """The integration could not certify an outcome within its budget.
+
+    ``reason`` is "budget" when the step budget ran out (a larger ``max_steps`` may
+    succeed) or "step_underflow" when the steps failed down to zero.
+    """
+
+    def __init__(self, message: str, reason: str = "budget") -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 @dataclass
@@ -277,6 +285,7 @@ def classify(
     start: tuple[float, float] | None = None,
     rtol: float = DEFAULT_RTOL,
     method: Literal["auto", "integrate"] = "auto",
+    max_steps: int = MAX_STEPS,
 ) -> TrajectoryResult:
     """Certified stable/unstable outcome of one perturbation (no trajectory returned).
 
@@ -291,7 +300,7 @@ def classify(
     true peak.  Raises UndecidedError if no certificate is reached within the budget
     (1e7 steps, ~10 s), ParameterError on invalid input.
     """
-    return simulate(params, perturbation, size, start=start, rtol=rtol, method=method)
+    return simulate(params, perturbation, size, start=start, rtol=rtol, method=method, max_steps=max_steps)
 
 
 def simulate(
@@ -307,6 +316,7 @@ def simulate(
     sampling: Literal["tau", "time"] = "tau",
     physical: PhysicalParams | None = None,
     method: Literal["auto", "integrate"] = "auto",
+    max_steps: int = MAX_STEPS,
 ) -> TrajectoryResult:
     """Classify a perturbation and optionally return its trajectory.
 
@@ -319,9 +329,11 @@ def simulate(
     ``t_end`` it runs to that T (or to blow-up if earlier).  ``physical`` adds SI
     columns: t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m.
     ``method="integrate"`` ignores closed-form decisions (kappa = kappa_crit, v_o = 0)
-    and certifies by integration alone, to check the closed forms.
+    and certifies by integration alone, to check the closed forms.  ``max_steps``
+    (<= 1e7) bounds the work: UndecidedError(reason="budget") when it runs out first.
     """
     rtol = _check_rtol(rtol)
+    max_steps = int(check_range("max_steps", max_steps, 1, MAX_STEPS))
     if start is not None:
         phi0 = check_range("phi0", start[0], -SIZE_MAX, SIZE_MAX)
         psi0 = check_range("psi0", start[1], -1e8, 1e8)
@@ -351,7 +363,7 @@ def simulate(
     else:
         # when the closed form already decided the outcome, only the times and the peak
         # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
-        budget = DECIDED_BUDGET if plan.outcome is not None else MAX_STEPS
+        budget = min(DECIDED_BUDGET, max_steps) if plan.outcome is not None else max_steps
         res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget)
     status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, n_steps, n_rhs, n_rej, err_sum, _ = res
     n_steps = int(n_steps + n_rej)
@@ -400,8 +412,9 @@ def simulate(
         complete = False
     else:
         raise UndecidedError(
-            f"no certificate within {MAX_STEPS} steps ({STATUS_TEXT.get(int(status), status)}); "
-            f"params={p_run.as_dict()}, start=({phi0}, {psi0}), rtol={rtol}"
+            f"no certificate within {max_steps} steps ({STATUS_TEXT.get(int(status), status)}); "
+            f"params={p_run.as_dict()}, start=({phi0}, {psi0}), rtol={rtol}",
+            reason="step_underflow" if status == 5 else "budget",
         )
 
     traj = None

@@ -2,7 +2,9 @@
 
 Response: the result's own fields plus ``cached`` (bool) and ``cache_key``; header
 ``X-Cache: hit|miss``.  Computation runs in a worker thread (at most one per CPU) so the
-event loop keeps answering cached lookups.  A computation still running after
+event loop keeps answering cached lookups.  Single classify/trajectory queries get a
+quick step budget in process; one that needs more (a long integration) is sent to the
+Celery queue (:mod:`worker.jobs`) and answered 202 + ``Location: /v1/results/{key}``.  A computation still running after
 ``RSF_INLINE_BUDGET_S`` seconds (a long integration: some stiff corners of parameter
 space take tens of seconds) is answered with 202 and a ``Location: /v1/results/{key}``
 to poll; it completes in the background and lands in the cache.  Identical requests
@@ -21,9 +23,9 @@ from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
-from worker import cache
+from worker import cache, jobs
 
-from .compute import ComputeError, numerics_version
+from .compute import ComputeError, NeedsQueue, numerics_version
 from .errors import ProblemError
 from .settings import get_settings
 
@@ -56,12 +58,20 @@ def _fail(key: str, msg: str) -> None:
 
 
 async def _compute(kind: str, key: str, version: str, request: dict[str, Any], req: BaseModel,
-                   fn: Callable[[Any], dict[str, Any]]) -> str:
-    """Compute, store, return the result JSON text; ProblemError on failure."""
+                   fn: Callable[[Any], dict[str, Any]]) -> str | None:
+    """Compute, store, return the result JSON text (None: sent to the queue);
+    ProblemError on failure."""
     try:
         async with _limit():
             result = await run_in_threadpool(fn, req)
         text = cache.canonical(result)
+    except NeedsQueue:
+        # a long integration: computed by a worker through the queue (result -> cache)
+        from worker.celery_app import send_single
+
+        await run_in_threadpool(jobs.mark_queued, key, kind)
+        await run_in_threadpool(send_single, kind, request, key, version)
+        return None
     except ComputeError as exc:
         _fail(key, str(exc))
         raise ProblemError(422, "Could not be computed", str(exc)) from None
@@ -89,6 +99,11 @@ async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]])
     if hit is not None:
         return Response(body(cache.canonical(hit), key, True), media_type="application/json",
                         headers={"X-Cache": "hit"})
+    queued = await run_in_threadpool(jobs.status, key)
+    if queued is not None:
+        if queued[0] == "failed":
+            raise ProblemError(422, "Could not be computed", queued[1])
+        return _deferred(key)
     task = pending.get(key)
     if task is None:
         task = asyncio.ensure_future(_compute(kind, key, version, request, req, fn))
@@ -103,6 +118,8 @@ async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]])
     try:
         text = await asyncio.wait_for(asyncio.shield(task), get_settings().inline_budget_s)
     except asyncio.TimeoutError:
+        return _deferred(key)
+    if text is None:
         return _deferred(key)
     return Response(body(text, key, False), media_type="application/json",
                     headers={"X-Cache": "miss"})

@@ -23,7 +23,7 @@ from .errors import ProblemError
 from .schemas import (AnalyticRequest, BoundariesRequest, ClassifyRequest, CriticalRequest,
                       StiffnessRequest, TrajectoryRequest)
 
-__all__ = ["ComputeError", "numerics_version", "classify", "trajectory", "critical",
+__all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "numerics_version", "classify", "trajectory", "critical",
            "analytic_u", "boundaries", "stiffness", "jsonsafe", "guard", "trajectory_png",
            "analytic_u_png", "figure", "figure_list", "figure_names", "sweep_diagram",
            "diagram_png"]
@@ -31,6 +31,16 @@ __all__ = ["ComputeError", "numerics_version", "classify", "trajectory", "critic
 
 class ComputeError(RuntimeError):
     """Valid input whose computation failed numerically (message says why)."""
+
+
+class NeedsQueue(ComputeError):
+    """The quick in-process attempt ran out of its step budget: a long integration,
+    to be computed by a worker (service.cached routes it through the queue)."""
+
+
+#: Step budget of the in-process attempt at a single query (~0.2-0.5 s of integration);
+#: a query that needs more is a long integration and goes through the Celery queue.
+QUICK_STEPS = 300_000
 
 
 def numerics_version() -> str:
@@ -56,6 +66,8 @@ def guard(fn, *args: Any, **kwargs: Any) -> Any:  # noqa: ANN001
     except (ProblemError, ComputeError):
         raise
     except (ArithmeticError, ValueError, RuntimeError, FloatingPointError) as exc:
+        if getattr(exc, "reason", None) == "budget" and kwargs.get("max_steps") == QUICK_STEPS:
+            raise NeedsQueue(str(exc)) from exc
         raise ComputeError(f"{type(exc).__name__}: {exc}") from exc
 
 
@@ -63,17 +75,22 @@ def _params(req: Any) -> Params:
     return guard(Params, ba=req.ba, kappa=req.kappa, eps=req.eps, vo=req.vo)
 
 
-def classify(req: ClassifyRequest) -> dict[str, Any]:
-    """Stable/unstable outcome with certificate, peak and times (dimensionless)."""
+def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[str, Any]:
+    """Stable/unstable outcome with certificate, peak and times (dimensionless).
+
+    With the default ``max_steps`` a query needing more work raises :class:`NeedsQueue`;
+    ``max_steps=None`` (the worker) uses rsfcore's full budget."""
     traj = _mod("trajectory")
     start = None if req.start is None else (req.start.phi, req.start.psi)
+    kw = {} if max_steps is None else {"max_steps": max_steps}
     res = guard(traj.classify, _params(req), req.perturbation, req.size, start=start,
-                rtol=req.rtol)
+                rtol=req.rtol, **kw)
     return jsonsafe(res.to_dict())
 
 
-def trajectory(req: TrajectoryRequest) -> dict[str, Any]:
-    """Outcome plus the trajectory downsampled to ``n_points`` (SI columns if asked)."""
+def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> dict[str, Any]:
+    """Outcome plus the trajectory downsampled to ``n_points`` (SI columns if asked);
+    ``max_steps`` as in :func:`classify`."""
     traj = _mod("trajectory")
     p = _params(req)
     start = None if req.start is None else (req.start.phi, req.start.psi)
@@ -82,8 +99,9 @@ def trajectory(req: TrajectoryRequest) -> dict[str, Any]:
         s = req.physical
         physical = guard(PhysicalParams.from_dimensionless, p, a=s.a, Dc=s.Dc, sigma=s.sigma,
                          V_star=s.V_star, f_star=s.f_star)
+    kw = {} if max_steps is None else {"max_steps": max_steps}
     res = guard(traj.simulate, p, req.perturbation, req.size, start=start, rtol=req.rtol,
-                t_end=req.t_end, n_points=req.n_points, physical=physical)
+                t_end=req.t_end, n_points=req.n_points, physical=physical, **kw)
     return jsonsafe(res.to_dict())
 
 

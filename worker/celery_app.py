@@ -15,7 +15,7 @@ from celery.signals import worker_init, worker_ready
 
 from service.settings import get_settings
 
-__all__ = ["app", "make_app", "send_chunk"]
+__all__ = ["app", "make_app", "send_chunk", "send_single"]
 log = logging.getLogger("rsf.worker")
 
 
@@ -50,6 +50,12 @@ app = make_app()
 def send_chunk(sweep_id: str, idx: int) -> None:
     """Enqueue chunk ``idx`` of sweep ``sweep_id``."""
     app.send_task("worker.tasks.run_chunk", args=[sweep_id, idx], queue=get_settings().queue)
+
+
+def send_single(kind: str, request: dict, key: str, version: str) -> None:
+    """Enqueue a long single query (see worker.jobs)."""
+    app.send_task("worker.tasks.compute_single", args=[kind, request, key, version],
+                  queue=get_settings().queue)
 
 
 @worker_init.connect

@@ -17,7 +17,7 @@ from . import sweeps
 from .celery_app import app
 from .sweep_compute import compute_point
 
-__all__ = ["run_chunk"]
+__all__ = ["run_chunk", "compute_single"]
 log = logging.getLogger("rsf.worker")
 
 
@@ -91,3 +91,24 @@ def run_chunk(self, sweep_id: str, idx: int) -> dict[str, Any]:  # noqa: ANN001
         except Exception:  # noqa: BLE001
             log.exception("could not release chunk %s/%d", sweep_id, idx)
         raise self.retry(exc=exc, countdown=2.0)
+
+
+@app.task(name="worker.tasks.compute_single", acks_late=True)
+def compute_single(kind: str, request: dict[str, Any], key: str, version: str) -> None:
+    """A long single query (classify or trajectory) with rsfcore's full step budget;
+    the result lands in the cache under ``key``, a failure in :mod:`worker.jobs`."""
+    from service import compute, schemas
+
+    from . import cache, jobs
+
+    if cache.get(key) is not None:  # delivered again after it was already done
+        return
+    model = {"classify": schemas.ClassifyRequest, "trajectory": schemas.TrajectoryRequest}[kind]
+    fn = {"classify": compute.classify, "trajectory": compute.trajectory}[kind]
+    try:
+        result = fn(model.model_validate(request), max_steps=None)
+    except Exception as exc:  # noqa: BLE001 - every failure is recorded for the client
+        log.warning("single query %s failed: %s", key, exc)
+        jobs.mark_failed(key, f"{type(exc).__name__}: {exc}")
+        return
+    cache.put(key, kind, version, request, result)

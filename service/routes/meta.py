@@ -9,7 +9,7 @@ from fastapi import APIRouter, Path
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
-from worker import cache
+from worker import cache, jobs
 
 from .. import cached
 from ..compute import numerics_version
@@ -42,7 +42,8 @@ async def stats() -> Response:
 async def result(key: Annotated[str, Path(pattern=r"^[0-9a-f]{64}$",
                                           description="cache_key (64 hex)")]) -> Response:
     """The cached result for ``key`` (as the original endpoint answers it), 202 while it
-    is still being computed in this API process, 422 if it failed, else 404."""
+    is still being computed (in this API process or, for a long integration, by a
+    worker through the queue), 422 if it failed, else 404."""
     hit = await run_in_threadpool(cache.get, key)
     if hit is not None:
         return Response(cached.body(cache.canonical(hit), key, True),
@@ -52,4 +53,10 @@ async def result(key: Annotated[str, Path(pattern=r"^[0-9a-f]{64}$",
                         media_type="application/json", headers={"Retry-After": "2"})
     if key in cached.failed:
         raise ProblemError(422, "Could not be computed", cached.failed[key])
+    queued = await run_in_threadpool(jobs.status, key)
+    if queued is not None:
+        if queued[0] == "failed":
+            raise ProblemError(422, "Could not be computed", queued[1])
+        return Response(json.dumps({"status": "queued", "cache_key": key}), status_code=202,
+                        media_type="application/json", headers={"Retry-After": "2"})
     raise ProblemError(404, "Not found", f"no result with key {key}")
