@@ -13,6 +13,7 @@ from starlette.responses import Response
 
 from .. import compute
 from ..cached import answer
+from ..responses import ClassifyResult, CriticalResult, TrajectoryResult
 from ..errors import ProblemError
 from ..schemas import (AnalyticRequest, BoundariesRequest, ClassifyRequest, CriticalRequest,
                        StiffnessRequest, TrajectoryRequest)
@@ -23,7 +24,8 @@ _R = {422: {"description": "Invalid input (problem+json naming the field and its
                            "or a computation that could not be completed."}}
 
 
-@router.post("/classify", responses=_R, summary="Stable or unstable?")
+@router.post("/classify", responses={200: {"model": ClassifyResult, "description": "The outcome."}, **_R},
+             summary="Stable or unstable?")
 async def classify(req: ClassifyRequest) -> Response:
     """Certified outcome of one perturbation (outcome, certificate, peak_phi, blow-up or
     return time T = V_* t/Dc, rel_accuracy). Cached (field `cached`, header `X-Cache: hit|miss`)."""
@@ -47,7 +49,7 @@ async def _as_png(resp: Response, plot) -> Response:  # noqa: ANN001
 
 @router.post("/trajectory", responses={**_R, **_DEFERRED, **png_content(
         "The outcome and trajectory (JSON), or with format=png the phase plane (phi, psi) "
-        "and phi(T) as a PNG image.")}, summary="One trajectory, downsampled")
+        "and phi(T) as a PNG image.", model=TrajectoryResult)}, summary="One trajectory, downsampled")
 async def trajectory(req: TrajectoryRequest,
                      format: Annotated[str, format_query(  # noqa: A002
                          _JSON_OR_PNG, "json", "'png': phase-plane (phi, psi) and phi(T) "
@@ -60,7 +62,8 @@ async def trajectory(req: TrajectoryRequest,
     return resp if fmt == "json" else await _as_png(resp, compute.trajectory_png)
 
 
-@router.post("/critical", responses=_R, summary="Critical perturbation size")
+@router.post("/critical", responses={200: {"model": CriticalResult, "description": "The critical size."}, **_R},
+             summary="Critical perturbation size")
 async def critical(req: CriticalRequest) -> Response:
     """Same fields as `rsf critical --json`: kind (zero|finite|infinite), critical_size,
     rel_accuracy, method, perturbation, params. Cached (field `cached`, header `X-Cache: hit|miss`)."""

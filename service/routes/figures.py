@@ -60,11 +60,15 @@ def choice(value: str, allowed: tuple[str, ...], field: str) -> str:
     return v
 
 
-def png_content(description: str, extra: dict[str, Any] | None = None) -> dict[int, Any]:
-    """OpenAPI ``responses`` entry: 200 as JSON (default) or image/png."""
-    return {200: {"description": description,
-                  "content": {"application/json": {}, "image/png": {
-                      "schema": {"type": "string", "format": "binary"}}}}, **(extra or {})}
+def png_content(description: str, extra: dict[str, Any] | None = None,
+                model: Any = None) -> dict[int, Any]:
+    """OpenAPI ``responses`` entry: 200 as JSON (default; ``model`` documents it) or image/png."""
+    entry: dict[str, Any] = {"description": description,
+                             "content": {"application/json": {}, "image/png": {
+                                 "schema": {"type": "string", "format": "binary"}}}}
+    if model is not None:
+        entry["model"] = model
+    return {200: entry, **(extra or {})}
 
 
 # ------------------------------------------------------------------ on-disk image cache
