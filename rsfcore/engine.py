@@ -33,7 +33,8 @@ below are this project's own.
 Events located on every accepted step with the dense output:
   * runaway certificate: L = phi + ln theta > L* (absorbing; see laws.py);
   * return certificate: phi crosses ln v_o downward after having been at or above it;
-  * local maxima of phi (d phi/dtau = 0), giving the true peak, never a sampled one;
+  * local maxima of phi (d phi/dtau = 0) and of psi (d psi/dtau = 0, where V = V_o),
+    giving the true peaks of slip rate and friction, never sampled ones;
   * optional stop at a given T;
   * blow-up: phi - ln c > phi_stop, after which the remaining time is < e^-phi_stop.
 """
@@ -47,7 +48,7 @@ from scipy.integrate._ivp import dop853_coefficients as _coef
 
 from .laws import G_clipped
 
-__all__ = ["integrate", "STATUS", "NSTATE"]
+__all__ = ["integrate", "blowup_tail", "STATUS", "NSTATE"]
 
 NSTATE = 5
 _I_PHI, _I_LTH, _I_T, _I_S, _I_SO = 0, 1, 2, 3, 4
@@ -158,7 +159,8 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
     """Root in (x0, x1) on the dense output, bracketed by g0 = g(x0), g1 = g(x1) (Illinois).
 
     idx >= 0: g(x) = y_idx(x) - target (an event on a state component);
-    idx = -1: g(x) = d phi/dtau at y(x) (a local maximum of phi).
+    idx = -1: g(x) = d phi/dtau at y(x) (a local maximum of phi);
+    idx = -2: g(x) = d psi/dtau at y(x) (a local maximum of psi = phi + (b/a) ln theta).
     """
     if g0 == 0.0:
         return x0
@@ -175,7 +177,7 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
             gm = tmp[idx] - target
         else:
             _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            gm = ftmp[0]
+            gm = ftmp[0] if idx == -1 else ftmp[0] + ba * ftmp[1]
         if gm == 0.0 or abs(x1 - x0) < 1e-15:
             break
         if (gm > 0.0) == (g1 > 0.0):
@@ -232,8 +234,8 @@ def integrate(
         samples: output array (len(sample_tau) + len(sample_T), 5) filled in order.
 
     Returns:
-        (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, n_steps, n_rhs,
-         n_rejected, err_sum, n_filled) where T_cert is the T of the runaway
+        (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, peak_psi, peak_psi_T,
+         n_steps, n_rhs, n_rejected, err_sum, n_filled) where T_cert is the T of the runaway
         certificate (nan if none) and err_sum the sum over accepted steps of the
         normalised local error estimate times rtol (an a-posteriori accuracy indicator).
     """
@@ -297,6 +299,8 @@ def integrate(
     T_return = math.nan
     peak_phi = y[0]
     peak_T = y[2]
+    peak_psi = y[0] + ba * y[1]
+    peak_psi_T = y[2]
     above = (not fixed_L) and y[0] >= phi_ss
     runaway = False
     err_sum = 0.0
@@ -324,7 +328,7 @@ def integrate(
         y[2] /= c
         for i in range(n_filled):
             samples[i, 2] /= c
-        return (0, y, tau, T_cert, T_return, peak_phi, peak_T / c, 0, n_rhs, 0, 0.0, n_filled)
+        return (0, y, tau, T_cert, T_return, peak_phi, peak_T / c, peak_psi, peak_psi_T / c, 0, n_rhs, 0, 0.0, n_filled)
     if check_runaway and y[0] + y[1] > Lstar:
         runaway = True
         T_cert = y[2]
@@ -420,6 +424,23 @@ def integrate(
             for j in range(n):
                 ye[j] = ynew[j]
                 fe[j] = fnew[j]
+
+        # maximum of psi (friction), tracked on every step like that of phi
+        gp0 = f[0] + ba * f[1]
+        gp1 = fe[0] + ba * fe[1]
+        if gp0 > 0.0 and gp1 <= 0.0:
+            if not dense_ready:
+                _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                n_rhs += 3
+                dense_ready = True
+            xp = _root(F, y, -2, 0.0, 0.0, x_end, gp0, gp1, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+            _dense_eval(F, y, xp, tmp)
+            if tmp[0] + ba * tmp[1] > peak_psi:
+                peak_psi = tmp[0] + ba * tmp[1]
+                peak_psi_T = tmp[2]
+        if ye[0] + ba * ye[1] > peak_psi:
+            peak_psi = ye[0] + ba * ye[1]
+            peak_psi_T = ye[2]
 
         # runaway certificate (checked at the step end: L is absorbing above L*)
         if check_runaway and not runaway and ye[0] + ye[1] > Lstar:
@@ -550,4 +571,19 @@ def integrate(
     y[2] /= c
     for i in range(n_filled):
         samples[i, 2] /= c
-    return (status, y, tau, T_cert / c, T_return / c, peak_phi, peak_T / c, n_steps, n_rhs, n_rej, err_sum, n_filled)
+    return (status, y, tau, T_cert / c, T_return / c, peak_phi, peak_T / c, peak_psi, peak_psi_T / c,
+            n_steps, n_rhs, n_rej, err_sum, n_filled)
+
+
+def blowup_tail(phi: float, L: float, ba: float, kappa: float, eps: float) -> float:
+    """Dimensionless time left to blow-up after the engine stopped at phi - ln c > phi_stop.
+
+    For phi >> ln v_o, d phi/dT = e^phi r with r = -(b/a) G(L) - kappa > 0 on a runaway,
+    so the remaining time is e^-phi / r (relative error O(e^-phi), < 1e-17 at phi = 40).
+    """
+    from .laws import G
+
+    rate = -ba * G(L, eps) - kappa
+    if rate <= 0.0 or phi > 700.0:
+        return 0.0
+    return math.exp(-phi) / rate

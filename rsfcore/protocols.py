@@ -17,16 +17,10 @@ Peaks (never read off the output grid):
 
 * peak slip rate of a segment: the engine's event-located maximum of phi (a root of
   d phi/dtau on the 7th-order dense output of every accepted step);
-* peak friction of a segment: psi is maximal where d psi/dT = kappa (v_o - e^phi) = 0
-  changes sign from + to -, i.e. where V crosses V_o upward.  The engine has no event for
-  that crossing, so each segment is sampled on a fine grid of the engine's bounded hybrid
-  time (where nothing is faster than the grid spacing allows), brackets of the crossing
-  are taken from those dense samples and the crossing time is refined by Brent's method,
-  each evaluation being a re-integration from the bracketing dense sample to the trial
-  time (the engine locates the stop time on its dense output).  At the maximum psi is
-  insensitive (to first order) to the located time, so the peak friction carries the
-  integration accuracy.  Segment end points are candidates too (e.g. during a hold,
-  V_o = 0, friction only decreases).
+* peak friction of a segment: psi is maximal where d psi/dT = kappa (v_o - e^phi) changes
+  sign from + to - (V crossing V_o upward); the engine locates that root on the dense
+  output of every step in the same way.  Segment end points are candidates too (e.g.
+  during a hold, V_o = 0, friction only decreases).
 
 Accuracy delivered (default rtol 1e-10; tests/test_protocols.py): peaks agree with runs
 at rtol 1e-12 and 10x the samples to 3e-12 in f (3e-10 in psi), 4e-10 relative in peak V
@@ -51,11 +45,10 @@ from typing import Any, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import brentq, minimize_scalar
 
 from .analytic import delta_tau
-from .engine import integrate
-from .laws import G_clipped, L_star
+from .engine import blowup_tail, integrate
+from .laws import L_star
 from .params import VO_MAX, ParameterError, PhysicalParams, check_range
 
 __all__ = [
@@ -77,8 +70,6 @@ PHI_STOP = 40.0
 MAX_STEPS = 5_000_000
 RTOL_RANGE = (1e-14, 1e-3)
 N_POINTS_RANGE = (2, 100_000)
-#: Hybrid-time samples per segment used to bracket the friction peaks.
-N_DETECT = 4000
 
 _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, 5))
@@ -274,85 +265,6 @@ def _run(y0: NDArray[np.float64], c: _Ctx, t_end: float, sample_T=_EMPTY, sample
     return res, samples[: int(res[-1])]
 
 
-def _state_at(y_a: NDArray[np.float64], T: float, c: _Ctx) -> NDArray[np.float64]:
-    """State at dimensionless time T >= y_a[2], integrated from the (dense-output) state y_a."""
-    if T <= y_a[2]:
-        return y_a.copy()
-    res, _ = _run(y_a, c, T)
-    return np.asarray(res[1])
-
-
-def _psi(y, c: _Ctx) -> float:
-    return float(y[0] + c.ba * y[1])
-
-
-def _psi_slope_sign(y, c: _Ctx) -> float:
-    """Sign carrier of d psi/dT = kappa (v_o - e^phi): ln v_o - phi (-inf for a hold)."""
-    return (math.log(c.vo) if c.vo > 0.0 else -math.inf) - float(y[0])
-
-
-def _refine_max(y_a, T_b, c: _Ctx, value, slope) -> tuple[float, float]:
-    """Maximum of value(y(T)) on [y_a[2], T_b]; slope(y) changes sign + -> - inside.
-
-    Brent's root of slope(y(T)) (each evaluation a re-integration from y_a, the stop time
-    being located on the engine's dense output); falls back to a bounded maximisation
-    when rounding hides the bracket.  Returns (value, T).
-    """
-    T_a = float(y_a[2])
-    span = T_b - T_a
-    if not span > 0.0:
-        return value(y_a), T_a
-
-    def g(T: float) -> float:
-        return slope(_state_at(y_a, T, c))
-
-    ga, gb = slope(y_a), g(T_b)
-    xtol = 1e-13 * span + 4e-16 * abs(T_b)
-    if ga > 0.0 and gb < 0.0:
-        T = brentq(g, T_a, T_b, xtol=xtol, rtol=1e-15, maxiter=200)
-    else:
-        r = minimize_scalar(lambda T: -value(_state_at(y_a, T, c)), bounds=(T_a, T_b), method="bounded",
-                            options={"xatol": max(xtol, 1e-9 * span)})
-        T = float(r.x)
-    y = _state_at(y_a, T, c)
-    return value(y), T
-
-
-def _grid_peak(grid: NDArray[np.float64], c: _Ctx, value, slope, bound: float,
-               best: tuple[float, float]) -> tuple[float, float]:
-    """Refine every bracket on the hybrid-time grid that could beat ``best``.
-
-    grid: dense samples (m, 5) evenly spaced in hybrid time; bound: the largest possible
-    rise of ``value`` over one grid interval (|d value/dtau| times the spacing).
-    Candidates are the + -> - sign changes of ``slope`` between samples and the sampled
-    local maxima of ``value`` (which also catch two crossings within one interval).
-    """
-    m = grid.shape[0]
-    if m < 2:
-        return best
-    vals = np.array([value(grid[i]) for i in range(m)])
-    sl = np.array([slope(grid[i]) for i in range(m)])
-    cand: set[int] = set()
-    for j in range(m - 1):
-        if sl[j] > 0.0 and not sl[j + 1] > 0.0:
-            cand.add(j)
-    for i in range(1, m - 1):
-        if vals[i] >= vals[i - 1] and vals[i] >= vals[i + 1] and (vals[i] > vals[i - 1] or vals[i] > vals[i + 1]):
-            cand.add(i - 1)
-            cand.add(i)
-    top = max(best[0], float(np.max(vals)))
-    for j in sorted(cand):
-        j1 = min(j + 1, m - 1)
-        if max(vals[j], vals[j1]) < top - bound:
-            continue
-        y_a = grid[j].copy()
-        T_b = float(grid[j1][2])
-        v, T = _refine_max(y_a, T_b, c, value, slope)
-        if v > best[0]:
-            best = (v, T)
-    return best
-
-
 # ---------------------------------------------------------------------------------------
 # Public protocols
 # ---------------------------------------------------------------------------------------
@@ -458,7 +370,7 @@ def load_history(
         sT[0] = T_now
         sT[-1] = T_end
         res, samp = _run(y_start, ctx, T_end, sample_T=sT)
-        status, y_end, tau_end, T_cert, _, peak_phi, peak_T, n_st, _, n_rej, err_sum, _ = res
+        status, y_end, _, T_cert, _, peak_phi, peak_T, peak_psi, peak_psi_T, n_st, _, n_rej, err_sum, _ = res
         y_end = np.asarray(y_end).copy()
         sm.n_steps = int(n_st + n_rej)
         err_total += float(err_sum)
@@ -478,25 +390,15 @@ def load_history(
         chunks.append(samp)
         seg_idx.append(np.full(samp.shape[0], i, dtype=np.int64))
 
-        # -- peaks ---------------------------------------------------------------------
-        # detection grid in the bounded hybrid time (same step sequence as above)
-        n_det = max(N_DETECT, 4 * npts)
-        grid_tau = np.linspace(0.0, float(tau_end), n_det)
-        _, grid = _run(y_start, ctx, T_end, sample_tau=grid_tau)
-        if grid.shape[0] == 0 or grid[-1, 2] < y_end[2]:
-            grid = np.vstack([grid, y_end[None, :]])
-        dtau = float(tau_end) / (n_det - 1)
-        # friction: max of psi, candidates the ends and the V = V_o crossings
-        best = max(((_psi(y_start, ctx), T_now, "start"), (_psi(y_end, ctx), float(y_end[2]), "end")),
-                   key=lambda t: t[0])
-        if vo > 0.0:
-            v_in, T_in = _grid_peak(grid, ctx, lambda yy: _psi(yy, ctx), lambda yy: _psi_slope_sign(yy, ctx),
-                                    kappa * dtau, (-math.inf, math.nan))
-            if v_in > best[0]:
-                best = (v_in, T_in, "interior")
-        sm.peak_friction = p.f_star + p.a * best[0]
-        sm.peak_friction_time_s = best[1] * ts
-        sm.peak_friction_where = best[2]
+        # -- peaks: located by the engine on every step (start, interior maxima, end) ------
+        sm.peak_friction = p.f_star + p.a * float(peak_psi)
+        sm.peak_friction_time_s = float(peak_psi_T) * ts
+        if float(peak_psi_T) <= T_now:
+            sm.peak_friction_where = "start"
+        elif float(peak_psi_T) >= float(y_end[2]):
+            sm.peak_friction_where = "end"
+        else:
+            sm.peak_friction_where = "interior"
         # slip rate: the engine's event-located maximum (start, interior maxima, end)
         if ran_away:
             sm.peak_V_m_s = None
@@ -517,7 +419,7 @@ def load_history(
         if blew_up:
             assert runaway is not None
             runaway.blowup_segment = i
-            runaway.t_blowup_s = (T_now + _blowup_tail(y_end, ctx)) * ts
+            runaway.t_blowup_s = (T_now + blowup_tail(float(y_end[0]), float(y_end[0] + y_end[1]), ba, kappa, p.eps)) * ts
             break
 
     s = np.vstack(chunks) if chunks else np.empty((0, 5))
@@ -546,15 +448,6 @@ def load_history(
         phi=phi.copy(),
         ln_theta=lth.copy(),
     )
-
-
-def _blowup_tail(y, c: _Ctx) -> float:
-    """Remaining time T after the engine stopped at phi - ln c > 40 (tail of dT = d phi/phi_dot)."""
-    phi, L = float(y[0]), float(y[0] + y[1])
-    rate = -c.ba * float(G_clipped(L, c.eps)) - c.kappa
-    if rate <= 0.0 or phi > 700.0:
-        return 0.0
-    return math.exp(-phi) / rate
 
 
 @dataclass

@@ -32,8 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .analytic import U_kcrit
-from .engine import integrate
-from .laws import G, L_star
+from .engine import blowup_tail, integrate
+from .laws import L_star
 from .params import ParameterError, Params, PhysicalParams, check_range
 
 __all__ = [
@@ -268,15 +268,6 @@ def _run(
     return res, samples
 
 
-def _blowup_tail(p: Params, y: NDArray[np.float64]) -> float:
-    """Remaining time after the engine stopped at phi - ln c > PHI_STOP (tail of dT = dphi/phi_dot)."""
-    phi, L = y[0], y[0] + y[1]
-    rate = -p.ba * G(L, p.eps) - p.kappa  # phi_dot ~ e^phi * rate for phi >> ln v_o
-    if rate <= 0.0 or phi > 700.0:
-        return 0.0
-    return math.exp(-phi) / rate
-
-
 def classify(
     params: Params,
     perturbation: str = "velocity-jump",
@@ -359,13 +350,13 @@ def simulate(
             plan = _Plan(True, True, None, None) if p_run.kappa >= p_run.kappa_crit else _Plan(True, False, None, None)
     if plan.certificate in ("at_equilibrium",) or (plan.certificate or "").endswith("_L_on_Lstar"):
         # decided in closed form; nothing to integrate
-        res = (-1, None, 0.0, math.nan, math.nan, phi0, 0.0, 0, 0, 0, 0.0, 0)
+        res = (-1, None, 0.0, math.nan, math.nan, phi0, 0.0, psi0, 0.0, 0, 0, 0, 0.0, 0)
     else:
         # when the closed form already decided the outcome, only the times and the peak
         # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
         budget = min(DECIDED_BUDGET, max_steps) if plan.outcome is not None else max_steps
         res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget)
-    status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, n_steps, n_rhs, n_rej, err_sum, _ = res
+    status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, _, _, n_steps, n_rhs, n_rej, err_sum, _ = res
     n_steps = int(n_steps + n_rej)
 
     runaway = not math.isnan(T_cert)
@@ -390,7 +381,7 @@ def simulate(
         cert = plan.certificate or "L_above_Lstar"
         peak_phi = math.inf
         if status == 1:
-            blowup_time = float(y_end[2] + _blowup_tail(p_run, y_end))
+            blowup_time = float(y_end[2] + blowup_tail(y_end[0], y_end[0] + y_end[1], p_run.ba, p_run.kappa, p_run.eps))
             peak_T = blowup_time
         else:
             peak_T = None
