@@ -115,18 +115,25 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
+    """Stage s of the tableau: K[s] = f(y + h sum_m A[s, m] K[m])."""
+    n = y.shape[0]
+    for j in range(n):
+        acc = 0.0
+        for m in range(s):
+            acc += _A[s, m] * K[m, j]
+        tmp[j] = y[j] + h * acc
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    for j in range(n):
+        K[s, j] = ftmp[j]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _dense_coeffs(K, y0, y1, f0, f1, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp):
     """Fill F (7 x n) with the DOP853 dense-output polynomial of the last step."""
     n = y0.shape[0]
     for s in range(_NS + 1, _NSE):
-        for j in range(n):
-            acc = 0.0
-            for m in range(s):
-                acc += _A[s, m] * K[m, j]
-            tmp[j] = y0[j] + h * acc
-        _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-        for j in range(n):
-            K[s, j] = ftmp[j]
+        _stage(K, y0, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
     for j in range(n):
         dy = y1[j] - y0[j]
         F[0, j] = dy
@@ -342,14 +349,7 @@ def integrate(
         for j in range(n):
             K[0, j] = f[j]
         for s in range(1, _NS):
-            for j in range(n):
-                acc = 0.0
-                for m in range(s):
-                    acc += _A[s, m] * K[m, j]
-                tmp[j] = y[j] + h * acc
-            _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            for j in range(n):
-                K[s, j] = ftmp[j]
+            _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
         for j in range(n):
             acc = 0.0
             for m in range(_NS):
