@@ -354,7 +354,10 @@ def simulate(
     else:
         # when the closed form already decided the outcome, only the times and the peak
         # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
-        budget = min(DECIDED_BUDGET, max_steps) if plan.outcome is not None else max_steps
+        # (kappa < kappa_crit with a moving load point is decided too: every perturbation
+        # grows, and a slow outward spiral near kappa_crit would otherwise use 1e7 steps)
+        decided = plan.outcome is not None or (p_run.kappa < p_run.kappa_crit and method == "auto")
+        budget = min(DECIDED_BUDGET, max_steps) if decided else max_steps
         res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget)
     status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, _, _, n_steps, n_rhs, n_rej, err_sum, _ = res
     n_steps = int(n_steps + n_rej)
