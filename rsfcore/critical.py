@@ -521,6 +521,20 @@ def _check_rtol(rtol: float) -> float:
     return check_range("rtol", rtol, RTOL_RANGE[0], RTOL_RANGE[1])
 
 
+def _first_decision(params: Params, perturbation: str, rtol: float) -> tuple:
+    """Validate the inputs and run the compiled decision for one point.
+
+    Returns (rtol, kind, value, rel_accuracy, method, flags, n_rhs, on_boundary)."""
+    if not isinstance(params, Params):
+        raise ParameterError("params", params, "an rsfcore.Params")
+    pert = _pert_code(perturbation)
+    rtol = _check_rtol(rtol)
+    if pert == 1 and params.vo == 0.0:
+        raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
+    kind, val, acc, meth, flags, nr = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(13))
+    return rtol, kind, val, acc, meth, flags, nr, bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
+
+
 def critical_perturbation(params: Params, perturbation: str = "velocity-jump", *, rtol: float = DEFAULT_RTOL) -> CriticalResult:
     """Critical size of a velocity jump or load-point jump (module docstring for methods).
 
@@ -534,14 +548,7 @@ def critical_perturbation(params: Params, perturbation: str = "velocity-jump", *
     Returns a CriticalResult.  Never returns nan: if the separatrix method cannot be
     applied, bisection on classify() is used (slower, same accuracy target).
     """
-    if not isinstance(params, Params):
-        raise ParameterError("params", params, "an rsfcore.Params")
-    pert = _pert_code(perturbation)
-    rtol = _check_rtol(rtol)
-    if pert == 1 and params.vo == 0.0:
-        raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
-    kind, val, acc, meth, flags, nr = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(13))
-    on_b = bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
+    rtol, kind, val, acc, meth, flags, nr, on_b = _first_decision(params, perturbation, rtol)
     if flags & FLAG_FALLBACK:
         res = bisect_critical(params, perturbation, rtol=rtol)
         return CriticalResult(res.kind, res.critical_size, res.rel_accuracy, res.method, perturbation, params, on_b, res.n_rhs)
@@ -577,12 +584,7 @@ def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: f
     """
     from .trajectory import UndecidedError, classify
 
-    pert = _pert_code(perturbation)
-    rtol = _check_rtol(rtol)
-    if pert == 1 and params.vo == 0.0:
-        raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
-    kind, val, acc, meth, flags, _ = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(13))
-    on_b = bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
+    rtol, kind, val, acc, meth, flags, _, on_b = _first_decision(params, perturbation, rtol)
     if kind != KIND_FINITE:
         return _make_result(int(kind), float(val), float(acc), int(meth), perturbation, params, on_b)
 
@@ -596,7 +598,7 @@ def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: f
         n_rhs += r.n_rhs
         return r.outcome == "unstable"
 
-    if pert == 0:
+    if _pert_code(perturbation) == 0:
         from .trajectory import SIZE_MAX
 
         Ls = float(L_star(params.kappa, params.kappa_crit, params.eps))
