@@ -119,7 +119,7 @@ class Worker(Proc):
         log = data_dir / f"worker-{Worker._n}.log"
         env = service_env(data_dir, broker_url, **extra)
         if plugin:
-            env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{ROOT / 'tests'}"
+            env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{ROOT / 'tests' / 'e2e'}"
         super().__init__([sys.executable, "-m", "celery", "-A", "worker.celery_app:app",
                           "worker", "-Q", "rsf", f"--pool={pool}",
                           f"--concurrency={concurrency}", "--loglevel=INFO",

@@ -7,7 +7,7 @@ single query (outcome + phase-plane PNG), submits a 3 x 3 sweep from the form, w
 the sweep list show its progress, then waits for the finished stability diagram image,
 and saves a screenshot of the page.
 
-The worker is slowed down (0.5 s a point, via tests/test_worker_faultplugin.py) so the
+The worker is slowed down (0.5 s a point, via tests/e2e/test_worker_faultplugin.py) so the
 sweep runs for a few seconds and the 1 s polling of the page can show it in progress.
 
 chromium is required under CI=true (.ci/run installs it): missing, the test fails;
