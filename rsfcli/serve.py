@@ -21,7 +21,7 @@ __all__ = ["serve", "worker_command"]
 def worker_command(concurrency: int | None = None, pool: str = "prefork",
                    name: str = "rsf-embedded") -> list[str]:
     """Command line of a Celery worker for this project."""
-    from service.settings import get_settings
+    from rsfapp.config import get_settings
     conc = concurrency or max(1, os.cpu_count() or 1)
     return [sys.executable, "-m", "celery", "-A", "worker.celery_app:app", "worker",
             "-Q", get_settings().queue, f"--pool={pool}", f"--concurrency={conc}",

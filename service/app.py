@@ -8,6 +8,11 @@ from typing import AsyncIterator
 from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 
+from rsfapp.config import get_settings
+from rsfapp.store import stores_for
+from rsfapp.warmup import warm_up
+
+from .deps import Inflight
 from .errors import install_handlers
 from .routes import compute, figures, meta, sweeps, ui
 
@@ -15,23 +20,10 @@ __all__ = ["create_app", "app"]
 log = logging.getLogger("rsf.service")
 
 
-def warm_up() -> None:
-    """Load (or compile, on a fresh checkout) rsfcore's kernels before serving, so the
-    first queries are not deferred by JIT compilation; create the cache tables."""
-    from worker import cache
-    cache.stats()
-    try:
-        from rsfcore import critical, trajectory
-        from rsfcore.params import Params
-        trajectory.classify(Params(2.0, 0.5, 0.5, 1.0), "velocity-jump", 0.1)
-        trajectory.simulate(Params(2.0, 1.2, 0.5, 1.0), "velocity-jump", 0.5, n_points=5)
-        critical.critical_perturbation(Params(2.0, 1.5, 0.5, 1.0))
-    except Exception:  # noqa: BLE001 - serving must not depend on the warm-up
-        log.exception("rsfcore warm-up failed")
-
-
 @asynccontextmanager
-async def _lifespan(_app: FastAPI) -> AsyncIterator[None]:
+async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    app.state.inflight = Inflight()
+    await run_in_threadpool(lambda: stores_for(get_settings()).results.stats())
     await run_in_threadpool(warm_up)
     yield
 

@@ -14,7 +14,8 @@ from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from .schemas import VALID
+from rsfapp.requests import VALID
+from rsfcore.params import ParameterError
 
 __all__ = ["ProblemError", "problem", "install_handlers"]
 log = logging.getLogger("rsf.service")
@@ -105,6 +106,11 @@ def install_handlers(app: FastAPI) -> None:
         if exc.field:
             errs = [{"field": exc.field, "message": exc.detail, "valid": exc.valid}]
         return problem(exc.status, exc.title, exc.detail, errs)
+
+    @app.exception_handler(ParameterError)
+    async def _parameter(_req: Request, exc: ParameterError) -> Response:
+        return problem(422, "Invalid input", str(exc),
+                       [{"field": exc.field, "message": str(exc), "valid": exc.valid}])
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_req: Request, exc: StarletteHTTPException) -> Response:

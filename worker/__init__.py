@@ -1,1 +1,1 @@
-"""Celery worker, SQLite/SQLAlchemy result cache and sweep bookkeeping."""
+"""Celery workers: run sweep chunks and long single queries (imports rsfapp, never service)."""

@@ -1,6 +1,6 @@
 """Single-query endpoints: classify, trajectory, critical, analytic U, boundaries, stiffness.
 
-All are answered in the API process and cached (see :mod:`service.cached`).  Trajectories
+All are answered in the API process and cached (see :mod:`service.answer`).  Trajectories
 and U grids can also be fetched as PNG plots (``?format=png``; JSON is the default).
 """
 from __future__ import annotations
@@ -8,28 +8,63 @@ from __future__ import annotations
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, Query
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from fastapi import APIRouter, Depends, Query
+from pydantic import BaseModel
 from starlette.responses import Response
 
-from .. import compute
-from ..cached import answer
-from ..responses import ClassifyResult, CriticalResult, TrajectoryResult
+from rsfapp import adapter
+from rsfapp.config import Settings
+from rsfapp.queue import Queue
+from rsfapp.store import Stores
+from rsfapp.requests import (AnalyticRequest, BoundariesRequest, ClassifyRequest,
+                             CriticalRequest, StiffnessRequest, TrajectoryRequest)
+
+from .. import images
+from ..answer import answer
+from ..deps import Inflight, InflightDep, QueueDep, SettingsDep, StoresDep
 from ..errors import ProblemError
-from ..schemas import (AnalyticRequest, BoundariesRequest, ClassifyRequest, CriticalRequest,
-                       StiffnessRequest, TrajectoryRequest)
-from .figures import choice, format_query, image, image_response, png_content
+from ..images import choice, format_query, image, image_response, png_content
+from ..responses import ClassifyResult, CriticalResult, TrajectoryResult
 
 router = APIRouter(prefix="/v1", tags=["compute"])
+
+
+@dataclass(frozen=True)
+class Ctx:
+    """What every compute endpoint needs: stores, queue, in-flight table, settings."""
+
+    stores: Stores
+    queue: Queue
+    inflight: Inflight
+    settings: Settings
+
+    async def answer(self, kind: str, req: BaseModel,
+                     fn: Callable[[Any], dict[str, Any]]) -> Response:
+        """The cached or computed answer (:func:`service.answer.answer`)."""
+        return await answer(kind, req, fn, stores=self.stores, queue=self.queue,
+                            inflight=self.inflight, settings=self.settings)
+
+
+def _ctx(stores: StoresDep, queue: QueueDep, inflight: InflightDep,
+         settings: SettingsDep) -> Ctx:
+    return Ctx(stores, queue, inflight, settings)
+
+
+CtxDep = Annotated[Ctx, Depends(_ctx)]
 _R = {422: {"description": "Invalid input (problem+json naming the field and its range) "
                            "or a computation that could not be completed."}}
 
 
 @router.post("/classify", responses={200: {"model": ClassifyResult, "description": "The outcome."}, **_R},
              summary="Stable or unstable?")
-async def classify(req: ClassifyRequest) -> Response:
+async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
     """Certified outcome of one perturbation (outcome, certificate, peak_phi, blow-up or
     return time T = V_* t/Dc, rel_accuracy). Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await answer("classify", req, compute.classify)
+    return await ctx.answer("classify", req, adapter.classify)
 
 
 _JSON_OR_PNG = ("json", "png")
@@ -37,7 +72,7 @@ _DEFERRED = {202: {"description": "Still computing (JSON with `Location: /v1/res
                                   "also for format=png): poll it, then repeat the request."}}
 
 
-async def _as_png(resp: Response, plot) -> Response:  # noqa: ANN001
+async def _as_png(resp: Response, plot: Callable[[dict[str, Any]], bytes]) -> Response:
     """The PNG plot of a 200 JSON answer (other answers are returned unchanged)."""
     if resp.status_code != 200:
         return resp
@@ -50,7 +85,7 @@ async def _as_png(resp: Response, plot) -> Response:  # noqa: ANN001
 @router.post("/trajectory", responses={**_R, **_DEFERRED, **png_content(
         "The outcome and trajectory (JSON), or with format=png the phase plane (phi, psi) "
         "and phi(T) as a PNG image.", model=TrajectoryResult)}, summary="One trajectory, downsampled")
-async def trajectory(req: TrajectoryRequest,
+async def trajectory(req: TrajectoryRequest, ctx: CtxDep,
                      format: Annotated[str, format_query(  # noqa: A002
                          _JSON_OR_PNG, "json", "'png': phase-plane (phi, psi) and phi(T) "
                          "plot of the trajectory.")] = "json") -> Response:
@@ -58,22 +93,22 @@ async def trajectory(req: TrajectoryRequest,
     ``n_points`` samples; SI columns when ``physical`` is given. Cached (field `cached`, header `X-Cache: hit|miss`).
     With ``?format=png``: the phase plane and phi(T) as a PNG (image cached too)."""
     fmt = choice(format, _JSON_OR_PNG, "format")
-    resp = await answer("trajectory", req, compute.trajectory)
-    return resp if fmt == "json" else await _as_png(resp, compute.trajectory_png)
+    resp = await ctx.answer("trajectory", req, adapter.trajectory)
+    return resp if fmt == "json" else await _as_png(resp, images.trajectory_png)
 
 
 @router.post("/critical", responses={200: {"model": CriticalResult, "description": "The critical size."}, **_R},
              summary="Critical perturbation size")
-async def critical(req: CriticalRequest) -> Response:
+async def critical(req: CriticalRequest, ctx: CtxDep) -> Response:
     """Same fields as `rsf critical --json`: kind (zero|finite|infinite), critical_size,
     rel_accuracy, method, perturbation, params. Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await answer("critical", req, compute.critical)
+    return await ctx.answer("critical", req, adapter.critical)
 
 
 @router.post("/analytic/u", responses={**_R, **png_content(
         "U at the points or on the grid (JSON), or with format=png (grid only) the contours "
         "of U (red: U = 0) as a PNG image.")}, summary="Analytic Lyapunov function U")
-async def analytic_u(req: AnalyticRequest,
+async def analytic_u(req: AnalyticRequest, ctx: CtxDep,
                      format: Annotated[str, format_query(  # noqa: A002
                          _JSON_OR_PNG, "json", "'png' (needs 'grid'): contours of U in the "
                          "(phi, psi) plane.")] = "json") -> Response:
@@ -90,24 +125,24 @@ async def analytic_u(req: AnalyticRequest,
                 raise ProblemError(422, "Invalid input", f"grid.{f}: a contour plot needs "
                                    "at least 2 values (valid range: [2, 500] with format=png)",
                                    field=f"grid.{f}", valid="[2, 500] with format=png")
-    resp = await answer("analytic_u", req, compute.analytic_u)
-    return resp if fmt == "json" else await _as_png(resp, compute.analytic_u_png)
+    resp = await ctx.answer("analytic_u", req, adapter.analytic_u)
+    return resp if fmt == "json" else await _as_png(resp, images.analytic_u_png)
 
 
 @router.get("/boundaries", responses=_R, summary="Stability boundaries (query)")
-async def boundaries_get(req: Annotated[BoundariesRequest, Query()]) -> Response:
+async def boundaries_get(req: Annotated[BoundariesRequest, Query()], ctx: CtxDep) -> Response:
     """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values. Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await answer("boundaries", req, compute.boundaries)
+    return await ctx.answer("boundaries", req, adapter.boundaries)
 
 
 @router.post("/boundaries", responses=_R, summary="Stability boundaries")
-async def boundaries_post(req: BoundariesRequest) -> Response:
+async def boundaries_post(req: BoundariesRequest, ctx: CtxDep) -> Response:
     """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values. Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await answer("boundaries", req, compute.boundaries)
+    return await ctx.answer("boundaries", req, adapter.boundaries)
 
 
 @router.post("/stiffness", responses=_R, summary="Continuum stiffness, critical dimension")
-async def stiffness(req: StiffnessRequest) -> Response:
+async def stiffness(req: StiffnessRequest, ctx: CtxDep) -> Response:
     """Eigenvalue k/k_* of case A-E and, given physical parameters, the critical
     dimension in metres (lambda_c, L_c or R_c). Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await answer("stiffness", req, compute.stiffness)
+    return await ctx.answer("stiffness", req, adapter.stiffness)

@@ -9,28 +9,29 @@ from fastapi import APIRouter, Path
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
-from worker import cache, jobs
+from rsfapp.adapter import numerics_version
+from rsfapp.store import JobState
 
-from .. import cached
-from ..compute import numerics_version
+from ..answer import body
+from ..deps import InflightDep, StoresDep
 from ..errors import ProblemError
 
 router = APIRouter(tags=["meta"])
 
 
 @router.get("/health", summary="Liveness and database check")
-async def health() -> Response:
+async def health(stores: StoresDep) -> Response:
     """{"status": "ok", "numerics_version": ...} once the cache database answers."""
-    st = await run_in_threadpool(cache.stats)
+    st = await run_in_threadpool(stores.results.stats)
     return Response(json.dumps({"status": "ok", "numerics_version": numerics_version(),
                                 "cache_entries": st["entries"]}),
                     media_type="application/json")
 
 
 @router.get("/v1/cache/stats", summary="Cache statistics")
-async def stats() -> Response:
+async def stats(stores: StoresDep) -> Response:
     """Entries (total and per kind) and this API process's hits, misses and hit ratio."""
-    st = await run_in_threadpool(cache.stats)
+    st = await run_in_threadpool(stores.results.stats)
     st["numerics_version"] = numerics_version()
     return Response(json.dumps(st), media_type="application/json")
 
@@ -40,23 +41,24 @@ async def stats() -> Response:
                        404: {"description": "Unknown key (problem+json)."},
                        422: {"description": "The computation failed (problem+json)."}})
 async def result(key: Annotated[str, Path(pattern=r"^[0-9a-f]{64}$",
-                                          description="cache_key (64 hex)")]) -> Response:
+                                          description="cache_key (64 hex)")],
+                 stores: StoresDep, inflight: InflightDep) -> Response:
     """The cached result for ``key`` (as the original endpoint answers it), 202 while it
     is still being computed (in this API process or, for a long integration, by a
     worker through the queue), 422 if it failed, else 404."""
-    hit = await run_in_threadpool(cache.get, key)
+    hit = await run_in_threadpool(stores.results.get_text, key)
     if hit is not None:
-        return Response(cached.body(cache.canonical(hit), key, True),
+        return Response(body(hit, key, True),
                         media_type="application/json", headers={"X-Cache": "hit"})
-    if key in cached.pending:
+    if key in inflight.pending:
         return Response(json.dumps({"status": "running", "cache_key": key}), status_code=202,
                         media_type="application/json", headers={"Retry-After": "2"})
-    if key in cached.failed:
-        raise ProblemError(422, "Could not be computed", cached.failed[key])
-    queued = await run_in_threadpool(jobs.status, key)
+    if key in inflight.failed:
+        raise ProblemError(422, "Could not be computed", inflight.failed[key])
+    queued = await run_in_threadpool(stores.jobs.status, key)
     if queued is not None:
-        if queued[0] == "failed":
-            raise ProblemError(422, "Could not be computed", queued[1])
+        if queued.state is JobState.failed:
+            raise ProblemError(422, "Could not be computed", queued.message)
         return Response(json.dumps({"status": "queued", "cache_key": key}), status_code=202,
                         media_type="application/json", headers={"Retry-After": "2"})
     raise ProblemError(404, "Not found", f"no result with key {key}")

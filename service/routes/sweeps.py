@@ -14,15 +14,18 @@ from fastapi import APIRouter, Path, Query
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
-from worker import cache, sweeps
+from rsfapp import adapter
+from rsfapp.adapter import numerics_version
+from rsfapp.grid import expand
+from rsfapp.keys import cache_key
+from rsfapp.queue import Queue
+from rsfapp.requests import SweepRequest
+from rsfapp.store import SweepStore
 
-from .. import compute
-from ..compute import numerics_version
+from .. import images
+from ..deps import QueueDep, SettingsDep, StoresDep
 from ..errors import ProblemError
-from ..grid import expand
-from ..schemas import SweepRequest
-from ..settings import get_settings
-from .figures import choice, format_query, image, image_response, png_content
+from ..images import choice, format_query, image, image_response, png_content
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 log = logging.getLogger("rsf.service")
@@ -46,11 +49,10 @@ def _unknown(sweep_id: str) -> ProblemError:
     return ProblemError(404, "Not found", f"no sweep with id {sweep_id}")
 
 
-def _enqueue(sweep_id: str, chunk_ids: list[int]) -> str | None:
-    from worker.celery_app import send_chunk
+def _enqueue(queue: Queue, sweep_id: str, chunk_ids: list[int]) -> str | None:
     try:
         for c in chunk_ids:
-            send_chunk(sweep_id, c)
+            queue.send_chunk(sweep_id, c)
     except Exception as exc:  # noqa: BLE001 - chunks stay queued; a worker start requeues
         log.exception("could not enqueue sweep %s", sweep_id)
         return f"broker unavailable ({type(exc).__name__}); queued chunks are sent when " \
@@ -60,22 +62,23 @@ def _enqueue(sweep_id: str, chunk_ids: list[int]) -> str | None:
 
 @router.post("", status_code=202, responses={**_R, 200: {"description": "Already done."}},
              summary="Submit a sweep")
-async def submit(req: SweepRequest) -> Response:
+async def submit(req: SweepRequest, stores: StoresDep, queue: QueueDep,
+                 s: SettingsDep) -> Response:
     """Start a 2-D sweep over two of {kappa_ratio, eps, ba, size}; answers 202 with a
     Location to poll. Per point: the critical size (kind, critical_size) or, when a size
     is given or swept, the outcome. Identical submissions return the same sweep."""
-    s = get_settings()
+    sweeps = stores.sweeps
     spec = expand(req, s.sweep_max_points)
     n_total = len(spec["x"]["values"]) * len(spec["y"]["values"])
     version = numerics_version()
-    sweep_id = cache.cache_key("sweep", spec, version)[:32]
+    sweep_id = cache_key("sweep", spec, version)[:32]
     size_given = spec["fixed"]["size"] is not None or "size" in (req.x.name, req.y.name)
     per = _COST_S["outcome" if size_given else "critical"]
     chunk = req.chunk_points or max(1, min(10_000, int(s.chunk_seconds / per),
                                            -(-n_total // _MIN_CHUNKS)))
     created, todo = await run_in_threadpool(sweeps.create, sweep_id, spec, n_total, chunk,
                                             version)
-    warning = await run_in_threadpool(_enqueue, sweep_id, todo) if todo else None
+    warning = await run_in_threadpool(_enqueue, queue, sweep_id, todo) if todo else None
     st = await run_in_threadpool(sweeps.status, sweep_id)
     if st is None:  # pragma: no cover - created just above
         raise _unknown(sweep_id)
@@ -88,32 +91,33 @@ async def submit(req: SweepRequest) -> Response:
 
 
 @router.get("", summary="List sweeps")
-async def list_all(limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+async def list_all(stores: StoresDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100,
                    offset: Annotated[int, Query(ge=0, le=10**9)] = 0) -> Response:
     """Sweeps, newest first, with status and progress."""
-    return _json({"sweeps": await run_in_threadpool(sweeps.list_sweeps, limit, offset)})
+    return _json({"sweeps": await run_in_threadpool(stores.sweeps.list_sweeps, limit,
+                                                      offset)})
 
 
 @router.get("/{sweep_id}", responses=_N, summary="Sweep status")
-async def get_status(sweep_id: SweepId) -> Response:
+async def get_status(sweep_id: SweepId, stores: StoresDep) -> Response:
     """status (queued|running|done|cancelled), n_done, n_total, n_failed, eta_s [s],
     failures (first 100, with messages)."""
-    st = await run_in_threadpool(sweeps.status, sweep_id)
+    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
     if st is None:
         raise _unknown(sweep_id)
     return _json(st)
 
 
 @router.get("/{sweep_id}/points", responses=_N, summary="Sweep points (paged)")
-async def get_points(sweep_id: SweepId,
+async def get_points(sweep_id: SweepId, stores: StoresDep,
                      offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
                      limit: Annotated[int, Query(ge=1, le=10_000)] = 1000) -> Response:
     """Stored points ordered by flat index idx = i*n_y + j, available while running.
     Each point: idx, i, j, x, y, kind, critical_size, outcome, rel_accuracy, error."""
-    st = await run_in_threadpool(sweeps.status, sweep_id)
+    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
     if st is None:
         raise _unknown(sweep_id)
-    pts = await run_in_threadpool(sweeps.page_points, sweep_id, offset, limit)
+    pts = await run_in_threadpool(stores.sweeps.page_points, sweep_id, offset, limit)
     nxt = offset + len(pts) if len(pts) == limit else None
     return _json({"id": sweep_id, "status": st["status"], "n_done": st["n_done"],
                   "n_total": st["n_total"], "offset": offset, "limit": limit,
@@ -124,7 +128,7 @@ _JSON_OR_PNG = ("json", "png")
 _PAGE = 10_000
 
 
-def _all_points(sweep_id: str) -> list[dict[str, object]]:
+def _all_points(sweeps: SweepStore, sweep_id: str) -> list[dict[str, object]]:
     out: list[dict[str, object]] = []
     while True:
         page = sweeps.page_points(sweep_id, len(out), _PAGE)
@@ -138,7 +142,7 @@ def _all_points(sweep_id: str) -> list[dict[str, object]]:
                 "The sweep assembled on its grid (JSON), or with format=png the stability "
                 "diagram image (critical size, or stable/unstable when a size is given).",
                 {422: {"description": "Invalid format (problem+json naming the field)."}})})
-async def get_diagram(sweep_id: SweepId,
+async def get_diagram(sweep_id: SweepId, stores: StoresDep,
                       format: Annotated[str, format_query(  # noqa: A002
                           _JSON_OR_PNG, "json", "'png': the stability diagram image.")]
                       = "json") -> Response:
@@ -151,24 +155,24 @@ async def get_diagram(sweep_id: SweepId,
     ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``.  Images of finished
     sweeps are cached."""
     fmt = choice(format, _JSON_OR_PNG, "format")
-    st = await run_in_threadpool(sweeps.status, sweep_id)
+    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
     if st is None:
         raise _unknown(sweep_id)
-    pts = await run_in_threadpool(_all_points, sweep_id)
-    d = compute.sweep_diagram(st, pts)
+    pts = await run_in_threadpool(_all_points, stores.sweeps, sweep_id)
+    d = adapter.sweep_diagram(st, pts)
     if fmt == "json":
         return _json(d)
     final = d["status"] in ("done", "cancelled")
     key = f"sweep-{sweep_id}-{d['status']}-{d['n_done']}-{d['n_failed']}.png"
-    data, hit = await image(key, lambda: compute.diagram_png(d), store=final)
+    data, hit = await image(key, lambda: images.diagram_png(d), store=final)
     return image_response(data, "png", hit, final=final, headers={
         "X-Sweep-Status": d["status"], "X-Sweep-Progress": f"{d['n_done']}/{d['n_total']}"})
 
 
 @router.delete("/{sweep_id}", responses=_N, summary="Cancel a sweep")
-async def cancel(sweep_id: SweepId) -> Response:
+async def cancel(sweep_id: SweepId, stores: StoresDep) -> Response:
     """Cancel: queued chunks are dropped, running chunks stop at their next point."""
-    new = await run_in_threadpool(sweeps.cancel, sweep_id)
+    new = await run_in_threadpool(stores.sweeps.cancel, sweep_id)
     if new is None:
         raise _unknown(sweep_id)
-    return _json(await run_in_threadpool(sweeps.status, sweep_id))
+    return _json(await run_in_threadpool(stores.sweeps.status, sweep_id))

@@ -15,20 +15,23 @@ pytestmark = pytest.mark.timeout(120)
 
 WRITER = r"""
 import json, sys, time
-from worker import cache, sweeps
+from rsfapp.config import get_settings
+from rsfapp.keys import cache_key
+from rsfapp.store import stores_for
+st = stores_for(get_settings())
 wid, n = int(sys.argv[1]), int(sys.argv[2])
 while time.time() < float(sys.argv[3]):   # start together
     time.sleep(0.001)
 # Overlapping keys: writer w writes keys [w*n/2, w*n/2 + n): half shared with the next.
 for k in range(wid * n // 2, wid * n // 2 + n):
-    key = cache.cache_key("test", {"k": k}, "v")
-    cache.put(key, "test", "v", {"k": k}, {"value": k * k, "by": "any"})
+    key = cache_key("test", {"k": k}, "v")
+    st.results.put(key, "test", "v", {"k": k}, {"value": k * k, "by": "any"})
 # Overlapping sweep points, in batches of 10.
 rows = [dict(idx=k, i=k // 10, j=k % 10, x=float(k), y=0.0, kind="finite",
              critical_size=float(k), outcome=None, rel_accuracy=None, error=None)
         for k in range(wid * n // 2, wid * n // 2 + n)]
 for b in range(0, len(rows), 10):
-    sweeps.store_points("s" * 32, 0, [dict(r) for r in rows[b:b + 10]])
+    st.sweeps.store_points("s" * 32, 0, [dict(r) for r in rows[b:b + 10]])
 print("ok", wid)
 """
 
@@ -38,7 +41,8 @@ def test_concurrent_writers_lose_nothing(tmp_path: Path) -> None:
     env = service_env(tmp_path)
     # Create the schema and one sweep (points reference it).
     subprocess.run([sys.executable, "-c",
-                    "from worker import sweeps; sweeps.create('s'*32, {}, 10000, 10000, 'v')"],
+                    "from rsfapp.config import get_settings; from rsfapp.store import stores_for; "
+                    "stores_for(get_settings()).sweeps.create('s'*32, {}, 10000, 10000, 'v')"],
                    env=env, cwd=ROOT, check=True)
     n_proc, n = 4, 200
     start = str(time.time() + 1.5)

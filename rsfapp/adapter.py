@@ -1,32 +1,31 @@
-"""The one adapter between the service/worker and :mod:`rsfcore`.
+"""The one adapter between the application (service and worker) and :mod:`rsfcore`.
 
-Each function takes a validated request model, calls rsfcore and returns a JSON-safe
-dict.  rsfcore's ``ParameterError`` becomes a 422 naming the field; a numerical failure
-(e.g. ``UndecidedError``) becomes :class:`ComputeError` (reported as 422 "could not be
-computed" by the API, recorded per point by sweeps).  Nothing here does I/O; the
-``*_png``/``figure`` functions encode images in memory through :mod:`rsfplots`.
+Each function takes a validated request model (:mod:`rsfapp.requests`), calls rsfcore and
+returns a JSON-safe dict.  rsfcore's ``ParameterError`` passes through unchanged (the API
+reports it as 422 problem+json naming the field); a numerical failure (e.g.
+``UndecidedError``) becomes :class:`ComputeError` (422 "could not be computed" over HTTP,
+recorded per point by sweeps); a single query that runs out of the quick step budget
+raises :class:`NeedsQueue`.  Nothing here does I/O or knows about HTTP.
 """
 from __future__ import annotations
 
-import importlib
 import math
-import threading
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-import rsfcore
+from rsfcore import NUMERICS_VERSION, analytic, critical as _critical, trajectory as _traj
+from rsfcore import boundaries as _bounds, stiffness as _stiff
 from rsfcore.jsonsafe import jsonsafe
 from rsfcore.params import ParameterError, Params, PhysicalParams
 
-from .errors import ProblemError
-from .schemas import (AnalyticRequest, BoundariesRequest, ClassifyRequest, CriticalRequest,
-                      StiffnessRequest, TrajectoryRequest)
+from .requests import (AnalyticRequest, BoundariesRequest, ClassifyRequest, CriticalRequest,
+                       StiffnessRequest, TrajectoryRequest)
 
-__all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "numerics_version", "classify", "trajectory", "critical",
-           "analytic_u", "boundaries", "stiffness", "jsonsafe", "guard", "trajectory_png",
-           "analytic_u_png", "figure", "figure_list", "figure_names", "sweep_diagram",
-           "diagram_png"]
+__all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "numerics_version", "classify",
+           "trajectory", "critical", "analytic_u", "boundaries", "stiffness", "guard",
+           "sweep_diagram", "compute_point", "point_values"]
 
 
 class ComputeError(RuntimeError):
@@ -35,7 +34,7 @@ class ComputeError(RuntimeError):
 
 class NeedsQueue(ComputeError):
     """The quick in-process attempt ran out of its step budget: a long integration,
-    to be computed by a worker (service.cached routes it through the queue)."""
+    to be computed by a worker (service.answer routes it through the queue)."""
 
 
 #: Step budget of the in-process attempt at a single query (~0.2-0.5 s of integration);
@@ -45,25 +44,15 @@ QUICK_STEPS = 300_000
 
 def numerics_version() -> str:
     """rsfcore.NUMERICS_VERSION (part of every cache key)."""
-    return str(getattr(rsfcore, "NUMERICS_VERSION", "dev"))
+    return str(NUMERICS_VERSION)
 
 
-def _mod(name: str) -> Any:
-    """rsfcore.<name>, imported lazily; 501-style problem if it does not exist yet."""
-    try:
-        return importlib.import_module(f"rsfcore.{name}")
-    except ImportError as exc:  # pragma: no cover - only while the core is being written
-        raise ComputeError(f"rsfcore.{name} is not available: {exc}") from exc
-
-
-def guard(fn, *args: Any, **kwargs: Any) -> Any:  # noqa: ANN001
-    """Call ``fn``; ParameterError -> 422 ProblemError, other failures -> ComputeError."""
+def guard(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """Call ``fn``; ParameterError passes through, other numerical failures become
+    :class:`ComputeError` (:class:`NeedsQueue` when the quick step budget ran out)."""
     try:
         return fn(*args, **kwargs)
-    except ParameterError as exc:
-        raise ProblemError(422, "Invalid input", str(exc), field=exc.field,
-                           valid=exc.valid) from None
-    except (ProblemError, ComputeError):
+    except (ParameterError, ComputeError):
         raise
     except (ArithmeticError, ValueError, RuntimeError, FloatingPointError) as exc:
         if getattr(exc, "reason", None) == "budget" and kwargs.get("max_steps") == QUICK_STEPS:
@@ -80,10 +69,9 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
 
     With the default ``max_steps`` a query needing more work raises :class:`NeedsQueue`;
     ``max_steps=None`` (the worker) uses rsfcore's full budget."""
-    traj = _mod("trajectory")
     start = None if req.start is None else (req.start.phi, req.start.psi)
     kw = {} if max_steps is None else {"max_steps": max_steps}
-    res = guard(traj.classify, _params(req), req.perturbation, req.size, start=start,
+    res = guard(_traj.classify, _params(req), req.perturbation, req.size, start=start,
                 rtol=req.rtol, **kw)
     return jsonsafe(res.to_dict())
 
@@ -91,7 +79,6 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
 def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> dict[str, Any]:
     """Outcome plus the trajectory downsampled to ``n_points`` (SI columns if asked);
     ``max_steps`` as in :func:`classify`."""
-    traj = _mod("trajectory")
     p = _params(req)
     start = None if req.start is None else (req.start.phi, req.start.psi)
     physical = None
@@ -100,21 +87,19 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
         physical = guard(PhysicalParams.from_dimensionless, p, a=s.a, Dc=s.Dc, sigma=s.sigma,
                          V_star=s.V_star, f_star=s.f_star)
     kw = {} if max_steps is None else {"max_steps": max_steps}
-    res = guard(traj.simulate, p, req.perturbation, req.size, start=start, rtol=req.rtol,
+    res = guard(_traj.simulate, p, req.perturbation, req.size, start=start, rtol=req.rtol,
                 t_end=req.t_end, n_points=req.n_points, physical=physical, **kw)
     return jsonsafe(res.to_dict())
 
 
 def critical(req: CriticalRequest) -> dict[str, Any]:
     """Critical perturbation size, same fields as ``rsf critical --json``."""
-    crit = _mod("critical")
-    res = guard(crit.critical_perturbation, _params(req), req.perturbation, rtol=req.rtol)
+    res = guard(_critical.critical_perturbation, _params(req), req.perturbation, rtol=req.rtol)
     return jsonsafe(res.to_dict())
 
 
 def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
     """U at the given points or on the grid (closed form, vectorised)."""
-    an = _mod("analytic")
     if req.points is not None:
         phi = np.array([p.phi for p in req.points])
         psi = np.array([p.psi for p in req.points])
@@ -127,18 +112,16 @@ def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
         out = {"phi": phi1, "psi": psi1, "shape": [g.n_phi, g.n_psi]}
     with np.errstate(all="ignore"):
         if req.function == "kcrit":
-            u = guard(an.U_kcrit, phi, psi, req.ba, req.eps, req.vo)
+            u = guard(analytic.U_kcrit, phi, psi, req.ba, req.eps, req.vo)
         else:
-            u = guard(an.U_vo0, phi, psi, req.ba, req.kappa, req.eps)
+            u = guard(analytic.U_vo0, phi, psi, req.ba, req.kappa, req.eps)
     out.update(function=req.function, U=np.asarray(u, dtype=float))
     return jsonsafe(out)
 
 
 def boundaries(req: BoundariesRequest) -> dict[str, Any]:
     """kappa_crit, eps_crit, (a/b)_crit, acceleration possibility and line."""
-    b = _mod("boundaries")
-
-    def soft(fn, *a: Any) -> Any:  # noqa: ANN001
+    def soft(fn: Callable[..., Any], *a: Any) -> Any:
         try:
             return guard(fn, *a)
         except ComputeError as exc:
@@ -146,16 +129,16 @@ def boundaries(req: BoundariesRequest) -> dict[str, Any]:
 
     out: dict[str, Any] = {
         "ba": req.ba, "kappa": req.kappa, "eps": req.eps,
-        "kappa_crit": guard(b.kappa_crit, req.ba),
-        "eps_crit": soft(b.eps_crit, req.ba, req.kappa),
-        "ab_crit": soft(b.ab_crit, req.kappa, req.eps),
-        "acceleration_possible": soft(b.acceleration_possible, req.ba, req.kappa, req.eps),
-        "max_unstable_kappa": soft(b.max_unstable_kappa, req.ba, req.eps),
+        "kappa_crit": guard(_bounds.kappa_crit, req.ba),
+        "eps_crit": soft(_bounds.eps_crit, req.ba, req.kappa),
+        "ab_crit": soft(_bounds.ab_crit, req.kappa, req.eps),
+        "acceleration_possible": soft(_bounds.acceleration_possible, req.ba, req.kappa, req.eps),
+        "max_unstable_kappa": soft(_bounds.max_unstable_kappa, req.ba, req.eps),
     }
     line = []
     for phi in req.phi:
         try:
-            psi = guard(b.acceleration_line, req.ba, req.kappa, req.eps, phi)
+            psi = guard(_bounds.acceleration_line, req.ba, req.kappa, req.eps, phi)
             line.append({"phi": phi, "psi": psi})
         except ComputeError as exc:
             line.append({"phi": phi, "psi": None, "error": str(exc)})
@@ -165,74 +148,10 @@ def boundaries(req: BoundariesRequest) -> dict[str, Any]:
 
 def stiffness(req: StiffnessRequest) -> dict[str, Any]:
     """Eigenvalue k/k_* and, with physical parameters, the critical dimension [m]."""
-    st = _mod("stiffness")
     phys = {} if req.physical is None else req.physical.model_dump()
     if phys and phys.get("h") is None:
         phys.pop("h")
-    return jsonsafe(guard(st.stiffness_summary, req.case, req.mode, **phys))
-
-
-# ------------------------------------------------------------------ images (?format=png)
-# Plots come from rsfplots (matplotlib Agg, no pyplot), imported lazily so that the JSON
-# API does not load matplotlib.  Matplotlib's shared state (font cache, mathtext parser)
-# is not guaranteed thread-safe, so every render holds one process-wide lock.
-
-_render_lock = threading.Lock()
-
-
-def _plots() -> Any:
-    try:
-        return importlib.import_module("rsfplots")
-    except ImportError as exc:  # pragma: no cover - only while rsfplots is being written
-        raise ComputeError(f"rsfplots is not available: {exc}") from exc
-
-
-def render_locked(fn, *args: Any, **kwargs: Any) -> bytes:  # noqa: ANN001
-    """Call the plotting function ``fn`` under the render lock, with :func:`guard`."""
-    with _render_lock:
-        try:
-            return guard(fn, *args, **kwargs)
-        except (ProblemError, ComputeError):
-            raise
-        except Exception as exc:  # noqa: BLE001 - a plot that fails is a 422, never a 500
-            raise ComputeError(f"could not be plotted: {type(exc).__name__}: {exc}") from exc
-
-
-def trajectory_png(result: dict[str, Any]) -> bytes:
-    """Phase plane (phi, psi) and phi(T) of a trajectory answer (JSON dict) as PNG."""
-    return render_locked(_plots().plot_trajectory, result, "png")
-
-
-def analytic_u_png(result: dict[str, Any]) -> bytes:
-    """Contours of U (red: U = 0) of a grid answer of ``analytic_u`` as PNG."""
-    if result.get("shape") is None:
-        raise ProblemError(422, "Invalid input", "format: png needs U on a grid (give 'grid', "
-                           "not 'points')", field="format", valid="'json' (points or grid) "
-                           "or 'png' (grid only)")
-    title = f"U ({result.get('function')}): U = const., red: U = 0"
-    return render_locked(_plots().plot_u_field, result, title=title, fmt="png")
-
-
-def figure(name: str, fmt: str, quality: str) -> bytes:
-    """Paper figure ``name`` regenerated from rsfcore (rsfplots.render) as png/svg bytes."""
-    plots = _plots()
-    return render_locked(plots.render, name, fmt, quality=quality)
-
-
-def figure_list() -> list[dict[str, Any]]:
-    """[{name, caption, label, note}] of every reproducible figure of the paper."""
-    plots = _plots()
-    out = []
-    for item in plots.list_figures():
-        spec = plots.FIGURES.get(item["name"])
-        out.append({"name": item["name"], "caption": item["caption"],
-                    "label": getattr(spec, "label", None), "note": getattr(spec, "note", "")})
-    return out
-
-
-def figure_names() -> list[str]:
-    """Names of the reproducible figures."""
-    return list(_plots().FIGURES)
+    return jsonsafe(guard(_stiff.stiffness_summary, req.case, req.mode, **phys))
 
 
 _OUTCOME_CODE = {"stable": 0.0, "unstable": 1.0}
@@ -280,9 +199,42 @@ def sweep_diagram(status: dict[str, Any], pts: list[dict[str, Any]]) -> dict[str
             "numerics_version": status.get("numerics_version")}
 
 
-def diagram_png(diagram: dict[str, Any]) -> bytes:
-    """A sweep diagram (:func:`sweep_diagram`) as PNG; missing or failed points are blank."""
-    d = dict(diagram)
-    if d["outcome"] is not None:
-        d["outcome"] = [[math.nan if v is None else v for v in row] for row in d["outcome"]]
-    return render_locked(_plots().plot_diagram, d, "png")
+
+
+def point_values(spec: dict[str, Any], xv: float, yv: float) -> dict[str, Any]:
+    """Parameter values at grid point (xv, yv): the fixed ones with the two axes set."""
+    vals = dict(spec["fixed"])
+    vals[spec["x"]["name"]] = xv
+    vals[spec["y"]["name"]] = yv
+    return vals
+
+
+def _f(v: Any) -> float | None:
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def compute_point(spec: dict[str, Any], xv: float, yv: float) -> dict[str, Any]:
+    """One sweep point: critical size (kind, critical_size) or, with a size, the outcome.
+
+    Returns {"kind", "critical_size", "outcome", "rel_accuracy", "error"}; exceptions of
+    rsfcore are caught and returned as ``error`` (type and message), so one failing point
+    never stops a sweep.
+    """
+    v = point_values(spec, xv, yv)
+    try:
+        p = Params.from_ratio(v["ba"], v["kappa_ratio"], v["eps"], v["vo"])
+        if v.get("size") is not None:
+            r = _traj.classify(p, spec["perturbation"], v["size"], rtol=spec["rtol"])
+            return {"kind": None, "critical_size": None, "outcome": r.outcome,
+                    "rel_accuracy": _f(r.rel_accuracy), "error": None}
+        c = _critical.critical_perturbation(p, spec["perturbation"], rtol=spec["rtol"])
+        d = c.to_dict()
+        return {"kind": d.get("kind"), "critical_size": _f(d.get("critical_size")),
+                "outcome": None, "rel_accuracy": _f(d.get("rel_accuracy")), "error": None}
+    except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
+        return {"kind": None, "critical_size": None, "outcome": None, "rel_accuracy": None,
+                "error": f"{type(exc).__name__}: {exc}"[:2000]}

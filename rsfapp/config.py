@@ -1,4 +1,4 @@
-"""Service and worker settings, read from ``RSF_*`` environment variables.
+"""Deployment settings of every process, read from ``RSF_*`` environment variables.
 
 Every process (API, Celery worker, ``rsf serve``) reads the same settings, so one
 environment describes one deployment.
@@ -32,6 +32,8 @@ class Settings(BaseSettings):
             202 + Location /v1/results/{key} and finishes in the background.
         lease_s: a running chunk whose worker has not reported for this long [s] is
             requeued when a worker starts.
+        quick_steps: step budget of an in-process single query; one that needs more
+            is a long integration and goes through the queue.
     """
 
     model_config = SettingsConfigDict(env_prefix="RSF_", extra="ignore")
@@ -44,6 +46,7 @@ class Settings(BaseSettings):
     queue: str = "rsf"
     lease_s: float = Field(default=600.0, gt=0)
     inline_budget_s: float = Field(default=2.0, gt=0, le=3600)
+    quick_steps: int = Field(default=300_000, ge=1000)
 
     @property
     def data_path(self) -> Path:

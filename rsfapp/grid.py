@@ -1,4 +1,4 @@
-"""Expand a :class:`SweepRequest` into axis values and a stored spec, validating ranges.
+"""Expand a :class:`~rsfapp.requests.SweepRequest` into axis values and a stored spec, validating ranges.
 
 Errors name the offending field (e.g. ``x.values[3]``, ``y.stop``) and its range, and are
 raised before anything is written.
@@ -11,15 +11,21 @@ from typing import Any
 import numpy as np
 from rsfcore.params import ParameterError, Params
 
-from .errors import ProblemError
-from .schemas import AXIS_RANGES, SweepAxis, SweepRequest
+from .requests import AXIS_RANGES, SweepAxis, SweepRequest
 
-__all__ = ["axis_values", "expand"]
+__all__ = ["SpecError", "axis_values", "expand"]
 
 
-def _bad(field: str, detail: str, valid: str) -> ProblemError:
-    return ProblemError(422, "Invalid input", f"{field}: {detail} (valid range: {valid})",
-                        field=field, valid=valid)
+class SpecError(ParameterError):
+    """An invalid sweep spec: ``field`` names the input (e.g. ``x.values[3]``)."""
+
+    def __init__(self, field: str, detail: str, valid: str) -> None:
+        self.field, self.value, self.valid = field, None, valid
+        ValueError.__init__(self, f"{field}: {detail} (valid range: {valid})")
+
+
+def _bad(field: str, detail: str, valid: str) -> SpecError:
+    return SpecError(field, detail, valid)
 
 
 def _in_range(name: str, v: float) -> bool:

@@ -1,0 +1,75 @@
+"""Every table of the application database, in one place.
+
+* ``results``: every computed answer, keyed by sha256 of (kind, canonical request,
+  numerics version) (:mod:`rsfapp.store.results`);
+* ``jobs``: long single queries sent to the queue (:mod:`rsfapp.store.jobs`);
+* ``sweeps``, ``sweep_chunks``, ``sweep_points``: sweep bookkeeping and results
+  (:mod:`rsfapp.store.sweeps`).
+"""
+from __future__ import annotations
+
+from sqlalchemy import Column, Float, ForeignKey, Integer, MetaData, String, Table, Text
+
+__all__ = ["metadata", "results", "jobs", "sweeps", "chunks", "points"]
+
+metadata = MetaData()
+
+results = Table(
+    "results", metadata,
+    Column("key", String(64), primary_key=True),
+    Column("kind", String(32), nullable=False, index=True),
+    Column("numerics_version", String(32), nullable=False),
+    Column("request", Text, nullable=False),
+    Column("result", Text, nullable=False),
+    Column("created_at", Float, nullable=False),
+)
+
+jobs = Table(
+    "jobs", metadata,
+    Column("key", String(64), primary_key=True),
+    Column("kind", String(32), nullable=False),
+    Column("state", String(16), nullable=False),  # queued | failed
+    Column("message", Text, nullable=False, default=""),
+    Column("updated_at", Float, nullable=False),
+)
+
+sweeps = Table(
+    "sweeps", metadata,
+    Column("id", String(64), primary_key=True),
+    Column("spec", Text, nullable=False),
+    Column("status", String(16), nullable=False),  # queued|running|done|cancelled
+    Column("n_total", Integer, nullable=False),
+    Column("n_chunks", Integer, nullable=False),
+    Column("numerics_version", String(32), nullable=False),
+    Column("created_at", Float, nullable=False),
+    Column("started_at", Float),
+    Column("finished_at", Float),
+)
+
+chunks = Table(
+    "sweep_chunks", metadata,
+    Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
+    Column("idx", Integer, primary_key=True),
+    Column("i0", Integer, nullable=False),
+    Column("i1", Integer, nullable=False),
+    Column("status", String(16), nullable=False),  # queued|running|done|cancelled
+    Column("owner", String(128)),
+    Column("heartbeat", Float),
+    Column("attempts", Integer, nullable=False, default=0),
+)
+
+points = Table(
+    "sweep_points", metadata,
+    Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
+    Column("idx", Integer, primary_key=True),
+    Column("i", Integer, nullable=False),
+    Column("j", Integer, nullable=False),
+    Column("x", Float, nullable=False),
+    Column("y", Float, nullable=False),
+    Column("kind", String(16)),
+    Column("critical_size", Float),
+    Column("outcome", String(16)),
+    Column("rel_accuracy", Float),
+    Column("error", Text),
+    Column("created_at", Float, nullable=False),
+)

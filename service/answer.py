@@ -1,0 +1,116 @@
+"""Answer a validated request from the result store or by computing it (then storing it).
+
+Response: the result's own fields plus ``cached`` (bool) and ``cache_key``; header
+``X-Cache: hit|miss``.  Computation runs in a worker thread (at most one per CPU) so the
+event loop keeps answering cached lookups.  Single classify/trajectory queries get a
+quick step budget in process; one that needs more (a long integration) is sent to the
+Celery queue and answered 202 + ``Location: /v1/results/{key}``.  A computation still
+running after ``RSF_INLINE_BUDGET_S`` seconds is answered the same way; it completes in
+the background and lands in the store.  Identical requests arriving meanwhile join the
+running computation instead of starting another.
+"""
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from pydantic import BaseModel
+from starlette.concurrency import run_in_threadpool
+from starlette.responses import Response
+
+from rsfapp.adapter import ComputeError, NeedsQueue, numerics_version
+from rsfapp.config import Settings
+from rsfapp.keys import cache_key, canonical
+from rsfapp.queue import Queue
+from rsfapp.store import JobState, Stores
+from rsfcore.params import ParameterError
+
+from .deps import Inflight
+from .errors import ProblemError
+
+__all__ = ["answer", "body", "deferred"]
+log = logging.getLogger("rsf.service")
+
+
+def body(result_json: str, key: str, hit: bool) -> bytes:
+    """The stored result JSON with ``cached`` and ``cache_key`` appended."""
+    tail = f',"cached":{"true" if hit else "false"},"cache_key":"{key}"}}'
+    return (result_json[:-1] + tail if result_json != "{}" else "{" + tail[1:]).encode()
+
+
+def deferred(key: str, status: str = "running") -> Response:
+    """202 with ``Location: /v1/results/{key}`` to poll."""
+    loc = f"/v1/results/{key}"
+    return Response(json.dumps({"status": status, "cache_key": key, "location": loc}),
+                    status_code=202, media_type="application/json",
+                    headers={"Location": loc, "Retry-After": "2", "X-Cache": "miss"})
+
+
+async def _compute(kind: str, key: str, version: str, request: dict[str, Any],
+                   req: BaseModel, fn: Callable[[Any], dict[str, Any]], stores: Stores,
+                   queue: Queue, inflight: Inflight) -> str | None:
+    """Compute, store, return the result JSON text (None: sent to the queue);
+    ProblemError on failure."""
+    try:
+        async with inflight.limiter:
+            result = await run_in_threadpool(fn, req)
+        text = canonical(result)
+    except NeedsQueue:
+        # a long integration: computed by a worker through the queue (result -> store)
+        await run_in_threadpool(stores.jobs.mark_queued, key, kind)
+        await run_in_threadpool(queue.send_single, kind, request, key, version)
+        return None
+    except ComputeError as exc:
+        inflight.fail(key, str(exc))
+        raise ProblemError(422, "Could not be computed", str(exc)) from None
+    except ParameterError as exc:
+        inflight.fail(key, str(exc))
+        raise  # 422 naming the field (service.errors)
+    except (TypeError, ValueError) as exc:  # non-JSON result: a bug, but never a 500
+        inflight.fail(key, str(exc))
+        raise ProblemError(422, "Could not be computed", f"unserialisable result: {exc}") \
+            from None
+    await run_in_threadpool(stores.results.put, key, kind, version, request,
+                            json.loads(text))
+    return text
+
+
+async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]], *,
+                 stores: Stores, queue: Queue, inflight: Inflight,
+                 settings: Settings) -> Response:
+    """Cached answer to ``req`` of ``kind``, computing ``fn(req)`` on a miss."""
+    request = req.model_dump(mode="json")
+    version = numerics_version()
+    key = cache_key(kind, request, version)
+    hit = await run_in_threadpool(stores.results.get_text, key)
+    if hit is not None:
+        return Response(body(hit, key, True), media_type="application/json",
+                        headers={"X-Cache": "hit"})
+    queued = await run_in_threadpool(stores.jobs.status, key)
+    if queued is not None:
+        if queued.state is JobState.failed:
+            raise ProblemError(422, "Could not be computed", queued.message)
+        return deferred(key)
+    task = inflight.pending.get(key)
+    if task is None:
+        task = asyncio.ensure_future(_compute(kind, key, version, request, req, fn, stores,
+                                              queue, inflight))
+        inflight.pending[key] = task
+
+        def _done(t: asyncio.Future[str | None], key: str = key) -> None:
+            inflight.pending.pop(key, None)
+            if not t.cancelled() and t.exception() is not None and \
+                    not isinstance(t.exception(), ProblemError):
+                log.error("computation %s failed", key, exc_info=t.exception())
+        task.add_done_callback(_done)
+    try:
+        text = await asyncio.wait_for(asyncio.shield(task), settings.inline_budget_s)
+    except asyncio.TimeoutError:
+        return deferred(key)
+    if text is None:
+        return deferred(key)
+    return Response(body(text, key, False), media_type="application/json",
+                    headers={"X-Cache": "miss"})
