@@ -37,8 +37,9 @@ class NeedsQueue(ComputeError):
     to be computed by a worker (service.answer routes it through the queue)."""
 
 
-#: Step budget of the in-process attempt at a single query (~0.2-0.5 s of integration);
-#: a query that needs more is a long integration and goes through the Celery queue.
+#: Default step budget of the in-process attempt at a single query (~0.2-0.5 s of
+#: integration; the setting ``RSF_QUICK_STEPS`` overrides it); a query that needs more is
+#: a long integration and goes through the Celery queue.
 QUICK_STEPS = 300_000
 
 
@@ -55,7 +56,7 @@ def guard(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
     except (ParameterError, ComputeError):
         raise
     except (ArithmeticError, ValueError, RuntimeError, FloatingPointError) as exc:
-        if getattr(exc, "reason", None) == "budget" and kwargs.get("max_steps") == QUICK_STEPS:
+        if getattr(exc, "reason", None) == "budget" and kwargs.get("max_steps") is not None:
             raise NeedsQueue(str(exc)) from exc
         raise ComputeError(f"{type(exc).__name__}: {exc}") from exc
 

@@ -46,7 +46,7 @@ class Settings(BaseSettings):
     queue: str = "rsf"
     lease_s: float = Field(default=600.0, gt=0)
     inline_budget_s: float = Field(default=2.0, gt=0, le=3600)
-    quick_steps: int = Field(default=300_000, ge=1000)
+    quick_steps: int = Field(default=300_000, ge=10)
 
     @property
     def data_path(self) -> Path:

@@ -14,7 +14,7 @@ from rsfapp.warmup import warm_up
 
 from .deps import Inflight
 from .errors import install_handlers
-from .routes import compute, figures, meta, sweeps, ui
+from .routes import compute, docs, figures, meta, sweeps, ui
 
 __all__ = ["create_app", "app"]
 log = logging.getLogger("rsf.service")
@@ -33,6 +33,8 @@ def create_app() -> FastAPI:
     a = FastAPI(
         title="rsf-stability service",
         lifespan=_lifespan,
+        docs_url=None,  # served by routes.docs with local assets (works offline)
+        redoc_url=None,
         version="1",
         description="Non-linear slip-stability analysis of rate-and-state friction "
                     "(spring-slider). Dimensionless quantities unless stated; errors are "
@@ -44,6 +46,7 @@ def create_app() -> FastAPI:
     a.include_router(sweeps.router)
     a.include_router(figures.router)
     a.include_router(ui.router)
+    a.include_router(docs.router)
     return a
 
 

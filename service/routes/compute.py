@@ -10,6 +10,7 @@ from typing import Annotated
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from fastapi import APIRouter, Depends, Query
@@ -64,7 +65,8 @@ _R = {422: {"description": "Invalid input (problem+json naming the field and its
 async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
     """Certified outcome of one perturbation (outcome, certificate, peak_phi, blow-up or
     return time T = V_* t/Dc, rel_accuracy). Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer("classify", req, adapter.classify)
+    return await ctx.answer("classify", req, partial(adapter.classify,
+                                                   max_steps=ctx.settings.quick_steps))
 
 
 _JSON_OR_PNG = ("json", "png")
@@ -93,7 +95,8 @@ async def trajectory(req: TrajectoryRequest, ctx: CtxDep,
     ``n_points`` samples; SI columns when ``physical`` is given. Cached (field `cached`, header `X-Cache: hit|miss`).
     With ``?format=png``: the phase plane and phi(T) as a PNG (image cached too)."""
     fmt = choice(format, _JSON_OR_PNG, "format")
-    resp = await ctx.answer("trajectory", req, adapter.trajectory)
+    resp = await ctx.answer("trajectory", req, partial(adapter.trajectory,
+                                                       max_steps=ctx.settings.quick_steps))
     return resp if fmt == "json" else await _as_png(resp, images.trajectory_png)
 
 

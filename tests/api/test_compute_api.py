@@ -1,4 +1,5 @@
-"""The HTTP API on a real uvicorn process: caching, 422 problem+json, every endpoint."""
+"""The HTTP API in process (TestClient, real SQLite): caching, 422 problem+json, every
+endpoint."""
 from __future__ import annotations
 
 import json
@@ -7,17 +8,10 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
+from fastapi.testclient import TestClient
 
 pytestmark = pytest.mark.timeout(120)
-
-
-@pytest.fixture(scope="module")
-def c(fs_stack) -> httpx.Client:
-    srv, _ = fs_stack
-    with httpx.Client(base_url=srv.url, timeout=60) as client:
-        yield client
 
 
 def db_rows(data: Path) -> dict[str, int]:
@@ -29,7 +23,7 @@ def db_rows(data: Path) -> dict[str, int]:
         con.close()
 
 
-def test_health_and_openapi(c: httpx.Client) -> None:
+def test_health_and_openapi(c: TestClient) -> None:
     h = c.get("/health")
     assert h.status_code == 200 and h.json()["status"] == "ok"
     spec = c.get("/openapi.json").json()
@@ -42,7 +36,7 @@ def test_health_and_openapi(c: httpx.Client) -> None:
             "/v1/sweeps/{sweep_id}/points", "/v1/cache/stats", "/health"} <= paths
 
 
-def test_cache_hit_on_repeat(c: httpx.Client, fs_stack) -> None:
+def test_cache_hit_on_repeat(c: TestClient, api_stack) -> None:
     body = {"ba": 3.0, "kappa": 1.7, "eps": 0.3, "vo": 1.0, "size": 2.5}
     before = c.get("/v1/cache/stats").json()
     r1 = c.post("/v1/classify", json=body)
@@ -107,9 +101,9 @@ BAD: list[tuple[str, str, Any, str, str]] = [
 @pytest.mark.parametrize("method,path,body,field,valid", BAD,
                          ids=[f"{b[1]}:{b[3]}" for b in BAD])
 def test_bad_input_is_422_problem_json_and_writes_nothing(
-        c: httpx.Client, fs_stack, method: str, path: str, body: Any, field: str,
+        c: TestClient, api_stack, method: str, path: str, body: Any, field: str,
         valid: str | None) -> None:
-    data = fs_stack[1]
+    data = api_stack[1]
     c.get("/health")  # make sure the database exists
     before = db_rows(data)
     r = c.request(method.upper(), path, json=body)
@@ -123,7 +117,7 @@ def test_bad_input_is_422_problem_json_and_writes_nothing(
     assert db_rows(data) == before
 
 
-def test_malformed_json_and_nan_are_422(c: httpx.Client) -> None:
+def test_malformed_json_and_nan_are_422(c: TestClient) -> None:
     for raw in (b"{not json", b'{"ba": NaN}', b'{"ba": Infinity}', b"[]", b'{"zz": 1}'):
         r = c.post("/v1/classify", content=raw, headers={"content-type": "application/json"})
         assert r.status_code == 422, (raw, r.text)
@@ -131,7 +125,7 @@ def test_malformed_json_and_nan_are_422(c: httpx.Client) -> None:
         assert r.json()["field"]
 
 
-def test_trajectory_downsampled_with_physical_units(c: httpx.Client) -> None:
+def test_trajectory_downsampled_with_physical_units(c: TestClient) -> None:
     body = {"ba": 2.0, "kappa": 0.8, "eps": 0.5, "size": 0.5, "n_points": 57,
             "physical": {"a": 0.01, "Dc": 1e-4, "sigma": 1e8, "V_star": 1e-6}}
     r = c.post("/v1/trajectory", json=body)
@@ -142,7 +136,7 @@ def test_trajectory_downsampled_with_physical_units(c: httpx.Client) -> None:
     assert si, "SI columns expected with physical parameters"
 
 
-def test_stiffness_and_critical_dimension(c: httpx.Client) -> None:
+def test_stiffness_and_critical_dimension(c: TestClient) -> None:
     r = c.post("/v1/stiffness", json={"case": "A"})
     assert r.status_code == 200 and math.isclose(r.json()["eigenvalue"], 2 * math.pi)
     phys = {"mu": 3e10, "nu": 0.25, "mode_of_slip": "II", "sigma": 1e8, "a": 0.01,
@@ -154,7 +148,7 @@ def test_stiffness_and_critical_dimension(c: httpx.Client) -> None:
     assert math.isclose(body["critical_dimension_m"], critical_dimension("B", **phys))
 
 
-def test_analytic_points_and_grid(c: httpx.Client) -> None:
+def test_analytic_points_and_grid(c: TestClient) -> None:
     from rsfcore.analytic import U_kcrit, U_vo0
     r = c.post("/v1/analytic/u", json={"points": [{"phi": 0.5, "psi": 0.2},
                                                   {"phi": -1, "psi": 0.0}], "eps": 0.3})
@@ -167,7 +161,7 @@ def test_analytic_points_and_grid(c: httpx.Client) -> None:
     assert g["U"][1][2] == pytest.approx(float(U_vo0(g["phi"][1], g["psi"][2], 2.0, 0.5, 0.0)))
 
 
-def test_boundaries_get_and_post(c: httpx.Client) -> None:
+def test_boundaries_get_and_post(c: TestClient) -> None:
     pytest.importorskip("rsfcore.boundaries")
     r1 = c.get("/v1/boundaries", params={"ba": 2.0, "kappa": 0.5, "eps": 0.5})
     r2 = c.post("/v1/boundaries", json={"ba": 2.0, "kappa": 0.5, "eps": 0.5, "phi": [1.0]})
@@ -176,7 +170,7 @@ def test_boundaries_get_and_post(c: httpx.Client) -> None:
     assert len(r2.json()["acceleration_line"]) == 1
 
 
-def test_critical_same_fields_as_cli(c: httpx.Client) -> None:
+def test_critical_same_fields_as_cli(c: TestClient) -> None:
     pytest.importorskip("rsfcore.critical")
     r = c.post("/v1/critical", json={"ba": 2.0, "kappa": 0.5, "eps": 0.5, "vo": 1.0,
                                      "perturbation": "velocity-jump"})
@@ -186,7 +180,7 @@ def test_critical_same_fields_as_cli(c: httpx.Client) -> None:
     assert d["kind"] in ("zero", "finite", "infinite")
 
 
-def test_unknown_sweep_is_404_problem(c: httpx.Client) -> None:
+def test_unknown_sweep_is_404_problem(c: TestClient) -> None:
     for m in ("GET", "DELETE"):
         r = c.request(m, "/v1/sweeps/" + "f" * 32)
         assert r.status_code == 404
@@ -195,22 +189,40 @@ def test_unknown_sweep_is_404_problem(c: httpx.Client) -> None:
     assert r.status_code == 404 and json.loads(r.text)["status"] == 404
 
 
-def test_long_query_is_deferred_with_location(tmp_path: Path, procs: list) -> None:
-    """A query exceeding the inline budget answers 202 + Location, then the result."""
-    from tests.conftest import Server
-    procs.append(srv := Server(tmp_path, RSF_INLINE_BUDGET_S="0.001"))
-    with httpx.Client(base_url=srv.url, timeout=60) as c:
-        body = {"ba": 2.0, "kappa": 1.2, "eps": 0.4, "size": 2.0, "n_points": 10000,
-                "physical": {"a": 0.01, "Dc": 1e-4, "sigma": 1e8, "V_star": 1e-6}}
-        r = c.post("/v1/trajectory", json=body)
-        assert r.status_code == 202, r.text[:300]
-        loc = r.headers["location"]
-        assert loc == "/v1/results/" + r.json()["cache_key"]
-        import time
-        deadline = time.monotonic() + 30
-        while (g := c.get(loc)).status_code == 202 and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert g.status_code == 200 and g.headers["x-cache"] == "hit"
-        assert 0 < len(g.json()["trajectory"]["T"]) <= 10000
-        assert c.post("/v1/trajectory", json=body).headers["x-cache"] == "hit"
-        assert c.get("/v1/results/" + "0" * 64).status_code == 404
+def test_docs_pages_use_local_assets_only(c: TestClient) -> None:
+    """/docs and /redoc must work on an offline lab network: no CDN URL in the pages, and
+    every asset they reference is served by the app itself."""
+    for page in ("/docs", "/redoc"):
+        html = c.get(page)
+        assert html.status_code == 200, page
+        text = html.text
+        assert "cdn." not in text and "googleapis" not in text, page
+        import re
+        refs = re.findall(r'(?:src|href)="(/docs-assets/[^"]+)"', text)
+        assert refs, f"{page} references no local asset"
+        for ref in refs:
+            r = c.get(ref)
+            assert r.status_code == 200 and len(r.content) > 100, ref
+
+
+@pytest.fixture
+def tiny_budget(api_stack, monkeypatch: pytest.MonkeyPatch) -> TestClient:
+    """The app with a quick step budget of 10 steps: every real integration exceeds it."""
+    monkeypatch.setenv("RSF_QUICK_STEPS", "10")
+    return api_stack[0]
+
+
+def test_long_query_goes_to_the_queue(tiny_budget: TestClient) -> None:
+    """A classification that needs more than the quick step budget is not computed in the
+    API process: it is recorded as a job and sent to the queue (202 + Location), and
+    polling its location says it is queued."""
+    c = tiny_budget
+    body = {"ba": 2.0, "kappa": 2.0, "eps": 0.25, "vo": 1.0, "size": 2.65}  # ~60 steps; asked only here
+    r = c.post("/v1/classify", json=body)
+    assert r.status_code == 202, r.text
+    loc = r.headers["location"]
+    queue = c.app.state.recording_queue  # type: ignore[attr-defined]
+    assert queue.singles and queue.singles[-1][0] == "classify"
+    assert queue.singles[-1][2] == loc.rsplit("/", 1)[1]
+    again = c.get(loc)
+    assert again.status_code == 202 and again.json()["status"] == "queued"

@@ -1,17 +1,10 @@
-"""Responses of a real server match the response models published in OpenAPI."""
+"""Responses of the app match the response models published in OpenAPI."""
 from __future__ import annotations
 
-import httpx
+from fastapi.testclient import TestClient
 import pytest
 
 from service.responses import ClassifyResult, CriticalResult, TrajectoryResult
-
-
-@pytest.fixture(scope="module")
-def c(fs_stack) -> httpx.Client:
-    srv, _ = fs_stack
-    with httpx.Client(base_url=srv.url, timeout=60) as client:
-        yield client
 
 
 @pytest.mark.parametrize("body", [
@@ -19,7 +12,7 @@ def c(fs_stack) -> httpx.Client:
     {"ba": 2, "kappa": 2, "eps": 0.25, "size": 3.0},
     {"ba": 2, "kappa": 1, "eps": 0.3, "vo": 0, "size": 1.0},
 ])
-def test_classify_and_trajectory_match_models(c: httpx.Client, body: dict) -> None:
+def test_classify_and_trajectory_match_models(c: TestClient, body: dict) -> None:
     r = c.post("/v1/classify", json=body)
     assert r.status_code == 200
     ClassifyResult.model_validate(r.json(), strict=False)
@@ -30,14 +23,14 @@ def test_classify_and_trajectory_match_models(c: httpx.Client, body: dict) -> No
 
 
 @pytest.mark.parametrize("kappa", [0.5, 2.0, 5.0])
-def test_critical_matches_model(c: httpx.Client, kappa: float) -> None:
+def test_critical_matches_model(c: TestClient, kappa: float) -> None:
     r = c.post("/v1/critical", json={"ba": 2, "kappa": kappa, "eps": 0.25})
     assert r.status_code == 200
     m = CriticalResult.model_validate(r.json())
     assert m.kind == {0.5: "zero", 2.0: "finite", 5.0: "infinite"}[kappa]
 
 
-def test_openapi_documents_the_results(c: httpx.Client) -> None:
+def test_openapi_documents_the_results(c: TestClient) -> None:
     o = c.get("/openapi.json").json()
     for path, name in (("/v1/classify", "ClassifyResult"), ("/v1/trajectory", "TrajectoryResult"), ("/v1/critical", "CriticalResult")):
         schema = o["paths"][path]["post"]["responses"]["200"]["content"]["application/json"]["schema"]
