@@ -6,6 +6,7 @@ environment describes one deployment.
 from __future__ import annotations
 
 import os
+import socket
 from functools import lru_cache
 from pathlib import Path
 
@@ -30,10 +31,26 @@ class Settings(BaseSettings):
         queue: Celery queue used by the API and the workers.
         inline_budget_s: a single query still computing after this long [s] is answered
             202 + Location /v1/results/{key} and finishes in the background.
-        lease_s: a running chunk whose worker has not reported for this long [s] is
-            requeued when a worker starts.
+        lease_s: lease of a running sweep chunk [s], (0, 3600], default 30.  The worker
+            computing a chunk renews it every ``lease_s / 3`` (heartbeat); the reaper in
+            every worker requeues a chunk whose lease has expired, so a lost worker host
+            costs at most ``lease_s`` plus one chunk.  The Redis visibility timeout is
+            derived from it (:attr:`visibility_timeout_s`).
         quick_steps: step budget of an in-process single query; one that needs more
             is a long integration and goes through the queue.
+        node: name of this host in chunk owners and the worker registry; default the
+            host name.  Workers on different machines must have different names.
+        db_pool_size: connections kept open per process (PostgreSQL), [1, 100].
+        db_max_overflow: extra connections allowed under load (PostgreSQL), [0, 200].
+        db_pool_timeout_s: wait for a free pooled connection before giving up [s].
+        db_connect_timeout_s: TCP connect timeout to the database server [s].
+        db_retry_s: how long one operation keeps retrying to (re)connect to a database
+            that is down, with exponential backoff from 0.05 s [s], [0, 600].  After
+            that the API answers 503 + Retry-After and a worker retries its task later.
+        retry_after_s: the ``Retry-After`` of a 503 answered while the database or the
+            broker is unavailable [s], [1, 3600].
+        health_check_budget_s: time /health may spend checking SQLite pages
+            (``PRAGMA quick_check``, re-run at most every minute) [s]; 0 disables it.
     """
 
     model_config = SettingsConfigDict(env_prefix="RSF_", extra="ignore")
@@ -44,9 +61,31 @@ class Settings(BaseSettings):
     chunk_seconds: float = Field(default=2.0, gt=0, le=600)
     sweep_max_points: int = Field(default=40_000, ge=1)
     queue: str = "rsf"
-    lease_s: float = Field(default=600.0, gt=0)
+    lease_s: float = Field(default=30.0, gt=0, le=3600)
     inline_budget_s: float = Field(default=2.0, gt=0, le=3600)
     quick_steps: int = Field(default=300_000, ge=10)
+    node: str = Field(default_factory=socket.gethostname, min_length=1, max_length=100)
+    db_pool_size: int = Field(default=5, ge=1, le=100)
+    db_max_overflow: int = Field(default=10, ge=0, le=200)
+    db_pool_timeout_s: float = Field(default=10.0, gt=0, le=600)
+    db_connect_timeout_s: float = Field(default=5.0, gt=0, le=600)
+    db_retry_s: float = Field(default=2.0, ge=0, le=600)
+    retry_after_s: int = Field(default=5, ge=1, le=3600)
+    health_check_budget_s: float = Field(default=1.0, ge=0, le=600)
+
+    @property
+    def heartbeat_s(self) -> float:
+        """Interval of chunk lease renewal and of the reaper's scan [s]: lease_s / 3."""
+        return self.lease_s / 3.0
+
+    @property
+    def visibility_timeout_s(self) -> int:
+        """Redis visibility timeout [s]: a message delivered to a worker that dies without
+        acknowledging it is delivered again after this long.  It equals the lease (at
+        least 1 s), so a lost message and a lost lease are recovered on the same time
+        scale; a redelivered chunk still held by a live worker is skipped (exactly-once
+        storage), so an early redelivery is harmless."""
+        return max(1, int(round(self.lease_s)))
 
     @property
     def data_path(self) -> Path:
@@ -67,7 +106,10 @@ class Settings(BaseSettings):
 
     @property
     def broker_transport_options(self) -> dict[str, object]:
-        """Folders of the filesystem transport (ignored by other transports)."""
+        """Transport options: the visibility timeout for Redis (= the lease), the
+        folders of the filesystem transport, nothing for other transports."""
+        if self.effective_broker_url.startswith(("redis", "rediss")):
+            return {"visibility_timeout": self.visibility_timeout_s}
         if not self.effective_broker_url.startswith("filesystem"):
             return {}
         base = self.data_path / "broker"
