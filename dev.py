@@ -2,10 +2,16 @@
 """Bootstrap and run the project from a fresh clone with nothing but Python >= 3.11.
 
     python3 dev.py serve [rsf serve options]   # start API + embedded Celery worker
-    python3 dev.py test  [pytest options]      # run the whole test suite
+    python3 dev.py test  [pytest options]      # lint, types, then the whole test suite
 
-Both create ``.venv`` on first use and install the project (editable, with test
-extras) into it; later runs reuse it and only reinstall when pyproject.toml changed.
+Both create ``.venv`` on first use, install the project (editable, with the test, dev and
+postgres extras) into it and compile rsfcore's kernels once (numba cache in
+``.numba_cache``); later runs reuse it and only reinstall when pyproject.toml changed.
+
+``test`` runs, in order and stopping at the first failure: ``ruff check``,
+``ruff format --check``, ``mypy``, ``pytest -m "not e2e"`` (numerics, application core,
+API in process) and ``pytest -m e2e`` (real uvicorn, Celery workers, redis-server,
+PostgreSQL, chromium).  Extra arguments go to both pytest stages.
 """
 from __future__ import annotations
 
@@ -13,6 +19,7 @@ import hashlib
 import os
 import subprocess
 import sys
+import time
 import venv
 from pathlib import Path
 
@@ -21,6 +28,12 @@ VENV = ROOT / ".venv"
 BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
 PY = BIN / "python"
 STAMP = VENV / ".rsf-installed"
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
+    return env
 
 
 def _ensure_env() -> None:
@@ -34,8 +47,36 @@ def _ensure_env() -> None:
         return
     print("[dev] installing the project and its test dependencies", flush=True)
     subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "--upgrade", "pip"])
-    subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "-e", f"{ROOT}[test]"])
+    subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "-e",
+                           f"{ROOT}[test,dev,postgres]"])
+    print("[dev] compiling rsfcore's kernels into .numba_cache (first time on a machine: "
+          "a few minutes; later starts load them in about a second)", flush=True)
+    t0 = time.monotonic()
+    subprocess.check_call([str(PY), "-c", "from rsfapp.warmup import warm_up; warm_up()"],
+                          env=_env(), cwd=ROOT)
+    print(f"[dev] kernels ready in {time.monotonic() - t0:.0f} s", flush=True)
     STAMP.write_text(digest)
+
+
+def _stage(name: str, cmd: list[str]) -> int:
+    print(f"[dev] {name}: {' '.join(cmd)}", flush=True)
+    return subprocess.call(cmd, cwd=ROOT, env=_env())
+
+
+def _test(rest: list[str]) -> int:
+    stages = [
+        ("lint", [str(BIN / "ruff"), "check", "."]),
+        ("format", [str(BIN / "ruff"), "format", "--check", "."]),
+        ("types", [str(BIN / "mypy")]),
+        ("tests (core, app, api)", [str(PY), "-m", "pytest", "-m", "not e2e", *rest]),
+        ("tests (e2e: real processes)", [str(PY), "-m", "pytest", "-m", "e2e", *rest]),
+    ]
+    for name, cmd in stages:
+        rc = _stage(name, cmd)
+        if rc != 0:
+            print(f"[dev] {name} failed (exit {rc})", flush=True)
+            return rc
+    return 0
 
 
 def main(argv: list[str]) -> int:
@@ -44,11 +85,9 @@ def main(argv: list[str]) -> int:
         return 2
     _ensure_env()
     cmd, rest = argv[0], argv[1:]
-    env = dict(os.environ)
-    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
     if cmd == "serve":
-        return subprocess.call([str(BIN / "rsf"), "serve", *rest], env=env)
-    return subprocess.call([str(PY), "-m", "pytest", *rest], cwd=ROOT, env=env)
+        return subprocess.call([str(BIN / "rsf"), "serve", *rest], env=_env())
+    return _test(rest)
 
 
 if __name__ == "__main__":
