@@ -19,12 +19,15 @@ from rsfcore import NUMERICS_VERSION, analytic, critical as _critical, trajector
 from rsfcore import boundaries as _bounds, stiffness as _stiff
 from rsfcore.jsonsafe import jsonsafe
 from rsfcore.params import ParameterError, Params, PhysicalParams
+from rsfcore.units import (PhysicalInputs, load_point_jump_si, load_point_jump_size,
+                           velocity_jump_si, velocity_jump_size)
 
-from .requests import (AnalyticRequest, BoundariesRequest, ClassifyRequest, CriticalRequest,
-                       StiffnessRequest, TrajectoryRequest)
+from .requests import (SI_PERTURBATION_FIELDS, AnalyticRequest, BoundariesRequest,
+                       ClassifyRequest, CriticalRequest, PhysicalSI, StiffnessRequest,
+                       TrajectoryRequest)
 
-__all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "numerics_version", "classify",
-           "trajectory", "critical", "analytic_u", "boundaries", "stiffness", "guard",
+__all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "SAMPLING_NOTE", "numerics_version",
+           "classify", "trajectory", "critical", "resolve_params", "resolve_size", "si_inputs", "analytic_u", "boundaries", "stiffness", "guard",
            "sweep_diagram", "compute_point", "point_values"]
 
 
@@ -65,38 +68,166 @@ def _params(req: Any) -> Params:
     return guard(Params, ba=req.ba, kappa=req.kappa, eps=req.eps, vo=req.vo)
 
 
+# --- single queries: dimensionless or SI (conversions: rsfcore.units only) ---------------
+def si_inputs(req: Any) -> PhysicalInputs | None:
+    """The request's ``physical`` SI set as rsfcore.units.PhysicalInputs (None without);
+    its cross-field checks raise ParameterError naming ``physical.<field>``."""
+    phys = getattr(req, "physical", None)
+    if phys is None or not isinstance(phys, PhysicalSI):
+        return None
+    return guard(PhysicalInputs.from_dict, phys.model_dump(exclude_none=True))
+
+
+def resolve_params(req: Any) -> tuple[Params, PhysicalInputs | None]:
+    """(Params, PhysicalInputs or None): from ``physical`` and ``eps`` when SI, else from
+    the dimensionless ba, kappa, eps, vo."""
+    phys = si_inputs(req)
+    if phys is None:
+        return _params(req), None
+    return guard(phys.to_params, req.eps), phys
+
+
+def resolve_size(req: Any, phys: PhysicalInputs | None) -> float:
+    """The dimensionless perturbation size: ``size``, or the SI statement (``factor``,
+    ``new_slip_rate_m_s``, ``new_load_point_velocity_m_s``) converted by rsfcore.units."""
+    given = {f: getattr(req, f, None) for f in SI_PERTURBATION_FIELDS}
+    given = {f: v for f, v in given.items() if v is not None}
+    if not given or phys is None:
+        return float(req.size)
+    try:
+        if req.perturbation == "velocity-jump":
+            if "new_load_point_velocity_m_s" in given:
+                raise ParameterError("new_load_point_velocity_m_s",
+                                     given["new_load_point_velocity_m_s"],
+                                     "not used by a velocity jump (give factor or "
+                                     "new_slip_rate_m_s)")
+            return float(velocity_jump_size(phys, **given))
+        if "new_slip_rate_m_s" in given:
+            raise ParameterError("new_slip_rate_m_s", given["new_slip_rate_m_s"],
+                                 "not used by a load-point jump (give factor or "
+                                 "new_load_point_velocity_m_s)")
+        return float(load_point_jump_size(phys, **given))
+    except ParameterError as exc:  # name the request's field, not units' dotted one
+        field = exc.field.removeprefix("perturbation.")
+        raise ParameterError(field, exc.value, exc.valid) from None
+
+
+def _jump_si(phys: PhysicalInputs, perturbation: str, size: float | None) -> dict[str, Any]:
+    """A perturbation of dimensionless ``size`` in SI: the velocity jump (factor, new slip
+    rate [m/s], shear-stress jump a sigma d [Pa] at constant state) or the load-point jump
+    (new load-point velocity [m/s])."""
+    if size is None or not math.isfinite(size):
+        return {}
+    if perturbation == "velocity-jump":
+        d = guard(velocity_jump_si, phys, size).to_dict()
+        d["shear_stress_jump_Pa"] = phys.shear_stress_change_Pa(size)
+        d["friction_jump"] = phys.friction_change(size)
+        return {"velocity_jump": d}
+    return {"load_point_jump": guard(load_point_jump_si, phys, size).to_dict()}
+
+
+def _scales_si(phys: PhysicalInputs) -> dict[str, Any]:
+    return {"inputs": phys.to_dict(), "kappa": phys.kappa, "kappa_crit": phys.kappa_crit,
+            "k_crit_Pa_per_m": phys.k_crit_Pa_per_m, "time_scale_s": phys.time_scale_s,
+            "stress_scale_Pa": phys.stress_scale_Pa,
+            "slip_rate_before_m_s": phys.slip_rate_before_m_s}
+
+
+def _outcome_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
+    """The ``si`` block of a classify/trajectory answer: times [s], peak slip rate [m/s],
+    start shear-stress change [Pa] and friction change, the perturbation in SI."""
+    def ts(T: Any) -> float | None:
+        return None if T is None else phys.time_s(float(T))
+
+    peak = out.get("peak_phi")
+    start = out.get("start") or {}
+    si: dict[str, Any] = {
+        **_scales_si(phys),
+        "blowup_time_s": ts(out.get("blowup_time")),
+        "return_time_s": ts(out.get("return_time")),
+        "peak_time_s": ts(out.get("peak_time")),
+        "peak_slip_rate_m_s": None if peak is None else phys.slip_rate_m_s(float(peak)),
+    }
+    if start.get("psi") is not None:
+        si["start_shear_stress_change_Pa"] = phys.shear_stress_change_Pa(float(start["psi"]))
+        si["start_friction_change"] = phys.friction_change(float(start["psi"]))
+        si["start_slip_rate_m_s"] = phys.slip_rate_m_s(float(start["phi"]))
+    if out.get("perturbation") is not None:
+        si.update(_jump_si(phys, str(out["perturbation"]), out.get("size")))
+    return si
+
+
 def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[str, Any]:
-    """Stable/unstable outcome with certificate, peak and times (dimensionless).
+    """Stable/unstable outcome with certificate, peak and times (dimensionless; plus an
+    ``si`` block when the request gave ``physical``).
 
     With the default ``max_steps`` a query needing more work raises :class:`NeedsQueue`;
     ``max_steps=None`` (the worker) uses rsfcore's full budget."""
+    p, phys = resolve_params(req)
+    size = resolve_size(req, phys)
     start = None if req.start is None else (req.start.phi, req.start.psi)
     kw = {} if max_steps is None else {"max_steps": max_steps}
-    res = guard(_traj.classify, _params(req), req.perturbation, req.size, start=start,
+    res = guard(_traj.classify, p, req.perturbation, size, start=start,
                 rtol=req.rtol, **kw)
-    return jsonsafe(res.to_dict())
+    out = jsonsafe(res.to_dict())
+    if phys is not None:
+        out["si"] = jsonsafe(_outcome_si(phys, out))
+    return out
+
+
+#: Meaning of each ``sampling`` value of a trajectory request (said in the answer).
+SAMPLING_NOTE = {
+    "tau": "evenly spaced in the integrator's bounded time tau (dense where the motion is "
+           "fast); T is unevenly spaced",
+    "T": "evenly spaced in T = V_* t/Dc",
+    "seconds": "evenly spaced in t [s] (t = T Dc/V_*: evenly in T as well)",
+}
 
 
 def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> dict[str, Any]:
-    """Outcome plus the trajectory downsampled to ``n_points`` (SI columns if asked);
-    ``max_steps`` as in :func:`classify`."""
-    p = _params(req)
+    """Outcome plus the trajectory downsampled to ``n_points`` (SI columns with
+    ``physical`` or ``scales``), sampled as ``req.sampling`` says; ``max_steps`` as in
+    :func:`classify`."""
+    p, phys = resolve_params(req)
+    size = resolve_size(req, phys)
     start = None if req.start is None else (req.start.phi, req.start.psi)
     physical = None
-    if req.physical is not None:
-        s = req.physical
+    if phys is not None:
+        physical = guard(phys.to_physical_params, req.eps, req.f_star)
+    elif req.scales is not None:
+        s = req.scales
         physical = guard(PhysicalParams.from_dimensionless, p, a=s.a, Dc=s.Dc, sigma=s.sigma,
                          V_star=s.V_star, f_star=s.f_star)
+    t_end = req.t_end
+    if req.t_end_s is not None and phys is not None:
+        t_end = phys.T_from_time(req.t_end_s)
     kw = {} if max_steps is None else {"max_steps": max_steps}
-    res = guard(_traj.simulate, p, req.perturbation, req.size, start=start, rtol=req.rtol,
-                t_end=req.t_end, n_points=req.n_points, physical=physical, **kw)
-    return jsonsafe(res.to_dict())
+    res = guard(_traj.simulate, p, req.perturbation, size, start=start, rtol=req.rtol,
+                t_end=t_end, n_points=req.n_points, physical=physical,
+                sampling="tau" if req.sampling == "tau" else "time", **kw)
+    out = jsonsafe(res.to_dict())
+    out["sampling"] = {"kind": req.sampling, "n_points": req.n_points,
+                       "description": SAMPLING_NOTE[req.sampling]}
+    if phys is not None:
+        out["si"] = jsonsafe(_outcome_si(phys, out))
+    return out
 
 
 def critical(req: CriticalRequest) -> dict[str, Any]:
-    """Critical perturbation size, same fields as ``rsf critical --json``."""
-    res = guard(_critical.critical_perturbation, _params(req), req.perturbation, rtol=req.rtol)
-    return jsonsafe(res.to_dict())
+    """Critical perturbation size, same fields as ``rsf critical --json``; with
+    ``physical`` also an ``si`` block (critical slip rate [m/s] and shear-stress jump [Pa]
+    of a velocity jump, critical load-point velocity [m/s])."""
+    p, phys = resolve_params(req)
+    res = guard(_critical.critical_perturbation, p, req.perturbation, rtol=req.rtol)
+    out = jsonsafe(res.to_dict())
+    if phys is not None:
+        out["si"] = jsonsafe(_critical_si(phys, out))
+    return out
+
+
+def _critical_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
+    return {**_scales_si(phys), **_jump_si(phys, str(out["perturbation"]),
+                                            out.get("critical_size"))}
 
 
 def analytic_u(req: AnalyticRequest) -> dict[str, Any]:

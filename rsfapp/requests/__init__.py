@@ -7,14 +7,15 @@ v_o = V_o/V_*, T = V_* t/Dc.  Ranges here are the first gate; rsfcore re-validat
 and its ParameterError is reported the same way (422 problem+json naming the field).
 """
 from ._base import VALID, Perturbation
-from .single import (AnalyticRequest, BoundariesRequest, ClassifyRequest, CriticalRequest,
-                     GridSpec, PhysicalScales, Point, StiffnessPhysical, StiffnessRequest,
-                     TrajectoryRequest)
+from .single import (SI_PERTURBATION_FIELDS, AnalyticRequest, BoundariesRequest,
+                     ClassifyRequest, CriticalRequest, GridSpec, PhysicalScales, PhysicalSI,
+                     Point, StiffnessPhysical, StiffnessRequest, TrajectoryRequest)
 from .sweeps import AXIS_RANGES, AxisName, SweepAxis, SweepFixed, SweepRequest
 
 __all__ = [
     "AXIS_RANGES", "AnalyticRequest", "AxisName", "BoundariesRequest", "ClassifyRequest",
-    "CriticalRequest", "GridSpec", "Perturbation", "PhysicalScales", "Point",
+    "CriticalRequest", "GridSpec", "Perturbation", "PhysicalSI", "PhysicalScales", "Point",
+    "SI_PERTURBATION_FIELDS",
     "StiffnessPhysical", "StiffnessRequest", "SweepAxis", "SweepFixed", "SweepRequest",
     "TrajectoryRequest", "VALID",
 ]

@@ -4,20 +4,30 @@ All quantities are dimensionless (Ciardo & Viesca scales) unless a field says
 otherwise: phi = ln(V/V_*), psi = (tau - tau_*)/(a sigma), kappa = k Dc/(a sigma),
 v_o = V_o/V_*, T = V_* t/Dc.  Ranges here are the first gate; rsfcore re-validates
 and its ParameterError is reported the same way (422 problem+json naming the field).
+
+SI alternative (classify, trajectory, critical): ``physical`` = {a, b, Dc_m, sigma_Pa,
+k_Pa_per_m, V_star_m_s, V_load_m_s} replaces the dimensionless ba, kappa, vo (never both:
+422 naming the dimensionless field given alongside); ``eps`` (the evolution law) is given
+as before.  A perturbation may then be stated in SI too: ``factor`` (V_new/V_before, or
+V_new/V_load for a load-point jump), ``new_slip_rate_m_s`` (velocity jump) or
+``new_load_point_velocity_m_s`` (load-point jump) instead of ``size``.  All conversions are
+rsfcore.units'; answers then carry an ``si`` block (times in s, slip rates in m/s, stress
+in Pa).
 """
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationError, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from ._base import RTOL, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
 
 __all__ = [
     "AnalyticRequest", "BoundariesRequest", "ClassifyRequest", "CriticalRequest",
-    "GridSpec", "PhysicalScales", "Point", "StiffnessPhysical", "StiffnessRequest",
-    "TrajectoryRequest",
+    "GridSpec", "PhysicalSI", "PhysicalScales", "Point", "SI_PERTURBATION_FIELDS",
+    "StiffnessPhysical", "StiffnessRequest", "TrajectoryRequest", "field_error",
 ]
 
 
@@ -40,8 +50,95 @@ class _Dimless(_Model):
                   ge=0.0, le=1e300)
 
 
-class ClassifyRequest(_Dimless):
-    """Classify one perturbation as stable or unstable (runaway)."""
+def field_error(model: str, field: str, message: str, value: object) -> ValidationError:
+    """A pydantic ValidationError located at ``field`` (so the 422 names that field, also
+    inside a batch item), raised from a model validator."""
+    return ValidationError.from_exception_data(model, [InitErrorDetails(
+        type=PydanticCustomError("invalid_combination", message), loc=(field,), input=value)])
+
+
+class PhysicalSI(_Model):
+    """A spring-slider in SI units (the names lab scripts rely on; rsfcore.units.PhysicalInputs).
+
+    Cross-field rules (b > a, kappa = k Dc/(a sigma) <= 1e6, V_load/V_* <= 1e300) are
+    checked by rsfcore.units and reported as 422 naming ``physical.<field>``.
+    """
+
+    a: float = F(..., "(0, 1]", "Direct-effect coefficient a (-).", name="a", gt=0, le=1)
+    b: float = F(..., "(a, 1e6 a]", "Evolution-effect coefficient b (-), b > a.", name="b",
+                 gt=0, le=1e6)
+    Dc_m: float = F(..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc_m",
+                    gt=0, le=1e3)
+    sigma_Pa: float = F(..., "(0, 1e12] Pa", "Effective normal stress sigma [Pa].",
+                        name="sigma_Pa", gt=0, le=1e12)
+    k_Pa_per_m: float = F(..., "[0, 1e6 a sigma/Dc] Pa/m", "Machine (spring) stiffness k "
+                          "[Pa/m]; kappa = k Dc/(a sigma).", name="k_Pa_per_m", ge=0, le=1e30)
+    V_star_m_s: float = F(..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].",
+                          name="V_star_m_s", gt=0, le=1e3)
+    V_load_m_s: float | None = F(None, "null or [0, 1e3] m/s", "Load-point velocity V_o "
+                                 "[m/s] (default V_*; 0 = stationary load point).",
+                                 name="V_load_m_s", ge=0, le=1e3)
+
+
+#: The perturbation stated in SI (alternatives to ``size``; need ``physical``).
+SI_PERTURBATION_FIELDS: tuple[str, ...] = ("factor", "new_slip_rate_m_s",
+                                           "new_load_point_velocity_m_s")
+_DIMLESS = ("ba", "kappa", "vo")
+
+
+def _check_si(m: _Model, name: str, with_size: bool) -> None:
+    """``physical`` and the dimensionless ba, kappa, vo never both; SI perturbation fields
+    need ``physical``, at most one of them, not with ``size`` or ``start``."""
+    given = m.model_fields_set
+    phys = getattr(m, "physical", None)
+    if phys is not None:
+        for f in _DIMLESS:
+            if f in given:
+                raise field_error(name, f, f"give either 'physical' (SI) or the dimensionless "
+                                  f"'{f}' (with ba, kappa, vo), never both", getattr(m, f))
+    if not with_size:
+        return
+    si = [f for f in SI_PERTURBATION_FIELDS if getattr(m, f, None) is not None]
+    if not si:
+        return
+    if phys is None:
+        raise field_error(name, si[0], f"'{si[0]}' states the perturbation in SI and needs "
+                          "'physical' (or give the dimensionless 'size')", getattr(m, si[0]))
+    if len(si) > 1:
+        raise field_error(name, si[1], f"give one of {', '.join(SI_PERTURBATION_FIELDS)}, "
+                          f"not both '{si[0]}' and '{si[1]}'", getattr(m, si[1]))
+    if "size" in given:
+        raise field_error(name, "size", f"give either 'size' or '{si[0]}', never both",
+                          getattr(m, "size"))
+    if getattr(m, "start", None) is not None:
+        raise field_error(name, "start", f"'start' overrides the perturbation; do not give "
+                          f"'{si[0]}' with it", None)
+
+
+class _SIInput(_Model):
+    physical: PhysicalSI | None = F(None, "null or an object {a, b, Dc_m, sigma_Pa, "
+                                    "k_Pa_per_m, V_star_m_s, V_load_m_s}",
+                                    "The spring-slider in SI units, instead of ba, kappa, vo "
+                                    "(never both). Answers then carry an 'si' block.",
+                                    name="physical")
+
+
+class _SIPerturbation(_Model):
+    factor: float | None = F(None, "null or (0, 1e300]", "SI perturbation (needs physical), "
+                             "instead of size: V_new/V_before for a velocity jump, "
+                             "V_new/V_load for a load-point jump (-).", name="factor",
+                             gt=0, le=1e300)
+    new_slip_rate_m_s: float | None = F(None, "null or (0, 1e300] m/s", "SI velocity jump "
+                                        "(needs physical): the slip rate right after the "
+                                        "jump [m/s].", name="new_slip_rate_m_s", gt=0,
+                                        le=1e300)
+    new_load_point_velocity_m_s: float | None = F(
+        None, "null or (0, 1e300] m/s", "SI load-point jump (needs physical): the new "
+        "load-point velocity [m/s].", name="new_load_point_velocity_m_s", gt=0, le=1e300)
+
+
+class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
+    """Classify one perturbation as stable or unstable (runaway); dimensionless or SI."""
 
     perturbation: Perturbation = F("velocity-jump", "'velocity-jump' or 'load-point-jump'",
                                    "Kind of perturbation from steady state.", name="perturbation")
@@ -53,9 +150,15 @@ class ClassifyRequest(_Dimless):
     rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).",
                     name="rtol", **RTOL)
 
+    @model_validator(mode="after")
+    def _si_rules(self) -> "ClassifyRequest":
+        _check_si(self, type(self).__name__, with_size=True)
+        return self
+
 
 class PhysicalScales(_Model):
-    """Scales that turn the dimensionless solution into SI units."""
+    """Scales that turn a dimensionless solution into SI units (legacy form of the
+    trajectory's SI columns: ``scales``, or ``physical`` with these keys)."""
 
     a: float = F(..., "(0, 1]", "Direct-effect coefficient a (-).", name="a", gt=0, le=1)
     Dc: float = F(..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc",
@@ -68,25 +171,79 @@ class PhysicalScales(_Model):
                       name="f_star", ge=-10, le=10)
 
 
-class TrajectoryRequest(ClassifyRequest):
-    """Integrate one trajectory and return it downsampled to ``n_points`` samples."""
+_LEGACY_SCALES = {"Dc", "sigma", "V_star", "f_star"}
 
-    n_points: int = F(200, "[2, 10000]", "Number of output samples (equally spaced in the "
-                      "integrator's bounded time).", name="n_points", ge=2, le=10_000)
+
+class TrajectoryRequest(ClassifyRequest):
+    """Integrate one trajectory and return it downsampled to ``n_points`` samples.
+
+    ``sampling``: 'tau' (default) evenly in the integrator's bounded time (resolves slow
+    creep and the fast excursion alike), 'T' evenly in T = V_* t/Dc, 'seconds' evenly in
+    t [s] (needs physical; the same points as 'T', since t = T Dc/V_*).  The answer says
+    which sampling it used.  With ``physical`` (SI inputs) or ``scales`` the trajectory
+    has SI columns (t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m).
+    """
+
+    n_points: int = F(200, "[2, 10000]", "Number of output samples (spacing: see "
+                      "sampling).", name="n_points", ge=2, le=10_000)
     t_end: float | None = F(None, "null or (0, 1e12]", "Stop at this dimensionless time "
                             "T = V_* t/Dc (default: at the certificate).", name="t_end",
                             gt=0, le=1e12)
-    physical: PhysicalScales | None = F(None, "null or an object", "Adds SI columns.",
-                                        name="physical")
+    t_end_s: float | None = F(None, "null or (0, 1e30] s", "Stop at this time t [s] "
+                              "(needs physical; instead of t_end).", name="t_end_s",
+                              gt=0, le=1e30)
+    sampling: Literal["tau", "T", "seconds"] = F(
+        "tau", "'tau', 'T' or 'seconds'", "Spacing of the samples: evenly in the "
+        "integrator's bounded time (tau), in T, or in seconds (needs physical).",
+        name="sampling")
+    f_star: float = F(0.6, "[-10, 10]", "Reference friction coefficient f_* for the SI "
+                      "friction column (with physical) (-).", name="f_star", ge=-10, le=10)
+    scales: PhysicalScales | None = F(None, "null or an object {a, Dc, sigma, V_star, "
+                                      "f_star}", "Legacy: SI columns for a dimensionless "
+                                      "query (a 'physical' object with these keys is read "
+                                      "as 'scales').", name="scales")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _legacy_physical(cls, data: object) -> object:
+        if isinstance(data, dict) and isinstance(data.get("physical"), dict) and \
+                "scales" not in data and set(data["physical"]) & _LEGACY_SCALES:
+            data = dict(data)
+            data["scales"] = data.pop("physical")
+        return data
+
+    @model_validator(mode="after")
+    def _trajectory_rules(self) -> "TrajectoryRequest":
+        name = type(self).__name__
+        if self.physical is not None and self.scales is not None:
+            raise field_error(name, "scales", "give either 'physical' (SI inputs) or "
+                              "'scales' (SI columns of a dimensionless query), not both", None)
+        if self.physical is None:
+            if self.sampling == "seconds":
+                raise field_error(name, "sampling", "'seconds' needs 'physical' (use 'T' "
+                                  "for a dimensionless query)", self.sampling)
+            if self.t_end_s is not None:
+                raise field_error(name, "t_end_s", "'t_end_s' needs 'physical' (use "
+                                  "'t_end' in T)", self.t_end_s)
+        if self.t_end_s is not None and self.t_end is not None:
+            raise field_error(name, "t_end_s", "give either 't_end' or 't_end_s', never "
+                              "both", self.t_end_s)
+        return self
 
 
-class CriticalRequest(_Dimless):
-    """Critical perturbation size separating stable from unstable (as `rsf critical`)."""
+class CriticalRequest(_SIInput, _Dimless):
+    """Critical perturbation size separating stable from unstable (as `rsf critical`);
+    dimensionless or SI (then also the critical slip rate / load-point velocity in m/s)."""
 
     perturbation: Perturbation = F("velocity-jump", "'velocity-jump' or 'load-point-jump'",
                                    "Kind of perturbation from steady state.", name="perturbation")
     rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).",
                     name="rtol", **RTOL)
+
+    @model_validator(mode="after")
+    def _si_rules(self) -> "CriticalRequest":
+        _check_si(self, type(self).__name__, with_size=False)
+        return self
 
 
 class GridSpec(_Model):

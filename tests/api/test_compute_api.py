@@ -70,7 +70,7 @@ BAD: list[tuple[str, str, Any, str, str]] = [
     ("post", "/v1/classify", {"size": "big"}, "size", "[-1e3, 1e3]"),
     ("post", "/v1/trajectory", {"n_points": 1}, "n_points", "[2, 10000]"),
     ("post", "/v1/trajectory", {"physical": {"a": 0.01, "Dc": -1, "sigma": 1e6,
-                                             "V_star": 1e-6}}, "physical.Dc", "(0, 1e3] m"),
+                                             "V_star": 1e-6}}, "scales.Dc", "(0, 1e3] m"),
     ("post", "/v1/critical", {"vo": -1}, "vo", "0 or (0, 1e300]"),
     ("post", "/v1/stiffness", {"case": "F"}, "case", "'A'..'E'"),
     ("post", "/v1/stiffness", {"case": "C", "physical": {"mu": 3e10, "sigma": 1e8,
