@@ -9,6 +9,7 @@ import os
 import socket
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -51,6 +52,19 @@ class Settings(BaseSettings):
             broker is unavailable [s], [1, 3600].
         health_check_budget_s: time /health may spend checking SQLite pages
             (``PRAGMA quick_check``, re-run at most every minute) [s]; 0 disables it.
+        auth: API keys (``Authorization: Bearer``): ``on`` = every request needs a key;
+            ``off`` = no keys (everyone is admin; say so explicitly); ``auto`` (default) =
+            keys are required once one exists, and until then only requests arriving on
+            a loopback interface are served (``rsf serve`` refuses a non-loopback host
+            without a key).
+        max_body_bytes: largest request body [bytes], else 413 before it is read.
+        max_body_bytes_batch: largest body of the batch and fit endpoints [bytes].
+        max_header_bytes: largest total size of the request headers [bytes], else 431.
+        cors_origins: comma-separated origins allowed by CORS (empty: CORS off).
+        quota_concurrent_sweeps, quota_points_per_day, quota_fresh_per_s,
+        quota_concurrent_requests, quota_trajectory_points: default quotas of every key
+            (:class:`rsfapp.store.keys.Quotas`); ``rsf keys create --quota`` overrides them
+            per key.
     """
 
     model_config = SettingsConfigDict(env_prefix="RSF_", extra="ignore")
@@ -72,6 +86,16 @@ class Settings(BaseSettings):
     db_retry_s: float = Field(default=2.0, ge=0, le=600)
     retry_after_s: int = Field(default=5, ge=1, le=3600)
     health_check_budget_s: float = Field(default=1.0, ge=0, le=600)
+    auth: Literal["auto", "on", "off"] = "auto"
+    max_body_bytes: int = Field(default=4 * 2**20, ge=1024)
+    max_body_bytes_batch: int = Field(default=64 * 2**20, ge=1024)
+    max_header_bytes: int = Field(default=16 * 2**10, ge=1024)
+    cors_origins: str = ""
+    quota_concurrent_sweeps: int = Field(default=4, ge=0)
+    quota_points_per_day: int = Field(default=1_000_000, ge=0)
+    quota_fresh_per_s: float = Field(default=10.0, gt=0)
+    quota_concurrent_requests: int = Field(default=8, ge=1)
+    quota_trajectory_points: int = Field(default=10_000, ge=2)
 
     @property
     def heartbeat_s(self) -> float:
@@ -86,6 +110,11 @@ class Settings(BaseSettings):
         scale; a redelivered chunk still held by a live worker is skipped (exactly-once
         storage), so an early redelivery is harmless."""
         return max(1, int(round(self.lease_s)))
+
+    @property
+    def cors_origin_list(self) -> list[str]:
+        """The CORS origins as a list (empty: CORS off)."""
+        return [o.strip() for o in self.cors_origins.split(",") if o.strip()]
 
     @property
     def data_path(self) -> Path:

@@ -4,13 +4,16 @@
   numerics version) (:mod:`rsfapp.store.results`);
 * ``jobs``: long single queries sent to the queue (:mod:`rsfapp.store.jobs`);
 * ``sweeps``, ``sweep_chunks``, ``sweep_points``: sweep bookkeeping and results
-  (:mod:`rsfapp.store.sweeps`).
+  (:mod:`rsfapp.store.sweeps`);
+* ``api_keys``, ``key_usage``, ``sweep_owners``: hashed API keys, their daily usage and
+  the key that submitted each sweep (:mod:`rsfapp.store.keys`).
 """
 from __future__ import annotations
 
 from sqlalchemy import Column, Float, ForeignKey, Integer, MetaData, String, Table, Text
 
-__all__ = ["metadata", "results", "jobs", "sweeps", "chunks", "points"]
+__all__ = ["metadata", "results", "jobs", "sweeps", "chunks", "points", "api_keys", "key_usage",
+           "sweep_owners"]
 
 metadata = MetaData()
 
@@ -72,4 +75,30 @@ points = Table(
     Column("rel_accuracy", Float),
     Column("error", Text),
     Column("created_at", Float, nullable=False),
+)
+
+# API keys: only the sha256 of a key is stored; ``quotas`` is a JSON object of per-key
+# overrides of the RSF_QUOTA_* defaults.
+api_keys = Table(
+    "api_keys", metadata,
+    Column("name", String(64), primary_key=True),
+    Column("key_hash", String(64), nullable=False, unique=True),
+    Column("scope", String(8), nullable=False),  # read | submit | admin
+    Column("quotas", Text, nullable=False, default="{}"),
+    Column("created_at", Float, nullable=False),
+    Column("revoked_at", Float),
+)
+
+key_usage = Table(
+    "key_usage", metadata,
+    Column("name", String(64), primary_key=True),
+    Column("day", Integer, primary_key=True),  # UTC days since 1970-01-01
+    Column("points", Integer, nullable=False, default=0),
+)
+
+# A side table (not a column of ``sweeps``) so that existing databases gain it on start.
+sweep_owners = Table(
+    "sweep_owners", metadata,
+    Column("sweep_id", String(64), primary_key=True),
+    Column("owner", String(64), nullable=False, index=True),
 )
