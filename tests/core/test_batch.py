@@ -98,7 +98,7 @@ def test_failure_isolated(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.parametrize("kw, field", [
     (dict(ba=[2.0, 0.5], kappa=1.0, eps=0.1, vo=1.0), "ba[1]"),
-    (dict(ba=[2.0, 2.0], kappa=1.0, eps=[0.1, 0.2, 0.3], vo=1.0), "eps"),
+    (dict(ba=[2.0, 2.0], kappa=1.0, eps=[0.1, 0.2, 0.3], vo=1.0), "ba"),
     (dict(ba=[2.0, 2.0, 2.0], kappa=1.0, eps=[0.1, 0.2, 1.5], vo=1.0), "eps[2]"),
     (dict(ba=[2.0, 2.0], kappa=1.0, eps=0.1, vo=[1.0, 0.0],
           perturbation="load-point-jump"), "vo[1]"),
