@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, TypeAdapter, ValidationError
 
 from rsfcore import NUMERICS_VERSION, analytic, critical as _critical, trajectory as _traj
 from rsfcore import boundaries as _bounds, stiffness as _stiff
@@ -22,12 +23,14 @@ from rsfcore.params import ParameterError, Params, PhysicalParams
 from rsfcore.units import (PhysicalInputs, load_point_jump_si, load_point_jump_size,
                            velocity_jump_si, velocity_jump_size)
 
-from .requests import (SI_PERTURBATION_FIELDS, AnalyticRequest, BoundariesRequest,
+from .requests import (SI_PERTURBATION_FIELDS, VALID, AnalyticRequest, BoundariesRequest,
                        ClassifyRequest, CriticalRequest, PhysicalSI, StiffnessRequest,
                        TrajectoryRequest)
 
 __all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "SAMPLING_NOTE", "numerics_version",
-           "classify", "trajectory", "critical", "resolve_params", "resolve_size", "si_inputs", "analytic_u", "boundaries", "stiffness", "guard",
+           "classify", "trajectory", "critical", "resolve_params", "resolve_size", "si_inputs",
+           "classify_batch", "critical_batch", "item_error", "validate_items", "analytic_u",
+           "boundaries", "stiffness", "guard",
            "sweep_diagram", "compute_point", "point_values"]
 
 
@@ -370,3 +373,152 @@ def compute_point(spec: dict[str, Any], xv: float, yv: float) -> dict[str, Any]:
     except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
         return {"kind": None, "critical_size": None, "outcome": None, "rel_accuracy": None,
                 "error": f"{type(exc).__name__}: {exc}"[:2000]}
+
+
+# --- batch queries (POST /v1/classify/batch, /v1/critical/batch) -------------------------
+def _loc_field(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out or "item"
+
+
+def item_error(index: int, field: str | None, message: str,
+               valid: str | None = None) -> dict[str, Any]:
+    """The result entry of an item that could not be answered."""
+    return {"index": index, "error": {"field": field, "message": message, "valid": valid}}
+
+
+_ADAPTERS: dict[type, TypeAdapter[Any]] = {}
+
+
+def validate_items(model: type[BaseModel], items: list[dict[str, Any]]
+                   ) -> tuple[list[Any], dict[int, dict[str, Any]]]:
+    """Validate every item as ``model``: (validated models with None at invalid items,
+    {index: error entry}).  The error names the item's first invalid field and its range
+    (as the single endpoint's 422 would)."""
+    ta = _ADAPTERS.get(model)
+    if ta is None:
+        ta = _ADAPTERS[model] = TypeAdapter(list[model])  # type: ignore[valid-type]
+    try:
+        return list(ta.validate_python(items)), {}
+    except ValidationError as exc:
+        errs: dict[int, dict[str, Any]] = {}
+        for e in exc.errors():
+            loc = tuple(e.get("loc", ()))
+            if not loc or not isinstance(loc[0], int) or loc[0] in errs:
+                continue
+            valid = next((VALID[p] for p in reversed(loc[1:]) if isinstance(p, str)
+                          and p in VALID), None)
+            errs[loc[0]] = item_error(loc[0], _loc_field(loc[1:]), str(e.get("msg")), valid)
+    ok = [i for i in range(len(items)) if i not in errs]
+    models: list[Any] = [None] * len(items)
+    for i, m in zip(ok, ta.validate_python([items[i] for i in ok])):
+        models[i] = m
+    return models, errs
+
+
+def _param_error(index: int, exc: ParameterError) -> dict[str, Any]:
+    return item_error(index, exc.field, str(exc), exc.valid)
+
+
+def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
+    """Critical sizes of many items, answered item by item exactly as :func:`critical`.
+
+    Valid items are grouped by (v_o, perturbation, rtol) and each group runs in one call
+    of the compiled loop rsfcore.critical.critical_batch (the same per-point decision as
+    critical_perturbation); points the separatrix method cannot settle fall back to
+    critical_perturbation one by one (bisection).  Returns {"results": [...] in item order,
+    "n_items", "n_ok", "n_failed"}."""
+    models, errs = validate_items(CriticalRequest, items)
+    n = len(items)
+    params: list[Params | None] = [None] * n
+    physs: list[PhysicalInputs | None] = [None] * n
+    groups: dict[tuple[float, int, float], list[int]] = {}
+    for i, m in enumerate(models):
+        if m is None:
+            continue
+        try:
+            p, ph = resolve_params(m)
+            pert = _critical.PERTURBATIONS.index(m.perturbation)
+            if pert == 1 and p.vo == 0.0:
+                raise ParameterError("vo", p.vo, "> 0 for a load-point jump (relative jump "
+                                     "of a moving load point)")
+        except ParameterError as exc:
+            errs[i] = _param_error(i, exc)
+            continue
+        params[i], physs[i] = p, ph
+        groups.setdefault((p.vo, pert, float(m.rtol)), []).append(i)
+    results: list[dict[str, Any] | None] = [errs.get(i) for i in range(n)]
+    flag_boundary = _critical.FLAG_ON_X1 | _critical.FLAG_ON_KCRIT
+    for (vo, pert, rtol), idx in groups.items():
+        ps = [params[i] for i in idx]
+        ba = np.array([p.ba for p in ps])  # type: ignore[union-attr]
+        kappa = np.array([p.kappa for p in ps])  # type: ignore[union-attr]
+        eps = np.array([p.eps for p in ps])  # type: ignore[union-attr]
+        m = len(idx)
+        kind, meth, flags = (np.empty(m, np.int64) for _ in range(3))
+        value, acc = np.empty(m), np.empty(m)
+        _critical.critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, acc, meth, flags)
+        name = _critical.PERTURBATIONS[pert]
+        for j, i in enumerate(idx):
+            p = ps[j]
+            assert p is not None
+            on_b = bool(flags[j] & flag_boundary)
+            try:
+                if flags[j] & _critical.FLAG_FALLBACK:
+                    r = guard(_critical.critical_perturbation, p, name, rtol=rtol)
+                else:
+                    k = int(kind[j])
+                    size = None if k == _critical.KIND_INFINITE else (
+                        0.0 if k == _critical.KIND_ZERO else float(value[j]))
+                    r = _critical.CriticalResult(_critical.KINDS[k], size, float(acc[j]),
+                                                 _critical.METHODS[int(meth[j])], name, p,
+                                                 on_b)
+            except ParameterError as exc:
+                results[i] = _param_error(i, exc)
+                continue
+            except ComputeError as exc:
+                results[i] = item_error(i, None, str(exc))
+                continue
+            out = jsonsafe(r.to_dict())
+            ph = physs[i]
+            if ph is not None:
+                out["si"] = jsonsafe(_critical_si(ph, out))
+            out["index"] = i
+            results[i] = out
+    return _batch_summary(results)
+
+
+def _batch_summary(results: list[dict[str, Any] | None]) -> dict[str, Any]:
+    n_failed = sum(1 for r in results if r is None or "error" in r)
+    return {"results": results, "n_items": len(results), "n_ok": len(results) - n_failed,
+            "n_failed": n_failed}
+
+
+def classify_batch(items: list[dict[str, Any]], max_steps: int | None = QUICK_STEPS
+                   ) -> dict[str, Any]:
+    """Outcomes of many items, each answered exactly as :func:`classify` (rsfcore has no
+    vectorised classify: one compiled integration per item).  An item needing more than
+    the quick step budget is reported as an error entry (ask it alone at /v1/classify,
+    which queues long integrations)."""
+    models, errs = validate_items(ClassifyRequest, items)
+    results: list[dict[str, Any] | None] = [errs.get(i) for i in range(len(items))]
+    for i, m in enumerate(models):
+        if m is None:
+            continue
+        try:
+            out = classify(m, max_steps=max_steps)
+        except ParameterError as exc:
+            results[i] = _param_error(i, exc)
+            continue
+        except NeedsQueue as exc:
+            results[i] = item_error(i, None, f"a long integration ({exc}); send this item "
+                                    "alone to POST /v1/classify, which queues it")
+            continue
+        except ComputeError as exc:
+            results[i] = item_error(i, None, str(exc))
+            continue
+        out["index"] = i
+        results[i] = out
+    return _batch_summary(results)

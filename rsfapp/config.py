@@ -37,6 +37,7 @@ class Settings(BaseSettings):
             every worker requeues a chunk whose lease has expired, so a lost worker host
             costs at most ``lease_s`` plus one chunk.  The Redis visibility timeout is
             derived from it (:attr:`visibility_timeout_s`).
+        batch_max_items: largest ``items`` list of a batch query (/v1/*/batch).
         quick_steps: step budget of an in-process single query; one that needs more
             is a long integration and goes through the queue.
         node: name of this host in chunk owners and the worker registry; default the
@@ -78,6 +79,7 @@ class Settings(BaseSettings):
     lease_s: float = Field(default=30.0, gt=0, le=3600)
     inline_budget_s: float = Field(default=2.0, gt=0, le=3600)
     quick_steps: int = Field(default=300_000, ge=10)
+    batch_max_items: int = Field(default=100_000, ge=1)
     node: str = Field(default_factory=socket.gethostname, min_length=1, max_length=100)
     db_pool_size: int = Field(default=5, ge=1, le=100)
     db_max_overflow: int = Field(default=10, ge=0, le=200)

@@ -15,6 +15,7 @@ from rsfapp.warmup import warm_up
 from .deps import Inflight
 from .errors import install_handlers
 from .routes import compute, docs, figures, meta, sweeps, ui
+from .routes import batch as batch_routes
 
 __all__ = ["create_app", "app"]
 log = logging.getLogger("rsf.service")
@@ -43,6 +44,7 @@ def create_app() -> FastAPI:
     install_handlers(a)
     a.include_router(meta.router)
     a.include_router(compute.router)
+    a.include_router(batch_routes.router)
     a.include_router(sweeps.router)
     a.include_router(figures.router)
     a.include_router(ui.router)
