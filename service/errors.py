@@ -2,6 +2,12 @@
 
 Nothing is written to the cache or the sweep tables before validation passes, so a 422
 never leaves a trace.
+
+Infrastructure faults are never a 500 nor a hang: a database error (server down,
+connection dropped, file locked or damaged) or a broker error (Redis down) is answered
+503 problem+json with ``Retry-After: RSF_RETRY_AFTER_S``, a ``reason`` and a ``hint``
+(how to recover).  Connections are retried for at most ``RSF_DB_RETRY_S`` first
+(:mod:`rsfapp.db.engine`).
 """
 from __future__ import annotations
 
@@ -14,10 +20,12 @@ from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
+from rsfapp.config import get_settings
+from rsfapp.db.engine import SchemaTooNew, diagnose
 from rsfapp.requests import VALID
 from rsfcore.params import ParameterError
 
-__all__ = ["ProblemError", "problem", "install_handlers"]
+__all__ = ["ProblemError", "install_handlers", "problem", "unavailable"]
 log = logging.getLogger("rsf.service")
 PROBLEM = "application/problem+json"
 
@@ -51,6 +59,37 @@ def problem(status: int, title: str, detail: str, errors: list[dict[str, Any]] |
         body["valid"] = errors[0].get("valid")
     return Response(json.dumps(body, default=str), status_code=status, media_type=PROBLEM,
                     headers=headers)
+
+
+def unavailable(title: str, reason: str, hint: str) -> Response:
+    """503 problem+json with ``Retry-After`` (the part named in ``title`` is down)."""
+    after = get_settings().retry_after_s
+    body = {"type": "about:blank", "title": title, "status": 503,
+            "detail": f"{reason}. {hint}.", "reason": reason, "hint": hint,
+            "retry_after_s": after}
+    return Response(json.dumps(body, default=str), status_code=503, media_type=PROBLEM,
+                    headers={"Retry-After": str(after)})
+
+
+def database_problem(exc: BaseException) -> Response:
+    """503 for a database exception (logged as one line, no traceback)."""
+    p = diagnose(exc, get_settings().effective_cache_url)
+    if p is None:
+        log.error("database error", exc_info=exc)
+        return unavailable("Database unavailable", f"database error: {type(exc).__name__}",
+                           "retry later")
+    log.warning("503: %s", p.reason)
+    return unavailable("Database unavailable" if p.kind != "damaged" else "Database damaged",
+                       p.reason, p.hint)
+
+
+def broker_problem(exc: BaseException) -> Response:
+    """503 for a broker (Redis / filesystem queue) exception."""
+    reason = f"broker {get_settings().effective_broker_url.split('@')[-1]} unavailable: " \
+             f"{str(exc).strip() or type(exc).__name__}"
+    log.warning("503: %s", reason)
+    return unavailable("Broker unavailable", reason,
+                       "check that the broker (RSF_BROKER_URL) is running and reachable")
 
 
 def _field_of(loc: tuple[Any, ...]) -> str:
@@ -111,6 +150,24 @@ def install_handlers(app: FastAPI) -> None:
     async def _parameter(_req: Request, exc: ParameterError) -> Response:
         return problem(422, "Invalid input", str(exc),
                        [{"field": exc.field, "message": str(exc), "valid": exc.valid}])
+
+    import sqlite3
+
+    from kombu.exceptions import OperationalError as KombuOperationalError
+    from redis.exceptions import ConnectionError as RedisConnectionError
+    from redis.exceptions import TimeoutError as RedisTimeoutError
+    from sqlalchemy.exc import SQLAlchemyError
+
+    async def _db(_req: Request, exc: Exception) -> Response:
+        return database_problem(exc)
+
+    async def _broker(_req: Request, exc: Exception) -> Response:
+        return broker_problem(exc)
+
+    for cls in (SQLAlchemyError, sqlite3.Error, SchemaTooNew):
+        app.add_exception_handler(cls, _db)
+    for cls in (KombuOperationalError, RedisConnectionError, RedisTimeoutError):
+        app.add_exception_handler(cls, _broker)
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_req: Request, exc: StarletteHTTPException) -> Response:

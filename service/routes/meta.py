@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-
 from typing import Annotated
 
 from fastapi import APIRouter, Path
@@ -10,22 +9,44 @@ from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
 from rsfapp.adapter import numerics_version
+from rsfapp.health import health_report
 from rsfapp.store import JobState
 
 from ..answer import body
-from ..deps import InflightDep, StoresDep
+from ..deps import InflightDep, SettingsDep, StoresDep
 from ..errors import ProblemError
 
 router = APIRouter(tags=["meta"])
 
 
-@router.get("/health", summary="Liveness and database check")
-async def health(stores: StoresDep) -> Response:
-    """{"status": "ok", "numerics_version": ...} once the cache database answers."""
-    st = await run_in_threadpool(stores.results.stats)
-    return Response(json.dumps({"status": "ok", "numerics_version": numerics_version(),
-                                "cache_entries": st["entries"]}),
-                    media_type="application/json")
+@router.get("/health", summary="Deployment health: database, broker, workers",
+            responses={503: {"description": "A part is down or damaged; ``reasons`` says "
+                                            "which and ``Retry-After`` when to ask again."}})
+async def health(stores: StoresDep, settings: SettingsDep) -> Response:
+    """``status`` 'ok' (200) or 'degraded' (503 + ``Retry-After``, ``reasons``): the
+    database is reachable and sound (schema version, SQLite page check), the broker is
+    reachable; plus the live workers (count, hosts, processes), the queue length, the
+    numerics version and the number of cached results.  No live worker is a
+    ``warning`` (queued work waits), not a degradation."""
+    rep = await run_in_threadpool(health_report, stores.db, settings)
+    rep["numerics_version"] = numerics_version()
+    if rep["database"]["ok"]:
+        try:
+            rep["cache_entries"] = (await run_in_threadpool(stores.results.stats))["entries"]
+        except Exception as exc:  # noqa: BLE001 - reported, never raised
+            rep["status"] = "degraded"
+            rep["reasons"].append(f"results table unreadable: {exc}")
+    ok = rep["status"] == "ok"
+    return Response(json.dumps(rep), status_code=200 if ok else 503,
+                    media_type="application/json",
+                    headers=None if ok else {"Retry-After": str(settings.retry_after_s)})
+
+
+@router.get("/health/live", summary="Liveness only (no I/O)")
+async def live() -> Response:
+    """200 while this API process answers; checks nothing else (for proxies and as
+    the trivial endpoint of bench/load_service.py)."""
+    return Response(b'{"status":"ok"}', media_type="application/json")
 
 
 @router.get("/v1/cache/stats", summary="Cache statistics")
