@@ -74,7 +74,9 @@ from scipy.integrate._ivp import dop853_coefficients as _coef
 
 from .analytic import _vjump_kcrit
 from .laws import G, L_star
-from .params import ParameterError, Params, check_range
+from . import limits as lim
+from .limits import DEFAULT_RTOL, RTOL_RANGE
+from .params import ParameterError, Params
 
 __all__ = [
     "CriticalResult",
@@ -124,8 +126,7 @@ FLAG_FALLBACK = 4  # separatrix method failed: use bisection
 #: Relative band within which x = eps kappa/kappa_crit = 1 or kappa = kappa_crit are taken
 #: as exact (rounding of the inputs: ~450 ulp).  Points inside are flagged ``on_boundary``.
 BOUNDARY_RTOL = 1.0e-13
-DEFAULT_RTOL = 1.0e-10
-RTOL_RANGE = (1.0e-13, 1.0e-3)
+# DEFAULT_RTOL and RTOL_RANGE: rsfcore.limits (re-exported here for old import paths)
 
 # --- DOP853 tableau (facts of the method; values from scipy's copy of Hairer's DOP853) ---
 _A = np.ascontiguousarray(_coef.A[:13, :13], dtype=np.float64)
@@ -517,10 +518,6 @@ def _pert_code(perturbation: str) -> int:
     return PERTURBATIONS.index(perturbation)
 
 
-def _check_rtol(rtol: float) -> float:
-    return check_range("rtol", rtol, RTOL_RANGE[0], RTOL_RANGE[1])
-
-
 def _first_decision(params: Params, perturbation: str, rtol: float) -> tuple:
     """Validate the inputs and run the compiled decision for one point.
 
@@ -528,7 +525,7 @@ def _first_decision(params: Params, perturbation: str, rtol: float) -> tuple:
     if not isinstance(params, Params):
         raise ParameterError("params", params, "an rsfcore.Params")
     pert = _pert_code(perturbation)
-    rtol = _check_rtol(rtol)
+    rtol = lim.RTOL.check(rtol)
     if pert == 1 and params.vo == 0.0:
         raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
     kind, val, acc, meth, flags, nr = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(13))

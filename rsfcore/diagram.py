@@ -39,11 +39,11 @@ from .critical import (
     M_BISECTION,
     METHODS,
     PERTURBATIONS,
-    RTOL_RANGE,
     bisect_critical,
     critical_batch,
 )
-from .params import BA_MAX, KAPPA_MAX, ParameterError, Params, check_range
+from . import limits as lim
+from .params import KAPPA_MAX, ParameterError, Params
 
 __all__ = ["AXIS_NAMES", "DiagramResult", "stability_diagram", "OUTCOMES", "MAX_POINTS"]
 
@@ -183,17 +183,17 @@ def _axis(name: str, values: ArrayLike) -> NDArray[np.float64]:
 
 def _check_values(name: str, a: NDArray[np.float64]) -> None:
     if name == "ba":
-        bad = ~((a > 1.0) & (a <= BA_MAX))
-        valid = f"(1, {BA_MAX:g}]"
+        bad = lim.BA.bad_mask(a)
+        valid = lim.BA.text
     elif name == "eps":
-        bad = ~((a >= 0.0) & (a <= 1.0))
-        valid = "[0, 1]"
+        bad = lim.EPS.bad_mask(a)
+        valid = lim.EPS.text
     elif name == "kappa_ratio":
-        bad = ~(a >= 0.0)
+        bad = lim.KAPPA_RATIO.bad_mask(a)
         valid = "[0, 1e6/(b/a - 1)]"
     else:
-        bad = ~(a >= 0.0)
-        valid = "[0, inf) (the critical size refers to positive perturbations)"
+        bad = lim.DIAGRAM_SIZE.bad_mask(a)
+        valid = lim.DIAGRAM_SIZE.text + " (the critical size refers to positive perturbations)"
     if np.any(bad):
         raise ParameterError(name, float(a[np.argmax(bad)]), valid)
 
@@ -205,8 +205,8 @@ def stability_diagram(
     y_values: ArrayLike,
     *,
     ba: float = 2.0,
-    kappa_ratio: float = 1.0,
-    eps: float = 0.0,
+    kappa_ratio: float = 2.0,
+    eps: float = 0.25,
     vo: float = 1.0,
     perturbation: str = "velocity-jump",
     size: float | None = None,
@@ -218,7 +218,8 @@ def stability_diagram(
         x_name, y_name: two different names from AXIS_NAMES.
         x_values, y_values: 1-D finite values (ba in (1, 1e6], eps in [0, 1],
             kappa_ratio >= 0 with kappa = kappa_ratio (b/a - 1) <= 1e6, size >= 0).
-        ba, kappa_ratio, eps, vo: the parameters not on an axis (vo = 0 or > 0).
+        ba, kappa_ratio, eps, vo: the parameters not on an axis (vo = 0 or > 0); defaults
+            b/a = 2, kappa/kappa_crit = 2, eps = 0.25, v_o = 1 (rsfcore.limits).
         perturbation: "velocity-jump" or "load-point-jump" (the latter needs vo > 0).
         size: perturbation size for the outcome mode (not with a "size" axis), >= 0.
         rtol: requested relative accuracy of the finite critical sizes, [1e-13, 1e-3].
@@ -236,7 +237,7 @@ def stability_diagram(
         raise ParameterError("y_name", y_name, f"an axis different from x_name={x_name!r}")
     if perturbation not in PERTURBATIONS:
         raise ParameterError("perturbation", perturbation, "one of " + ", ".join(PERTURBATIONS))
-    rtol = check_range("rtol", rtol, RTOL_RANGE[0], RTOL_RANGE[1])
+    rtol = lim.RTOL.check(rtol)
     xv = _axis(x_name, x_values)
     yv = _axis(y_name, y_values)
     _check_values(x_name, xv)
@@ -250,7 +251,7 @@ def stability_diagram(
     if size_axis and size is not None:
         raise ParameterError("size", size, "None when 'size' is an axis")
     if size is not None:
-        size = check_range("size", size, 0.0, None)
+        size = lim.DIAGRAM_SIZE.check(size)
     pert = PERTURBATIONS.index(perturbation)
     if pert == 1 and p_fixed.vo == 0.0:
         raise ParameterError("vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)")

@@ -15,6 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from . import limits as lim
+from .errors import ParameterError
+from .limits import BA_MAX, KAPPA_MAX, VO_MAX, check_range
+
 __all__ = [
     "ParameterError",
     "Params",
@@ -22,57 +26,15 @@ __all__ = [
     "BA_MAX",
     "KAPPA_MAX",
     "VO_MAX",
+    "check_range",
 ]
 
-#: Largest accepted b/a. Beyond it kappa_crit ~ b/a and nothing new happens, while
-#: excursions need ever finer steps.
-BA_MAX = 1.0e6
-#: Largest accepted kappa. The explicit integrator's step shrinks like 1/kappa, so
-#: 1e6 keeps one trajectory within a few seconds.
-KAPPA_MAX = 1.0e6
-#: Largest accepted v_o = V_o/V_* (|ln v_o| <= ~690 keeps every exponential finite).
-VO_MAX = 1.0e300
-
-
-class ParameterError(ValueError):
-    """An input is outside its valid range. ``field`` names it, ``valid`` states the range."""
-
-    def __init__(self, field: str, value: object, valid: str) -> None:
-        self.field = field
-        self.value = value
-        self.valid = valid
-        super().__init__(f"{field}={value!r} is invalid: valid range is {valid}")
+# BA_MAX (largest b/a), KAPPA_MAX (largest kappa) and VO_MAX (largest v_o) and every other
+# range live in rsfcore.limits; they are re-exported here for old import paths.
 
 
 def _finite(name: str, value: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, "a finite real number") from None
-    if not math.isfinite(v):
-        raise ParameterError(name, value, "a finite real number")
-    return v
-
-
-def check_range(
-    name: str,
-    value: float,
-    lo: float | None = None,
-    hi: float | None = None,
-    *,
-    lo_open: bool = False,
-    hi_open: bool = False,
-) -> float:
-    """Return ``float(value)`` or raise :class:`ParameterError` naming ``name`` and the range."""
-    v = _finite(name, value)
-    if (lo is not None and (v < lo or (lo_open and v == lo))) or (
-        hi is not None and (v > hi or (hi_open and v == hi))
-    ):
-        lo_s = "(" if lo_open else "["
-        hi_s = ")" if hi_open else "]"
-        desc = f"{lo_s}{'-inf' if lo is None else repr(lo)}, {'inf' if hi is None else repr(hi)}{hi_s}"
-        raise ParameterError(name, value, desc)
-    return v
+    return lim.check_finite(name, value)
 
 
 @dataclass(frozen=True)
@@ -93,16 +55,16 @@ class Params:
     vo: float = 1.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "ba", check_range("ba", self.ba, 1.0, BA_MAX, lo_open=True))
-        object.__setattr__(self, "kappa", check_range("kappa", self.kappa, 0.0, KAPPA_MAX))
-        object.__setattr__(self, "eps", check_range("eps", self.eps, 0.0, 1.0))
-        object.__setattr__(self, "vo", check_range("vo", self.vo, 0.0, VO_MAX))
+        object.__setattr__(self, "ba", lim.BA.check(self.ba))
+        object.__setattr__(self, "kappa", lim.KAPPA.check(self.kappa))
+        object.__setattr__(self, "eps", lim.EPS.check(self.eps))
+        object.__setattr__(self, "vo", lim.VO.check(self.vo))
 
     @classmethod
-    def from_ratio(cls, ba: float, kappa_ratio: float, eps: float, vo: float = 1.0) -> "Params":
+    def from_ratio(cls, ba: float, kappa_ratio: float, eps: float, vo: float = 1.0) -> Params:
         """Build from kappa/kappa_crit instead of kappa (kappa_ratio in [0, 1e6/(ba-1)])."""
-        ba = check_range("ba", ba, 1.0, BA_MAX, lo_open=True)
-        r = check_range("kappa_ratio", kappa_ratio, 0.0, None)
+        ba = lim.BA.check(ba)
+        r = lim.KAPPA_RATIO.check(kappa_ratio)
         return cls(ba=ba, kappa=r * (ba - 1.0), eps=eps, vo=vo)
 
     @property
@@ -115,7 +77,7 @@ class Params:
         """kappa / kappa_crit."""
         return self.kappa / self.kappa_crit
 
-    def with_(self, **changes: float) -> "Params":
+    def with_(self, **changes: float) -> Params:
         """Copy with some fields changed (validated again)."""
         return replace(self, **changes)
 
@@ -151,16 +113,16 @@ class PhysicalParams:
     f_star: float = field(default=0.6)
 
     def __post_init__(self) -> None:
-        a = check_range("a", self.a, 0.0, 1.0, lo_open=True)
+        a = lim.A.check(self.a)
         b = check_range("b", self.b, a, a * BA_MAX, lo_open=True)
         object.__setattr__(self, "a", a)
         object.__setattr__(self, "b", b)
-        object.__setattr__(self, "Dc", check_range("Dc", self.Dc, 0.0, None, lo_open=True))
-        object.__setattr__(self, "sigma", check_range("sigma", self.sigma, 0.0, None, lo_open=True))
-        object.__setattr__(self, "k", check_range("k", self.k, 0.0, None))
-        object.__setattr__(self, "V_star", check_range("V_star", self.V_star, 0.0, None, lo_open=True))
-        object.__setattr__(self, "Vo", check_range("Vo", self.Vo, 0.0, None))
-        object.__setattr__(self, "eps", check_range("eps", self.eps, 0.0, 1.0))
+        object.__setattr__(self, "Dc", lim.DC.check(self.Dc))
+        object.__setattr__(self, "sigma", lim.SIGMA.check(self.sigma))
+        object.__setattr__(self, "k", lim.K.check(self.k))
+        object.__setattr__(self, "V_star", lim.V_STAR.check(self.V_star))
+        object.__setattr__(self, "Vo", lim.VO_SI.check(self.Vo))
+        object.__setattr__(self, "eps", lim.EPS.check(self.eps))
         object.__setattr__(self, "f_star", _finite("f_star", self.f_star))
         # Validate the dimensionless image too, so that out-of-range combinations are
         # reported here with the physical field names.
@@ -205,12 +167,12 @@ class PhysicalParams:
         sigma: float,
         V_star: float,
         f_star: float = 0.6,
-    ) -> "PhysicalParams":
+    ) -> PhysicalParams:
         """Invert :meth:`to_dimensionless` given the scales a, Dc [m], sigma [Pa], V_* [m/s]."""
-        a = check_range("a", a, 0.0, 1.0, lo_open=True)
-        Dc = check_range("Dc", Dc, 0.0, None, lo_open=True)
-        sigma = check_range("sigma", sigma, 0.0, None, lo_open=True)
-        V_star = check_range("V_star", V_star, 0.0, None, lo_open=True)
+        a = lim.A.check(a)
+        Dc = lim.DC.check(Dc)
+        sigma = lim.SIGMA.check(sigma)
+        V_star = lim.V_STAR.check(V_star)
         return cls(
             a=a,
             b=p.ba * a,

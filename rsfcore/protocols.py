@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 from .analytic import delta_tau
 from .engine import blowup_tail, integrate
 from .laws import L_star
+from . import limits as lim
 from .params import VO_MAX, ParameterError, PhysicalParams, check_range
 
 __all__ = [
@@ -68,8 +69,6 @@ __all__ = [
 PHI_STOP = 40.0
 #: Budget of accepted + rejected steps per segment.
 MAX_STEPS = 5_000_000
-RTOL_RANGE = (1e-14, 1e-3)
-N_POINTS_RANGE = (2, 100_000)
 
 _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, 5))
@@ -268,10 +267,6 @@ def _run(y0: NDArray[np.float64], c: _Ctx, t_end: float, sample_T=_EMPTY, sample
 # ---------------------------------------------------------------------------------------
 # Public protocols
 # ---------------------------------------------------------------------------------------
-def _check_rtol(rtol: float) -> float:
-    return check_range("rtol", rtol, RTOL_RANGE[0], RTOL_RANGE[1])
-
-
 def load_history(
     phys: PhysicalParams,
     segments: Sequence[tuple[float, float]],
@@ -289,7 +284,7 @@ def load_history(
             Vo/V_* <= 1e300.
         n_points_per_segment: output samples per segment, evenly spaced in time
             (both ends included), [2, 100000].
-        rtol: relative (and absolute) local tolerance of the DOP853 engine, [1e-14, 1e-3].
+        rtol: relative (and absolute) local tolerance of the DOP853 engine, [1e-13, 1e-3].
         start: "steady" (steady state at the first segment's V_o, or at V_* if that V_o
             is 0: V = V_o, theta = Dc/V_o, f = f_ss(V_o), `eq: steady state`) or an
             explicit (V_m_s > 0, theta_s > 0) with tau on the friction law
@@ -306,8 +301,8 @@ def load_history(
     """
     if not isinstance(phys, PhysicalParams):
         raise ParameterError("phys", phys, "a PhysicalParams instance")
-    rtol = _check_rtol(rtol)
-    npts = int(check_range("n_points_per_segment", n_points_per_segment, *N_POINTS_RANGE))
+    rtol = lim.RTOL.check(rtol)
+    npts = lim.N_POINTS.check_int(n_points_per_segment, "n_points_per_segment")
     segs: list[tuple[float, float]] = []
     try:
         seg_list = list(segments)
@@ -513,7 +508,7 @@ def velocity_step(
         slip_total_m: load-point displacement after the step [m] (default 10 Dc;
             `eq: delta tau` has then decayed to e^-10 of its initial value).
         n_points: output samples (evenly spaced in time), [2, 100000].
-        rtol: engine tolerance, [1e-14, 1e-3].
+        rtol: engine tolerance, [1e-13, 1e-3].
 
     `eq: delta tau` holds for an infinitely stiff machine (V = V2 right after the step);
     the simulated curve converges to it as kappa -> infinity with max deviation O(1/kappa)

@@ -112,11 +112,12 @@ def test_other_axes_and_load_point():
 
 def test_save_formats(tmp_path):
     d = stability_diagram("kappa_ratio", [1.0, 2.0, 6.0], "eps", [0.0, 0.25], size=2.0)
-    z = np.load(d.save(tmp_path / "g.npz"))
-    assert z["critical_size"].shape == (3, 2) and np.isinf(z["critical_size"][2, 1])
-    assert np.array_equal(z["x"], d.x) and np.array_equal(z["y"], d.y) and "outcome" in z.files
-    assert json.loads(str(z["meta"]))["x_name"] == "kappa_ratio"
-    rows = list(csv.DictReader(open(d.save(tmp_path / "g.csv"))))
+    with np.load(d.save(tmp_path / "g.npz")) as z:
+        assert z["critical_size"].shape == (3, 2) and np.isinf(z["critical_size"][2, 1])
+        assert np.array_equal(z["x"], d.x) and np.array_equal(z["y"], d.y) and "outcome" in z.files
+        assert json.loads(str(z["meta"]))["x_name"] == "kappa_ratio"
+    with open(d.save(tmp_path / "g.csv"), newline="") as fh:
+        rows = list(csv.DictReader(fh))
     assert len(rows) == 6 and rows[5]["critical_size"] == "inf" and rows[0]["kind"] == "finite"
     js = json.loads((d.save(tmp_path / "g.json")).read_text())
     assert js["critical_size"][2][1] is None and js["y_name"] == "eps"
