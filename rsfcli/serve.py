@@ -1,9 +1,20 @@
-"""`rsf serve`: the API (uvicorn) plus one embedded Celery worker subprocess.
+"""`rsf serve`, `rsf api`, `rsf worker`: the processes of a deployment.
 
-The worker uses the filesystem broker and the SQLite cache under ``data_dir`` unless
-``RSF_BROKER_URL`` / ``RSF_CACHE_URL`` say otherwise.  The worker is restarted if it
-dies; on exit (Ctrl-C / SIGTERM) uvicorn stops first, then the worker gets a warm
-shutdown (finishes its current chunk; unfinished chunks are requeued at next start).
+* ``rsf serve``: the API (uvicorn) plus one embedded Celery worker subprocess (one
+  machine, nothing to install: filesystem broker and SQLite under ``data_dir``).
+* ``rsf api [--workers N]``: HTTP only, N uvicorn processes; they share nothing but
+  the database and the broker.
+* ``rsf worker [--concurrency N]``: a Celery worker; needs only ``RSF_BROKER_URL`` and
+  ``RSF_CACHE_URL`` (no disk shared with the API or other workers).
+
+Every process reads the same ``RSF_*`` settings.  Before starting, each command opens
+the database (creating or migrating its schema) and, if that fails, says what is wrong
+and how to recover, without a traceback: a damaged or too-new database stops it at once
+(exit status 1); an unreachable one is waited for up to ``--wait-db`` seconds first.
+
+In ``rsf serve`` the worker is restarted if it dies; on exit (Ctrl-C / SIGTERM)
+uvicorn stops first, then the worker gets a warm shutdown (finishes its current chunk;
+a chunk left unfinished is requeued by a reaper when its lease expires).
 """
 from __future__ import annotations
 
@@ -15,18 +26,62 @@ import threading
 import time
 from pathlib import Path
 
-__all__ = ["serve", "worker_command"]
+__all__ = ["StartupError", "api", "check_database", "serve", "worker", "worker_command"]
+
+
+class StartupError(SystemExit):
+    """Start-up refused: the message says what is wrong and how to recover."""
+
+
+def check_database(wait_s: float = 60.0, who: str = "rsf") -> None:
+    """Open the configured database and ensure its schema, or raise
+    :class:`StartupError` with a message (no traceback).
+
+    Args:
+        wait_s: how long an unreachable database server is waited for [s], >= 0.
+        who: the command, for messages.
+    """
+    from rsfapp.config import get_settings
+    from rsfapp.db.engine import database, diagnose
+
+    s = get_settings()
+    url = s.effective_cache_url
+    deadline = time.monotonic() + wait_s
+    said = False
+    while True:
+        try:
+            database(url).ensure_schema()
+            if said:
+                print(f"[{who}] database is back", file=sys.stderr)
+            return
+        except Exception as exc:  # noqa: BLE001 - turned into a message below
+            p = diagnose(exc, url)
+            if p is None:
+                raise
+            if p.kind in ("damaged", "schema") or time.monotonic() >= deadline:
+                msg = (f"[{who}] cannot start: {p.reason}\n"
+                       f"[{who}] how to recover: {p.hint}")
+                raise StartupError(msg) from None
+            if not said:
+                print(f"[{who}] waiting up to {wait_s:g} s for the database: {p.reason}",
+                      file=sys.stderr)
+                said = True
+            time.sleep(1.0)
 
 
 def worker_command(concurrency: int | None = None, pool: str = "prefork",
-                   name: str = "rsf-embedded") -> list[str]:
-    """Command line of a Celery worker for this project."""
+                   name: str = "rsf-embedded", loglevel: str = "INFO") -> list[str]:
+    """Command line of a Celery worker for this project.
+
+    The node name is ``{name}-{pid}@{RSF_NODE}`` (RSF_NODE defaults to the host name),
+    unique per process and naming its host."""
     from rsfapp.config import get_settings
+    s = get_settings()
     conc = concurrency or max(1, os.cpu_count() or 1)
     return [sys.executable, "-m", "celery", "-A", "worker.celery_app:app", "worker",
-            "-Q", get_settings().queue, f"--pool={pool}", f"--concurrency={conc}",
-            "--loglevel=INFO", "--without-gossip", "--without-mingle", "--without-heartbeat",
-            "-n", f"{name}-{os.getpid()}@%h"]
+            "-Q", s.queue, f"--pool={pool}", f"--concurrency={conc}",
+            f"--loglevel={loglevel}", "--without-gossip", "--without-mingle",
+            "--without-heartbeat", "-n", f"{name}-{os.getpid()}@{s.node}"]
 
 
 def _die_with_parent() -> None:
@@ -103,6 +158,7 @@ def serve(host: str = "127.0.0.1", port: int = 8000, data_dir: str | Path = "rsf
     data = Path(data_dir).expanduser().resolve()
     data.mkdir(parents=True, exist_ok=True)
     os.environ["RSF_DATA_DIR"] = str(data)
+    check_database(who="rsf serve")
     env = dict(os.environ)
     sup = _Supervisor(worker_command(concurrency), env, data / "worker.log")
     sup.start()
@@ -116,3 +172,39 @@ def serve(host: str = "127.0.0.1", port: int = 8000, data_dir: str | Path = "rsf
         sup.stop()
         for sig, h in prev.items():
             signal.signal(sig, h)
+
+
+def api(host: str = "127.0.0.1", port: int = 8000, workers: int = 1,
+        wait_db_s: float = 60.0) -> None:
+    """Run the HTTP API only (no worker) in ``workers`` uvicorn processes.
+
+    Args:
+        host: interface to bind.
+        port: TCP port, 1..65535.
+        workers: API processes, >= 1; they keep no state another process needs
+            (results, jobs, sweeps and failures live in the database).
+        wait_db_s: how long to wait for an unreachable database at start [s].
+    """
+    import uvicorn
+
+    if workers < 1:
+        raise StartupError(f"[rsf api] --workers must be >= 1 (got {workers})")
+    check_database(wait_db_s, who="rsf api")
+    uvicorn.run("service.app:app", host=host, port=port, workers=workers,
+                log_level="info", timeout_graceful_shutdown=10)
+
+
+def worker(concurrency: int | None = None, loglevel: str = "INFO",
+           wait_db_s: float = 60.0) -> None:
+    """Replace this process with a Celery worker (``concurrency`` processes, default
+    the CPU count) on ``RSF_BROKER_URL`` and ``RSF_CACHE_URL``.
+
+    With the default filesystem broker and SQLite the worker must run on the API's
+    machine (same ``RSF_DATA_DIR``); with Redis and PostgreSQL it may run anywhere."""
+    if concurrency is not None and concurrency < 1:
+        raise StartupError(f"[rsf worker] --concurrency must be >= 1 (got {concurrency})")
+    check_database(wait_db_s, who="rsf worker")
+    cmd = worker_command(concurrency, name="rsf", loglevel=loglevel)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execv(cmd[0], cmd)
