@@ -14,14 +14,15 @@ query (answered 202 + Location when still computing after ``RSF_INLINE_BUDGET_S`
 """
 from __future__ import annotations
 
+import json
 from functools import partial
+from typing import Any
 
 from fastapi import APIRouter
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
 from rsfapp import adapter
-from rsfapp.keys import canonical
 from rsfapp.requests.batch import BatchRequest, ClassifyBatchRequest, CriticalBatchRequest
 
 from ..errors import ProblemError
@@ -48,7 +49,7 @@ async def critical_batch(req: CriticalBatchRequest, ctx: CtxDep) -> Response:
     _check_size(req, ctx.settings.batch_max_items)
     async with ctx.inflight.limiter:
         result = await run_in_threadpool(adapter.critical_batch, req.items)
-        text = await run_in_threadpool(canonical, result)
+        text = await run_in_threadpool(_dumps, result)
     return Response(text, media_type="application/json")
 
 
@@ -64,3 +65,7 @@ async def classify_batch(req: ClassifyBatchRequest, ctx: CtxDep) -> Response:
 
 def _classify_items(req: ClassifyBatchRequest, quick_steps: int) -> dict[str, object]:
     return adapter.classify_batch(req.items, max_steps=quick_steps)
+
+
+def _dumps(result: dict[str, Any]) -> str:
+    return json.dumps(result, separators=(",", ":"), allow_nan=False)
