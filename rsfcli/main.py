@@ -289,8 +289,12 @@ def serve(
 def api(
     host: str = typer.Option("127.0.0.1", "--host", help="Interface to bind."),
     port: int = typer.Option(8000, "--port", help="TCP port."),
-    workers: int = typer.Option(1, "--workers", min=1, help="API processes (share nothing but the database and broker)."),
-    wait_db: float = typer.Option(60.0, "--wait-db", min=0, help="Seconds to wait for an unreachable database at start."),
+    workers: int = typer.Option(
+        1, "--workers", min=1, help="API processes (share only the database and broker)."
+    ),
+    wait_db: float = typer.Option(
+        60.0, "--wait-db", min=0, help="Seconds to wait for an unreachable database at start."
+    ),
 ) -> None:
     """Start the HTTP API only (no worker); workers run with `rsf worker`, anywhere."""
     from .serve import api as _api
@@ -300,9 +304,13 @@ def api(
 
 @app.command()
 def worker(
-    concurrency: Optional[int] = typer.Option(None, "--concurrency", min=1, help="Worker processes (default: CPU count)."),
+    concurrency: int | None = typer.Option(
+        None, "--concurrency", min=1, help="Worker processes (default: CPU count)."
+    ),
     loglevel: str = typer.Option("INFO", "--loglevel", help="Celery log level."),
-    wait_db: float = typer.Option(60.0, "--wait-db", min=0, help="Seconds to wait for an unreachable database at start."),
+    wait_db: float = typer.Option(
+        60.0, "--wait-db", min=0, help="Seconds to wait for an unreachable database at start."
+    ),
 ) -> None:
     """Start a Celery worker; needs only RSF_BROKER_URL and RSF_CACHE_URL (no shared disk)."""
     from .serve import worker as _worker
