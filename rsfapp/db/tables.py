@@ -5,15 +5,19 @@
 * ``jobs``: long single queries sent to the queue (:mod:`rsfapp.store.jobs`);
 * ``sweeps``, ``sweep_chunks``, ``sweep_points``: sweep bookkeeping and results
   (:mod:`rsfapp.store.sweeps`);
+* ``sweep_blocks``, ``sweep_inputs``: sweep results as compressed arrays, one row per
+  chunk (``sweep_points`` is the pre-array layout, no longer written), and the scattered
+  points of a sweep (:mod:`rsfapp.store.sweeps`);
 * ``api_keys``, ``key_usage``, ``sweep_owners``: hashed API keys, their daily usage and
   the key that submitted each sweep (:mod:`rsfapp.store.keys`).
 """
 from __future__ import annotations
 
-from sqlalchemy import Column, Float, ForeignKey, Integer, MetaData, String, Table, Text
+from sqlalchemy import (Column, Float, ForeignKey, Integer, LargeBinary, MetaData, String, Table,
+                        Text)
 
 __all__ = ["metadata", "results", "jobs", "sweeps", "chunks", "points", "api_keys", "key_usage",
-           "sweep_owners"]
+           "sweep_owners", "sweep_blocks", "sweep_inputs"]
 
 metadata = MetaData()
 
@@ -101,4 +105,26 @@ sweep_owners = Table(
     "sweep_owners", metadata,
     Column("sweep_id", String(64), primary_key=True),
     Column("owner", String(64), nullable=False, index=True),
+)
+
+# Sweep results: one row per finished chunk, its points [i0, i1) as compressed numpy
+# arrays (``data``, an .npz), ``errors`` a JSON object {offset in chunk: message} of the
+# failed points.  Written once (primary key), so a chunk computed twice is stored once.
+sweep_blocks = Table(
+    "sweep_blocks", metadata,
+    Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
+    Column("idx", Integer, primary_key=True),
+    Column("i0", Integer, nullable=False),
+    Column("i1", Integer, nullable=False),
+    Column("n_failed", Integer, nullable=False),
+    Column("data", LargeBinary, nullable=False),
+    Column("errors", Text),
+    Column("created_at", Float, nullable=False),
+)
+
+# The scattered points of a sweep (compressed .npz of one float64 array per parameter).
+sweep_inputs = Table(
+    "sweep_inputs", metadata,
+    Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
+    Column("data", LargeBinary, nullable=False),
 )
