@@ -1,8 +1,9 @@
-"""Shared fixtures: free ports, real uvicorn / Celery worker / redis-server processes.
+"""Shared fixtures: free ports, real uvicorn / Celery worker / redis-server /
+PostgreSQL processes.
 
 Every process is started by us, on 127.0.0.1, with its own data directory, and is
 stopped by its pid (process group) at teardown.  Under CI=true a missing redis-server
-is a failure, not a skip.
+or PostgreSQL server is a failure, not a skip.
 """
 from __future__ import annotations
 
@@ -145,14 +146,22 @@ class Worker(Proc):
 
 
 class Redis(Proc):
-    """redis-server on 127.0.0.1:<free port>, no persistence."""
+    """redis-server on 127.0.0.1:<free port>; with ``persist`` an append-only file
+    fsynced on every write (as docker-compose.yml runs it), so :meth:`restart` keeps
+    the queued messages."""
 
-    def __init__(self, exe: str, data_dir: Path) -> None:
+    def __init__(self, exe: str, data_dir: Path, persist: bool = False) -> None:
+        self.exe, self.dir, self.persist = exe, data_dir, persist
         self.port = free_port()
         self.url = f"redis://127.0.0.1:{self.port}/0"
-        super().__init__([exe, "--port", str(self.port), "--bind", "127.0.0.1", "--save", "",
-                          "--appendonly", "no", "--dir", str(data_dir)], dict(os.environ),
-                         data_dir / "redis.log")
+        self._start()
+
+    def _start(self) -> None:
+        durability = (["--appendonly", "yes", "--appendfsync", "always"] if self.persist
+                      else ["--appendonly", "no"])
+        super().__init__([self.exe, "--port", str(self.port), "--bind", "127.0.0.1",
+                          "--save", "", *durability, "--dir", str(self.dir)],
+                         dict(os.environ), self.dir / "redis.log")
         import redis
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
@@ -163,6 +172,100 @@ class Redis(Proc):
                 time.sleep(0.05)
         self.stop()
         raise RuntimeError("redis-server did not start:\n" + self.tail())
+
+    def restart(self, down_s: float = 0.0) -> None:
+        """Stop (SIGTERM: clean shutdown), stay down ``down_s`` seconds, start again on
+        the same port and directory."""
+        self.stop()
+        time.sleep(down_s)
+        self._start()
+
+
+def postgres_bindir() -> Path | None:
+    """Directory of initdb/pg_ctl/postgres: on PATH, else the newest
+    /usr/lib/postgresql/<version>/bin (Debian's layout)."""
+    exe = shutil.which("initdb")
+    if exe and shutil.which("pg_ctl"):
+        return Path(exe).resolve().parent
+    found = sorted(Path("/usr/lib/postgresql").glob("*/bin/initdb"),
+                   key=lambda p: float(p.parent.parent.name)
+                   if p.parent.parent.name.replace(".", "").isdigit() else 0.0)
+    return found[-1].parent if found else None
+
+
+class Postgres:
+    """A throw-away PostgreSQL cluster: initdb in a private temporary directory, run by
+    an unprivileged user (PostgreSQL refuses root: when we are root it runs as the
+    ``postgres`` account, else ``nobody``), listening on 127.0.0.1:<free port>, trust
+    authentication for the local user ``rsf``, fsync off (test data only).
+
+    :meth:`stop` / :meth:`start` / :meth:`restart` act on the same cluster and port;
+    :meth:`destroy` removes it."""
+
+    def __init__(self, bindir: Path) -> None:
+        import pwd
+        import tempfile
+        self.bin = bindir
+        self.dir = Path(tempfile.mkdtemp(prefix="rsf-pg-"))
+        self.user: int | None = None
+        self.group: int | None = None
+        if os.geteuid() == 0:
+            try:
+                pw = pwd.getpwnam("postgres")
+            except KeyError:
+                pw = pwd.getpwnam("nobody")
+            self.user, self.group = pw.pw_uid, pw.pw_gid
+            os.chown(self.dir, pw.pw_uid, pw.pw_gid)
+        self.data = self.dir / "data"
+        self.port = free_port()
+        self.url = f"postgresql+psycopg://rsf@127.0.0.1:{self.port}/postgres"
+        self._run([str(bindir / "initdb"), "-D", str(self.data), "-U", "rsf",
+                   "--auth=trust", "-E", "UTF8", "--no-sync"])
+        self.start()
+
+    def _run(self, cmd: list[str], check: bool = True) -> subprocess.CompletedProcess[str]:
+        r = subprocess.run(cmd, user=self.user, group=self.group, capture_output=True,
+                           text=True, timeout=120, cwd=self.dir)
+        if check and r.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stdout}"
+                               f"\n{r.stderr}\n{self.tail()}")
+        return r
+
+    def tail(self, n: int = 4000) -> str:
+        try:
+            return (self.dir / "postgres.log").read_text(errors="replace")[-n:]
+        except OSError:
+            return ""
+
+    def start(self) -> None:
+        """Start the server and wait until it accepts connections."""
+        self._run([str(self.bin / "pg_ctl"), "-D", str(self.data), "-l",
+                   str(self.dir / "postgres.log"), "-w", "-t", "60", "-o",
+                   f"-p {self.port} -k {self.dir} -c listen_addresses=127.0.0.1 "
+                   "-c fsync=off -c max_connections=200", "start"])
+
+    def stop(self, mode: str = "fast") -> None:
+        """Stop the server (``fast``: disconnect clients, clean shutdown)."""
+        self._run([str(self.bin / "pg_ctl"), "-D", str(self.data), "-m", mode, "-w",
+                   "-t", "60", "stop"], check=False)
+
+    def restart(self, down_s: float = 0.0) -> None:
+        """Stop, stay down ``down_s`` seconds, start on the same port."""
+        self.stop()
+        time.sleep(down_s)
+        self.start()
+
+    def destroy(self) -> None:
+        """Stop (immediate) and delete the cluster."""
+        self.stop("immediate")
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+
+def _required(msg: str) -> None:
+    """Skip locally; under CI=true a missing part fails the run (never a silent skip)."""
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(msg + " -- required under CI=true")
+    pytest.skip(msg)
 
 
 @pytest.fixture
@@ -179,11 +282,34 @@ def redis_exe() -> str:
     """Path of redis-server; skipped locally if absent, a failure under CI=true."""
     exe = shutil.which("redis-server")
     if exe is None:
-        msg = "redis-server not installed (apt-get install -y redis-server)"
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(msg + " -- required under CI=true")
-        pytest.skip(msg)
+        _required("redis-server not installed (apt-get install -y redis-server)")
+    assert exe is not None
     return exe
+
+
+@pytest.fixture(scope="session")
+def postgres_bin() -> Path:
+    """Directory of PostgreSQL's server programs; skipped locally if absent, a failure
+    under CI=true."""
+    d = postgres_bindir()
+    if d is None:
+        _required("PostgreSQL server not installed (apt-get install -y postgresql)")
+    assert d is not None
+    try:
+        import psycopg  # noqa: F401
+    except ImportError:
+        _required("psycopg not installed (pip install -e '.[postgres]')")
+    return d
+
+
+@pytest.fixture
+def postgres(postgres_bin: Path) -> Iterator[Postgres]:
+    """A fresh PostgreSQL cluster for one test (about 1 s to create)."""
+    pg = Postgres(postgres_bin)
+    try:
+        yield pg
+    finally:
+        pg.destroy()
 
 
 @pytest.fixture(scope="module")
