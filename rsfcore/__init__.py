@@ -6,11 +6,9 @@ Pure numerical core (numpy/scipy/numba); no web or I/O code.  See docs/core-api.
 """
 from __future__ import annotations
 
-#: Bumped whenever any numerical result may change; part of every cache key.
-NUMERICS_VERSION = "1"
-
-from .params import ParameterError, Params, PhysicalParams  # noqa: E402
-from .trajectory import (  # noqa: E402
+from ._version import NUMERICS_VERSION
+from .params import ParameterError, Params, PhysicalParams
+from .trajectory import (
     Trajectory,
     TrajectoryResult,
     UndecidedError,

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .critical import BOUNDARY_RTOL
+from .jsonsafe import finite_or_none
 from .laws import L_star
 from .params import BA_MAX, KAPPA_MAX, ParameterError, Params, check_range
 
@@ -163,10 +164,6 @@ def max_unstable_kappa(ba: float, eps: float) -> float:
     return (b - 1.0) / e
 
 
-def _json_float(v: float) -> float | None:
-    return float(v) if math.isfinite(v) else None
-
-
 def boundaries_summary(ba: float, kappa: float, eps: float, vo: float = 1.0) -> dict[str, Any]:
     """All boundaries at one parameter point, JSON-safe (None where infinite/non-existent).
 
@@ -199,13 +196,13 @@ def boundaries_summary(ba: float, kappa: float, eps: float, vo: float = 1.0) -> 
         "kappa_crit": kc,
         "kappa_ratio": r,
         "x": x,
-        "L_star": _json_float(Ls) if x < 1.0 else None,
-        "eps_crit": _json_float(eps_crit(p.ba, p.kappa)),
+        "L_star": finite_or_none(Ls) if x < 1.0 else None,
+        "eps_crit": finite_or_none(eps_crit(p.ba, p.kappa)),
         "a_over_b": 1.0 / p.ba,
         "ab_crit": ab_crit(p.kappa, p.eps),
-        "max_unstable_kappa": _json_float(max_unstable_kappa(p.ba, p.eps)),
+        "max_unstable_kappa": finite_or_none(max_unstable_kappa(p.ba, p.eps)),
         "acceleration_possible": bool(acc),
-        "acceleration_L": _json_float(La) if acc else None,
+        "acceleration_L": finite_or_none(La) if acc else None,
         "acceleration_intercept": (p.ba * La) if acc else None,
         "regime": regime,
         "on_boundary": {"x_equals_1": bool(on_x1), "kappa_equals_kappa_crit": bool(on_kc)},

@@ -72,9 +72,10 @@ import numba as nb
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _coef
 
-from .analytic import _vjump_kcrit
-from .laws import G, L_star
 from . import limits as lim
+from .analytic import _vjump_kcrit
+from .errors import UndecidedError
+from .laws import G, L_star
 from .limits import DEFAULT_RTOL, RTOL_RANGE
 from .params import ParameterError, Params
 
@@ -89,6 +90,7 @@ __all__ = [
     "METHODS",
     "BOUNDARY_RTOL",
     "DEFAULT_RTOL",
+    "RTOL_RANGE",
 ]
 
 PERTURBATIONS: tuple[str, ...] = ("velocity-jump", "load-point-jump")
@@ -579,7 +581,7 @@ def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: f
     integrate_only=True asks classify to certify by integration alone (ignoring its
     closed-form shortcuts at kappa = kappa_crit and v_o = 0), to check closed forms.
     """
-    from .trajectory import UndecidedError, classify
+    from .trajectory import classify
 
     rtol, kind, val, acc, meth, flags, _, on_b = _first_decision(params, perturbation, rtol)
     if kind != KIND_FINITE:

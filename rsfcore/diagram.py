@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import NUMERICS_VERSION
+from . import limits as lim
+from ._version import NUMERICS_VERSION
 from .critical import (
     DEFAULT_RTOL,
     FLAG_FALLBACK,
@@ -42,7 +43,7 @@ from .critical import (
     bisect_critical,
     critical_batch,
 )
-from . import limits as lim
+from .jsonsafe import finite_list
 from .params import KAPPA_MAX, ParameterError, Params
 
 __all__ = ["AXIS_NAMES", "DiagramResult", "stability_diagram", "OUTCOMES", "MAX_POINTS"]
@@ -97,7 +98,7 @@ class DiagramResult:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dict: nested lists [i][j]; infinite critical sizes are null."""
-        cs = [[(float(v) if math.isfinite(v) else None) for v in row] for row in self.critical_size]
+        cs = finite_list(self.critical_size)
         d: dict[str, Any] = {
             "x_name": self.x_name,
             "x": self.x.tolist(),

@@ -1,4 +1,5 @@
 """JSON-safe conversion of results (numpy types -> Python, nan/inf -> None)."""
+
 from __future__ import annotations
 
 import math
@@ -7,7 +8,26 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["jsonsafe"]
+__all__ = ["jsonsafe", "finite_or_none", "finite_list"]
+
+
+def finite_or_none(x: float | None) -> float | None:
+    """``float(x)`` if it is finite, else None (None stays None): JSON has no inf/nan."""
+    if x is None:
+        return None
+    v = float(x)
+    return v if math.isfinite(v) else None
+
+
+def finite_list(a: Any) -> list[Any]:
+    """A numeric array (any shape) as nested lists of floats, with non-finite entries None."""
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim == 0:
+        return [finite_or_none(float(arr))]
+    return [
+        finite_or_none(v) if arr.ndim == 1 else finite_list(v)
+        for v in (arr.tolist() if arr.ndim == 1 else arr)
+    ]
 
 
 def jsonsafe(x: Any) -> Any:
@@ -25,8 +45,7 @@ def jsonsafe(x: Any) -> Any:
     if isinstance(x, (np.integer,)):
         return int(x)
     if isinstance(x, (float, np.floating)):
-        v = float(x)
-        return v if math.isfinite(v) else None
+        return finite_or_none(x)
     if isinstance(x, Path):
         return str(x)
     return x

@@ -46,10 +46,12 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from . import limits as lim
 from .analytic import delta_tau
 from .engine import blowup_tail, integrate
+from .errors import IntegrationBudgetError
+from .jsonsafe import finite_list, finite_or_none
 from .laws import L_star
-from . import limits as lim
 from .params import VO_MAX, ParameterError, PhysicalParams, check_range
 
 __all__ = [
@@ -74,19 +76,6 @@ _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, 5))
 
 
-class IntegrationBudgetError(RuntimeError):
-    """A segment needed more than MAX_STEPS steps (no runaway was certified)."""
-
-
-def _finite_or_none(x: float | None) -> float | None:
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-def _list(a: NDArray[np.float64]) -> list[float | None]:
-    return [v if math.isfinite(v) else None for v in np.asarray(a, dtype=np.float64).tolist()]
 
 
 def steady_state_friction(phys: PhysicalParams, V: float) -> float:
@@ -121,9 +110,9 @@ class Runaway:
     def to_dict(self) -> dict[str, Any]:
         return {
             "segment": self.segment,
-            "t_certificate_s": _finite_or_none(self.t_certificate_s),
+            "t_certificate_s": finite_or_none(self.t_certificate_s),
             "blowup_segment": self.blowup_segment,
-            "t_blowup_s": _finite_or_none(self.t_blowup_s),
+            "t_blowup_s": finite_or_none(self.t_blowup_s),
         }
 
 
@@ -164,14 +153,14 @@ class SegmentSummary:
             "index": self.index,
             "duration_s": float(self.duration_s),
             "Vo_m_s": float(self.Vo_m_s),
-            "t_start_s": _finite_or_none(self.t_start_s),
-            "t_end_s": _finite_or_none(self.t_end_s),
+            "t_start_s": finite_or_none(self.t_start_s),
+            "t_end_s": finite_or_none(self.t_end_s),
             "status": self.status,
-            "peak_friction": _finite_or_none(self.peak_friction),
-            "peak_friction_time_s": _finite_or_none(self.peak_friction_time_s),
+            "peak_friction": finite_or_none(self.peak_friction),
+            "peak_friction_time_s": finite_or_none(self.peak_friction_time_s),
             "peak_friction_where": self.peak_friction_where,
-            "peak_V_m_s": _finite_or_none(self.peak_V_m_s),
-            "peak_V_time_s": _finite_or_none(self.peak_V_time_s),
+            "peak_V_m_s": finite_or_none(self.peak_V_m_s),
+            "peak_V_time_s": finite_or_none(self.peak_V_time_s),
             "n_steps": int(self.n_steps),
         }
 
@@ -225,19 +214,19 @@ class ProtocolResult:
                 "V_star_m_s": p.V_star, "eps": p.eps, "f_star": p.f_star,
             },
             "rtol": self.rtol,
-            "rel_accuracy": _finite_or_none(self.rel_accuracy),
+            "rel_accuracy": finite_or_none(self.rel_accuracy),
             "unstable": self.unstable,
             "runaway": None if self.runaway is None else self.runaway.to_dict(),
             "segments": [s.to_dict() for s in self.segments],
-            "t_s": _list(self.t_s),
-            "friction": _list(self.friction),
-            "tau_change_Pa": _list(self.tau_change_Pa),
-            "V_m_s": _list(self.V_m_s),
-            "theta_s": _list(self.theta_s),
-            "slip_m": _list(self.slip_m),
-            "load_point_m": _list(self.load_point_m),
+            "t_s": finite_list(self.t_s),
+            "friction": finite_list(self.friction),
+            "tau_change_Pa": finite_list(self.tau_change_Pa),
+            "V_m_s": finite_list(self.V_m_s),
+            "theta_s": finite_list(self.theta_s),
+            "slip_m": finite_list(self.slip_m),
+            "load_point_m": finite_list(self.load_point_m),
             "segment": [int(i) for i in self.segment],
-            "Vo_m_s": _list(self.Vo_m_s),
+            "Vo_m_s": finite_list(self.Vo_m_s),
         }
 
 
@@ -481,10 +470,10 @@ class VelocityStepResult:
             "V2_m_s": self.V2_m_s,
             "kappa": self.kappa,
             "slip_after_m": self.slip_after_m,
-            "max_deviation": _finite_or_none(self.max_deviation),
-            "slip_since_step_m": _list(self.slip_since_step_m),
-            "delta_tau_over_b_sigma": _list(self.delta_tau_over_b_sigma),
-            "analytic_over_b_sigma": _list(self.analytic_over_b_sigma),
+            "max_deviation": finite_or_none(self.max_deviation),
+            "slip_since_step_m": finite_list(self.slip_since_step_m),
+            "delta_tau_over_b_sigma": finite_list(self.delta_tau_over_b_sigma),
+            "analytic_over_b_sigma": finite_list(self.analytic_over_b_sigma),
             "protocol": self.protocol.to_dict(),
         }
 
@@ -571,12 +560,12 @@ class SlideHoldSlideResult:
             "V_m_s": self.V_m_s,
             "hold_s": self.hold_s,
             "f_ss": self.f_ss,
-            "peak_friction": _finite_or_none(self.peak_friction),
-            "peak_time_s": _finite_or_none(self.peak_time_s),
-            "peak_time_after_reslide_s": _finite_or_none(self.peak_time_after_reslide_s),
-            "healing_delta_f": _finite_or_none(self.healing_delta_f),
-            "relaxation_delta_f": _finite_or_none(self.relaxation_delta_f),
-            "peak_V_reslide_m_s": _finite_or_none(self.peak_V_reslide_m_s),
+            "peak_friction": finite_or_none(self.peak_friction),
+            "peak_time_s": finite_or_none(self.peak_time_s),
+            "peak_time_after_reslide_s": finite_or_none(self.peak_time_after_reslide_s),
+            "healing_delta_f": finite_or_none(self.healing_delta_f),
+            "relaxation_delta_f": finite_or_none(self.relaxation_delta_f),
+            "peak_V_reslide_m_s": finite_or_none(self.peak_V_reslide_m_s),
             "protocol": self.protocol.to_dict(),
         }
 

@@ -31,10 +31,12 @@ from typing import Any, Literal, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from . import limits as lim
 from .analytic import U_kcrit
 from .engine import blowup_tail, integrate
+from .errors import BudgetExceeded, UndecidedError
+from .jsonsafe import finite_or_none
 from .laws import L_star
-from . import limits as lim
 from .limits import DEFAULT_RTOL, RTOL_RANGE, SIZE_MAX, STEP_BUDGET
 from .params import ParameterError, Params, PhysicalParams, check_range
 
@@ -47,6 +49,8 @@ __all__ = [
     "classify",
     "simulate",
     "DEFAULT_RTOL",
+    "RTOL_RANGE",
+    "SIZE_MAX",
 ]
 
 Perturbation = Literal["velocity-jump", "load-point-jump"]
@@ -66,18 +70,6 @@ EQ_TOL = 1e-6
 ACCURACY_FACTOR = 3.0
 #: Relative tolerance within which kappa is taken to equal kappa_crit (closed-form U applies).
 KCRIT_TOL = 1e-14
-
-
-class UndecidedError(RuntimeError):
-    """The integration could not certify an outcome within its budget.
-
-    ``reason`` is "budget" when the step budget ran out (a larger ``max_steps`` may
-    succeed) or "step_underflow" when the steps failed down to zero.
-    """
-
-    def __init__(self, message: str, reason: str = "budget") -> None:
-        super().__init__(message)
-        self.reason = reason
 
 
 @dataclass
@@ -144,7 +136,7 @@ class TrajectoryResult:
             "certificate": self.certificate,
             "blowup_time": self.blowup_time,
             "return_time": self.return_time,
-            "peak_phi": self.peak_phi if math.isfinite(self.peak_phi) else None,
+            "peak_phi": finite_or_none(self.peak_phi),
             "peak_time": self.peak_time,
             "rel_accuracy": self.rel_accuracy,
             "n_steps": self.n_steps,
@@ -401,11 +393,13 @@ def simulate(
         peak_phi, peak_T = math.inf, None
         complete = False
     else:
-        raise UndecidedError(
+        msg = (
             f"no certificate within {max_steps} steps ({STATUS_TEXT.get(int(status), status)}); "
-            f"params={p_run.as_dict()}, start=({phi0}, {psi0}), rtol={rtol}",
-            reason="step_underflow" if status == 5 else "budget",
+            f"params={p_run.as_dict()}, start=({phi0}, {psi0}), rtol={rtol}"
         )
+        if status == 5:
+            raise UndecidedError(msg, reason="step_underflow")
+        raise BudgetExceeded(msg)
 
     traj = None
     want = n_points > 0 or (times is not None and len(times) > 0)

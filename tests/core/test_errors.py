@@ -1,0 +1,50 @@
+"""rsfcore.errors: one exception hierarchy; the old import paths name the same classes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import rsfcore
+from rsfcore import errors, params, protocols, trajectory
+from rsfcore._version import NUMERICS_VERSION
+from rsfcore.jsonsafe import finite_list, finite_or_none, jsonsafe
+
+
+def test_hierarchy() -> None:
+    assert issubclass(errors.ParameterError, ValueError)
+    assert issubclass(errors.UndecidedError, RuntimeError)
+    assert issubclass(errors.BudgetExceeded, errors.UndecidedError)
+    assert issubclass(errors.IntegrationBudgetError, errors.BudgetExceeded)
+    assert errors.BudgetExceeded("x").reason == "budget"
+
+
+def test_old_import_paths_are_the_same_classes() -> None:
+    assert params.ParameterError is errors.ParameterError is rsfcore.ParameterError
+    assert trajectory.UndecidedError is errors.UndecidedError is rsfcore.UndecidedError
+    assert protocols.IntegrationBudgetError is errors.IntegrationBudgetError
+    assert rsfcore.NUMERICS_VERSION == NUMERICS_VERSION == "1"
+
+
+def test_budget_exhaustion_raises_budget_exceeded() -> None:
+    # b/a = 2, kappa = 2.5, eps = 0.25 (x = 0.625 < 1): a velocity jump of 1.0 needs far
+    # more than 5 steps to certify its return (no closed form applies): the budget runs out
+    with pytest.raises(errors.BudgetExceeded) as e:
+        rsfcore.classify(rsfcore.Params(2.0, 2.5, 0.25), "velocity-jump", 1.0, max_steps=5)
+    assert e.value.reason == "budget"
+
+
+def test_finite_helpers() -> None:
+    assert finite_or_none(None) is None
+    assert finite_or_none(math.inf) is None and finite_or_none(-math.inf) is None
+    assert finite_or_none(math.nan) is None
+    assert finite_or_none(np.float32(2.5)) == 2.5 and type(finite_or_none(np.float64(1.0))) is float
+    assert finite_list(np.array([1.0, np.inf, np.nan])) == [1.0, None, None]
+    assert finite_list(np.array([[1.0, -np.inf], [np.nan, 2.0]])) == [[1.0, None], [None, 2.0]]
+    assert finite_list(3.0) == [3.0]
+    assert jsonsafe({"a": np.array([np.inf, 1.0]), "b": np.float64(np.nan)}) == {
+        "a": [None, 1.0],
+        "b": None,
+    }
