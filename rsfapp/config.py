@@ -97,7 +97,7 @@ class Settings(BaseSettings):
     quota_points_per_day: int = Field(default=1_000_000, ge=0)
     quota_fresh_per_s: float = Field(default=10.0, gt=0)
     quota_concurrent_requests: int = Field(default=8, ge=1)
-    quota_trajectory_points: int = Field(default=10_000, ge=2)
+    quota_trajectory_points: int = Field(default=100_000, ge=2)
 
     @property
     def heartbeat_s(self) -> float:

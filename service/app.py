@@ -5,17 +5,19 @@ import logging
 from contextlib import asynccontextmanager
 from typing import AsyncIterator
 
-from fastapi import FastAPI
+from fastapi import Depends, FastAPI
 from starlette.concurrency import run_in_threadpool
 
 from rsfapp.config import get_settings
 from rsfapp.store import stores_for
 from rsfapp.warmup import warm_up
 
+from . import auth, contract, limits
 from .deps import Inflight
 from .errors import install_handlers
 from .routes import compute, docs, figures, meta, sweeps, ui
 from .routes import batch as batch_routes
+from .routes import protocols as protocol_routes
 
 __all__ = ["create_app", "app"]
 log = logging.getLogger("rsf.service")
@@ -40,11 +42,17 @@ def create_app() -> FastAPI:
         description="Non-linear slip-stability analysis of rate-and-state friction "
                     "(spring-slider). Dimensionless quantities unless stated; errors are "
                     "application/problem+json.",
+        # API keys on every route of the schema (service.auth; open: page, docs)
+        dependencies=[Depends(auth.guard)],
     )
     install_handlers(a)
+    auth.install(a)
+    limits.install(a)  # body/header limits, per-key rate limits, CORS if configured
+    contract.install(a)  # exact OpenAPI: problem+json, 202/400/401/403/413/429/431
     a.include_router(meta.router)
     a.include_router(compute.router)
     a.include_router(batch_routes.router)
+    a.include_router(protocol_routes.router)
     a.include_router(sweeps.router)
     a.include_router(figures.router)
     a.include_router(ui.router)

@@ -76,7 +76,7 @@ class Quotas:
     points_per_day: int = 1_000_000
     fresh_per_s: float = 10.0
     concurrent_requests: int = 8
-    trajectory_points: int = 10_000
+    trajectory_points: int = 100_000
 
     @classmethod
     def names(cls) -> list[str]:

@@ -1,0 +1,228 @@
+"""API keys on every endpoint of the OpenAPI schema: ``Authorization: Bearer <key>``.
+
+One app-level dependency, :func:`guard`, runs before every route.  Routes outside the
+schema (the dashboard page, its static files, the /docs pages, /openapi.json) are open,
+so a browser can load the page and then enter a key.  Every other route needs:
+
+* ``read``: every GET, and the single queries (classify, trajectory, critical, analytic
+  U, boundaries, stiffness, figures), cached results and sweeps;
+* ``submit``: submitting and cancelling sweeps, batch queries and fits (long work);
+* ``admin``: everything, including cancelling other keys' sweeps.
+
+Modes (``RSF_AUTH``): ``on`` always needs a key; ``off`` never does (every request is
+an anonymous admin); ``auto`` needs one once any key exists and, until then, serves
+anonymous requests only when they arrive on a loopback interface.
+
+Answers: 401 (no key, malformed, unknown or revoked key: one message for all, with
+``WWW-Authenticate: Bearer``), 403 (scope too small, or another key's sweep), both
+``application/problem+json``.  Keys are compared through their SHA-256 in constant time
+(:meth:`rsfapp.store.keys.KeyStore.verify`) and never logged or echoed.
+"""
+from __future__ import annotations
+
+import ipaddress
+import logging
+from dataclasses import dataclass, field
+from typing import Annotated, Any
+
+from fastapi import Depends, FastAPI, Request, Security
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from starlette.concurrency import run_in_threadpool
+from starlette.responses import Response
+
+from rsfapp.config import Settings
+from rsfapp.db.engine import Database
+from rsfapp.store.keys import KeyStore, Quotas, Scope, hash_key
+
+from .deps import SettingsDep, StoresDep
+from .errors import ProblemError, problem
+
+__all__ = ["AuthError", "Principal", "PrincipalDep", "RESPONSES", "bearer", "current",
+           "get_key_store", "guard", "install", "needed_scope", "quotas_of", "scope_for"]
+log = logging.getLogger("rsf.service")
+
+#: The security scheme shown in OpenAPI (and the Swagger UI "Authorize" button).
+bearer = HTTPBearer(
+    auto_error=False, scheme_name="ApiKey", bearerFormat="rsf_<43 URL-safe characters>",
+    description="An API key made by `rsf keys create --name NAME --scope read|submit|admin`, "
+                "sent as `Authorization: Bearer <key>`.  Needed on every endpoint once the "
+                "server has a key (or with RSF_AUTH=on).")
+
+#: Answers every protected operation may give (documented on each one).
+RESPONSES: dict[int | str, dict[str, Any]] = {
+    401: {"description": "No API key, or an unknown, malformed or revoked one "
+                         "(problem+json; header `WWW-Authenticate: Bearer`)."},
+    403: {"description": "The key's scope does not allow this request, or the sweep "
+                         "belongs to another key (problem+json)."},
+}
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who is asking.
+
+    Attributes:
+        name: key name, or None for an anonymous request (auth off, or loopback
+            without any key in ``auto`` mode).
+        scope: what the request may do (anonymous requests are admin).
+        quotas: limits of the key (defaults for anonymous requests, not enforced).
+        key_id: SHA-256 of the key (identifies its rate-limit bucket), None if anonymous.
+    """
+
+    name: str | None
+    scope: Scope
+    quotas: Quotas = field(default_factory=Quotas)
+    key_id: str | None = None
+
+    @property
+    def anonymous(self) -> bool:
+        """True when no key was used (no quotas, no ownership)."""
+        return self.name is None
+
+
+class AuthError(Exception):
+    """401 or 403 answered as problem+json."""
+
+    def __init__(self, status: int, detail: str) -> None:
+        super().__init__(detail)
+        self.status, self.detail = status, detail
+
+
+_UNAUTHORIZED = ("a valid API key is required: send 'Authorization: Bearer <key>' "
+                 "(keys are made with 'rsf keys create')")
+_NO_KEYS_REMOTE = ("this server has no API key yet and answers requests without a key only "
+                   "on its loopback interface; create one with 'rsf keys create --name NAME' "
+                   "and send it as 'Authorization: Bearer <key>'")
+
+_key_stores: dict[int, KeyStore] = {}
+
+
+def get_key_store(stores: StoresDep) -> KeyStore:
+    """The key store of the configured database (one per database and process)."""
+    db: Database = stores.db
+    ks = _key_stores.get(id(db))
+    if ks is None or ks.db is not db:
+        ks = _key_stores[id(db)] = KeyStore(db)
+    return ks
+
+
+KeyStoreDep = Annotated[KeyStore, Depends(get_key_store)]
+
+
+def quotas_of(settings: Settings, overrides: dict[str, Any] | None = None) -> Quotas:
+    """The default quotas of ``settings`` with a key's ``overrides``."""
+    q = Quotas(concurrent_sweeps=settings.quota_concurrent_sweeps,
+               points_per_day=settings.quota_points_per_day,
+               fresh_per_s=settings.quota_fresh_per_s,
+               concurrent_requests=settings.quota_concurrent_requests,
+               trajectory_points=settings.quota_trajectory_points)
+    return q.with_overrides(overrides or {})
+
+
+def _local(request: Request) -> bool:
+    """True if the request reached us on a loopback interface (or not over IP)."""
+    server = request.scope.get("server")
+    if not server:
+        return True  # unix socket
+    try:
+        return ipaddress.ip_address(str(server[0]).split("%")[0]).is_loopback
+    except ValueError:
+        return True  # not an IP address: an in-process test transport
+
+
+def scope_for(path: str, method: str) -> Scope:
+    """The scope an operation needs: read for GET/HEAD and the single queries; submit
+    for sweep submission/cancellation, batch queries and fits (long work)."""
+    if method.upper() in ("GET", "HEAD", "OPTIONS"):
+        return Scope.read
+    if path.startswith("/v1/sweeps") or path.endswith("/batch") or path.startswith("/v1/fit"):
+        return Scope.submit
+    return Scope.read
+
+
+def needed_scope(request: Request) -> Scope:
+    """The scope a request needs: the route's ``openapi_extra["x-required-scope"]`` if
+    set, else :func:`scope_for` its path template and method."""
+    route = request.scope.get("route")
+    extra = getattr(route, "openapi_extra", None) or {}
+    if "x-required-scope" in extra:
+        return Scope(extra["x-required-scope"])
+    return scope_for(getattr(route, "path_format", None) or request.url.path, request.method)
+
+
+async def _authenticate(request: Request, creds: HTTPAuthorizationCredentials | None,
+                        settings: Settings, keys: KeyStore) -> Principal:
+    if settings.auth == "off":
+        return Principal(None, Scope.admin, quotas_of(settings))
+    given = "authorization" in request.headers
+    if creds is None or not creds.credentials:
+        if given:  # another scheme, or an empty token
+            raise AuthError(401, _UNAUTHORIZED)
+        if settings.auth == "auto" and not await run_in_threadpool(keys.any_active):
+            if _local(request):
+                return Principal(None, Scope.admin, quotas_of(settings))
+            raise AuthError(401, _NO_KEYS_REMOTE)
+        raise AuthError(401, _UNAUTHORIZED)
+    key = await run_in_threadpool(keys.verify, creds.credentials)
+    if key is None:
+        raise AuthError(401, _UNAUTHORIZED)
+    return Principal(key.name, key.scope, quotas_of(settings, key.quotas),
+                     hash_key(creds.credentials))
+
+
+async def guard(request: Request, settings: SettingsDep, keys: KeyStoreDep,
+                creds: Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
+                ) -> Principal:
+    """App-level dependency: authenticate, check the scope, bound the work of a request.
+
+    Routes outside the OpenAPI schema are open.  The principal is left in
+    ``request.scope["rsf.principal"]`` for the rate limiter (:mod:`service.limits`) and
+    for handlers (:func:`current`).
+    """
+    route = request.scope.get("route")
+    if route is not None and not getattr(route, "include_in_schema", True):
+        return Principal(None, Scope.read)
+    p = await _authenticate(request, creds, settings, keys)
+    request.scope["rsf.principal"] = p
+    need = needed_scope(request)
+    if not p.scope.allows(need):
+        raise AuthError(403, f"this key has scope '{p.scope.value}'; this request needs "
+                             f"'{need.value}'")
+    if not p.anonymous and request.method == "POST" and request.url.path.endswith(
+            "/trajectory"):
+        await _check_trajectory_points(request, p)
+    return p
+
+
+async def _check_trajectory_points(request: Request, p: Principal) -> None:
+    try:
+        body = await request.json()
+    except Exception:  # noqa: BLE001 - the endpoint reports unparsable bodies itself
+        return
+    n = body.get("n_points") if isinstance(body, dict) else None
+    limit = p.quotas.trajectory_points
+    if isinstance(n, int) and not isinstance(n, bool) and n > limit:
+        raise ProblemError(422, "Invalid input", f"n_points: {n} exceeds this key's quota "
+                           f"(valid range: [2, {limit}])", field="n_points",
+                           valid=f"[2, {limit}]")
+
+
+def current(request: Request) -> Principal:
+    """The principal of this request (anonymous admin if :func:`guard` did not run)."""
+    p = request.scope.get("rsf.principal")
+    return p if isinstance(p, Principal) else Principal(None, Scope.admin)
+
+
+PrincipalDep = Annotated[Principal, Depends(current)]
+
+
+def install(app: FastAPI) -> None:
+    """Register the 401/403 problem+json handler on ``app``."""
+
+    @app.exception_handler(AuthError)
+    async def _auth(_req: Request, exc: AuthError) -> Response:
+        if exc.status == 401:
+            return problem(401, "Unauthorized", exc.detail,
+                           headers={"WWW-Authenticate": 'Bearer realm="rsf"'})
+        return problem(exc.status, "Forbidden", exc.detail)
+
