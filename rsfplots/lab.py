@@ -1,0 +1,95 @@
+"""Plots of lab answers for the service's ``?format=png`` responses and the CLI.
+
+* :func:`plot_protocol` -- a protocol answer (velocity step, slide-hold-slide, load
+  history; the JSON dict of rsfapp.adapter.protocol_*): friction and slip rate against
+  time, with the true per-segment peaks marked.
+* :func:`plot_fit` -- a fit answer (rsfcore.fit FitResult.to_dict() or the service's
+  fit JSON): data and fitted friction, residuals.
+
+Each returns the encoded image (PNG by default, or SVG) as bytes.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rsfcore import ParameterError
+
+from ._common import figure_bytes, new_figure
+
+__all__ = ["plot_protocol", "plot_fit"]
+
+
+def _arr(v: Any) -> np.ndarray:
+    """List (None for non-finite) -> float array with nan."""
+    if v is None:
+        return np.array([], dtype=float)
+    return np.array([np.nan if x is None else x for x in v], dtype=float)
+
+
+def plot_protocol(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -> bytes:
+    """Friction f(t) (top) and slip rate V(t) on a log axis (bottom) of a protocol answer,
+    load-point velocity dashed, true peak friction of every segment marked."""
+    prot = result.get("protocol", result)
+    if "t_s" not in prot or "friction" not in prot:
+        raise ParameterError("result", None, "a protocol answer with t_s and friction")
+    t, f, v = _arr(prot["t_s"]), _arr(prot["friction"]), _arr(prot.get("V_m_s"))
+    vo = _arr(prot.get("Vo_m_s"))
+    fig = new_figure(8.0, 5.5)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    ax1.plot(t, f, "k-", lw=1.1, label="friction")
+    for s in prot.get("segments", []):
+        if s.get("peak_friction") is not None and s.get("peak_friction_time_s") is not None:
+            ax1.plot([s["peak_friction_time_s"]], [s["peak_friction"]], "rv", ms=5)
+    ax1.set_ylabel("friction f (-)")
+    ax1.plot([], [], "rv", ms=5, label="true peak per segment")
+    ax1.legend(fontsize=7)
+    pos = v > 0
+    ax2.semilogy(t[pos], v[pos], "k-", lw=1.1, label="slip rate V")
+    if vo.size == t.size and np.any(vo > 0):
+        ax2.semilogy(t[vo > 0], vo[vo > 0], "--", color="tab:blue", lw=0.9,
+                     label="load-point velocity")
+    ax2.set_xlabel("t (s)")
+    ax2.set_ylabel("V (m/s)")
+    ax2.legend(fontsize=7)
+    kind = result.get("kind", "protocol")
+    fc = result.get("friction_changes") or {}
+    extra = ""
+    if fc.get("steady_state_delta_f") is not None:
+        extra = f"; df_ss = {fc['steady_state_delta_f']:.4g}, df_peak = {fc['peak_delta_f']:.4g}" \
+            if fc.get("peak_delta_f") is not None else f"; df_ss = {fc['steady_state_delta_f']:.4g}"
+    elif fc.get("healing_delta_f") is not None:
+        extra = f"; healing df = {fc['healing_delta_f']:.4g}"
+    if result.get("protocol", result).get("unstable"):
+        extra += "; UNSTABLE (runaway)"
+    fig.suptitle(f"{kind}{extra}", fontsize=9)
+    return figure_bytes(fig, fmt, dpi)
+
+
+def plot_fit(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -> bytes:
+    """Data and fitted friction against time or load-point displacement (top) and the
+    residuals (bottom) of a fit answer (keys ``data``/``fit`` columns as rsfcore.fit gives
+    them: ``t_s`` or ``x_m``, ``mu`` and ``mu_fit``; or ``residuals``)."""
+    curves = result.get("curves") or result.get("series") or {}
+    x = _arr(curves.get("t_s") or curves.get("x"))
+    mu = _arr(curves.get("mu"))
+    fit = _arr(curves.get("mu_fit"))
+    res = _arr(curves.get("residuals")) if curves.get("residuals") is not None else mu - fit
+    if not x.size or x.size != mu.size or mu.size != fit.size:
+        raise ParameterError("result", None, "a fit answer with curves {t_s, mu, mu_fit}")
+    fig = new_figure(8.0, 5.5)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    ax1.plot(x, mu, ".", color="0.5", ms=2, label="data")
+    ax1.plot(x, fit, "r-", lw=1.1, label="fit")
+    ax1.set_ylabel("friction mu (-)")
+    ax1.legend(fontsize=7)
+    ax2.plot(x, res, ".", color="k", ms=2)
+    ax2.axhline(0.0, color="r", lw=0.8)
+    ax2.set_ylabel("residual")
+    ax2.set_xlabel("t (s)")
+    p = result.get("params", {})
+    law = result.get("law", "")
+    txt = ", ".join(f"{k}={v:.4g}" for k, v in p.items() if isinstance(v, (int, float)))
+    fig.suptitle(f"{law} law: {txt}", fontsize=9)
+    return figure_bytes(fig, fmt, dpi)
