@@ -8,6 +8,10 @@ Celery queue and answered 202 + ``Location: /v1/results/{key}``.  A computation 
 running after ``RSF_INLINE_BUDGET_S`` seconds is answered the same way; it completes in
 the background and lands in the store.  Identical requests arriving meanwhile join the
 running computation instead of starting another.
+
+No state another API process needs lives here: a deferred computation is recorded in
+the job store (``queued``, then ``failed`` with its message, or its result in the result
+store), so ``rsf api --workers N`` and several API hosts answer the same.
 """
 from __future__ import annotations
 
@@ -49,6 +53,16 @@ def deferred(key: str, status: str = "running") -> Response:
                     headers={"Location": loc, "Retry-After": "2", "X-Cache": "miss"})
 
 
+async def _failed(stores: Stores, inflight: Inflight, key: str, msg: str) -> None:
+    """Record a failure: in the job store (seen by every API process, for a request
+    already answered 202) and in this process's recent failures."""
+    inflight.fail(key, msg)
+    try:
+        await run_in_threadpool(stores.jobs.mark_failed, key, msg)
+    except Exception:  # noqa: BLE001 - the client of this request still gets its 422
+        log.warning("could not record the failure of %s", key)
+
+
 async def _compute(kind: str, key: str, version: str, request: dict[str, Any],
                    req: BaseModel, fn: Callable[[Any], dict[str, Any]], stores: Stores,
                    queue: Queue, inflight: Inflight) -> str | None:
@@ -64,13 +78,13 @@ async def _compute(kind: str, key: str, version: str, request: dict[str, Any],
         await run_in_threadpool(queue.send_single, kind, request, key, version)
         return None
     except ComputeError as exc:
-        inflight.fail(key, str(exc))
+        await _failed(stores, inflight, key, str(exc))
         raise ProblemError(422, "Could not be computed", str(exc)) from None
     except ParameterError as exc:
-        inflight.fail(key, str(exc))
+        await _failed(stores, inflight, key, str(exc))
         raise  # 422 naming the field (service.errors)
     except (TypeError, ValueError) as exc:  # non-JSON result: a bug, but never a 500
-        inflight.fail(key, str(exc))
+        await _failed(stores, inflight, key, str(exc))
         raise ProblemError(422, "Could not be computed", f"unserialisable result: {exc}") \
             from None
     await run_in_threadpool(stores.results.put, key, kind, version, request,
@@ -109,6 +123,9 @@ async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]],
     try:
         text = await asyncio.wait_for(asyncio.shield(task), settings.inline_budget_s)
     except asyncio.TimeoutError:
+        # every API process answers GET /v1/results/{key} from the job store (202 while
+        # queued, 422 once failed, the result once stored)
+        await run_in_threadpool(stores.jobs.mark_queued, key, kind)
         return deferred(key)
     if text is None:
         return deferred(key)

@@ -57,10 +57,14 @@ QueueDep = Annotated[Queue, Depends(get_queue)]
 
 @dataclass
 class Inflight:
-    """Computations running in this API process, and recent failures (bounded).
+    """Computations running in this API process (a local optimisation only).
 
-    ``pending`` lets identical requests join one computation; ``failed`` answers
-    GET /v1/results/{key} for a computation that failed after its request was deferred.
+    ``limiter`` bounds this process's compute threads (one per CPU); ``pending`` lets
+    identical requests arriving at this process join one computation; ``failed`` is a
+    local copy of recent failures.  Nothing here is needed by another process: a
+    deferred computation is recorded in the job store (queued / failed with its message)
+    and its result in the result store (:mod:`service.answer`), so any API process
+    answers GET /v1/results/{key} the same.
     """
 
     limiter: anyio.CapacityLimiter = field(
