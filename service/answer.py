@@ -122,7 +122,7 @@ async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]],
         task.add_done_callback(_done)
     try:
         text = await asyncio.wait_for(asyncio.shield(task), settings.inline_budget_s)
-    except asyncio.TimeoutError:
+    except TimeoutError:
         # every API process answers GET /v1/results/{key} from the job store (202 while
         # queued, 422 once failed, the result once stored)
         await run_in_threadpool(stores.jobs.mark_queued, key, kind)
