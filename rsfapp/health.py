@@ -139,3 +139,35 @@ def health_report(db: Database, settings: Settings) -> dict[str, Any]:
                         "hosts": sorted({w["node"] for w in workers}),
                         "processes": sum(int(w["concurrency"]) for w in workers),
                         "list": workers}}
+
+
+def main(argv: list[str]) -> int:
+    """``python -m rsfapp.health [--worker]``: exit status 0 when the deployment is
+    healthy (with ``--worker``: when a worker of this node, RSF_NODE, is alive), else 1
+    with the reasons on stderr.  Used by container healthchecks."""
+    import sys
+
+    from .config import get_settings
+    from .db.engine import database
+
+    s = get_settings()
+    db = database(s.effective_cache_url)
+    if "--worker" in argv:
+        try:
+            mine = [w for w in live_workers(db, s.lease_s) if w["node"] == s.node]
+        except Exception as exc:  # noqa: BLE001
+            print(f"worker registry unreadable: {exc}", file=sys.stderr)
+            return 1
+        if not mine:
+            print(f"no live worker on node {s.node}", file=sys.stderr)
+        return 0 if mine else 1
+    rep = health_report(db, s)
+    for r in rep["reasons"]:
+        print(r, file=sys.stderr)
+    return 0 if rep["status"] == "ok" else 1
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main(sys.argv[1:]))
