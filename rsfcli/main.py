@@ -273,14 +273,27 @@ def figure(
         raise typer.Exit(code=code)
 
 
+INSECURE = typer.Option(False, "--insecure", help="Serve without API keys (RSF_AUTH=off), even on a non-loopback interface.")
+
+
+def _insecure(insecure: bool) -> None:
+    if insecure:
+        import os
+
+        os.environ["RSF_AUTH"] = "off"
+
+
 @app.command()
 def serve(
     host: str = typer.Option("127.0.0.1", "--host", help="Interface to bind."),
     port: int = typer.Option(8000, "--port", help="TCP port."),
     data_dir: Path = typer.Option(Path("rsf-data"), "--data-dir", help="Directory for the SQLite cache, sweep store and the filesystem broker."),
+    insecure: bool = INSECURE,
 ) -> None:
     """Start the HTTP API (uvicorn) and an embedded Celery worker (filesystem broker unless RSF_BROKER_URL is set)."""
     from .serve import serve as _serve
+
+    _insecure(insecure)
 
     _serve(host=host, port=port, data_dir=data_dir)
 
@@ -295,9 +308,12 @@ def api(
     wait_db: float = typer.Option(
         60.0, "--wait-db", min=0, help="Seconds to wait for an unreachable database at start."
     ),
+    insecure: bool = INSECURE,
 ) -> None:
     """Start the HTTP API only (no worker); workers run with `rsf worker`, anywhere."""
     from .serve import api as _api
+
+    _insecure(insecure)
 
     _api(host=host, port=port, workers=workers, wait_db_s=wait_db)
 
@@ -316,6 +332,11 @@ def worker(
     from .serve import worker as _worker
 
     _worker(concurrency=concurrency, loglevel=loglevel, wait_db_s=wait_db)
+
+
+from .keys import app as _keys_app  # noqa: E402
+
+app.add_typer(_keys_app, name="keys")
 
 
 def main() -> None:

@@ -26,6 +26,8 @@ import threading
 import time
 from pathlib import Path
 
+from .keys import check_bind
+
 __all__ = ["StartupError", "api", "check_database", "serve", "worker", "worker_command"]
 
 
@@ -159,6 +161,7 @@ def serve(host: str = "127.0.0.1", port: int = 8000, data_dir: str | Path = "rsf
     data.mkdir(parents=True, exist_ok=True)
     os.environ["RSF_DATA_DIR"] = str(data)
     check_database(who="rsf serve")
+    check_bind(host, "rsf serve")  # no key on a non-loopback host: refuse, say why
     env = dict(os.environ)
     sup = _Supervisor(worker_command(concurrency), env, data / "worker.log")
     sup.start()
@@ -190,6 +193,7 @@ def api(host: str = "127.0.0.1", port: int = 8000, workers: int = 1,
     if workers < 1:
         raise StartupError(f"[rsf api] --workers must be >= 1 (got {workers})")
     check_database(wait_db_s, who="rsf api")
+    check_bind(host, "rsf api")
     uvicorn.run("service.app:app", host=host, port=port, workers=workers,
                 log_level="info", timeout_graceful_shutdown=10)
 

@@ -178,6 +178,35 @@ class KeyStore:
                                 "reused, even after revocation)")
         return key
 
+    def put(self, name: str, key: str, scope: Scope = Scope.read) -> bool:
+        """Store a key chosen by the operator (e.g. from the environment of a container)
+        under ``name``: created, or the existing entry replaced (new hash and scope,
+        revocation cleared), so the previous key of that name stops working.  Returns
+        True if anything changed.
+
+        Raises:
+            KeyStoreError: invalid name, or a key shorter than 32 characters.
+        """
+        if not re.match(NAME_PATTERN, name):
+            raise KeyStoreError(f"name {name!r}: 1-64 letters, digits, '.', '_' or '-', "
+                                "starting with a letter or digit")
+        if len(key) < 32 or len(key) > 512 or not key.isprintable() or " " in key:
+            raise KeyStoreError("the key must be 32-512 printable characters without spaces "
+                                "(e.g. 'rsf_' + `openssl rand -base64 32`)")
+        h, sc = hash_key(key), Scope(scope).value
+        with self.db.write() as conn:
+            r = conn.execute(select(api_keys).where(api_keys.c.name == name)).first()
+            if r is None:
+                insert_ignore(conn, api_keys, {"name": name, "key_hash": h, "scope": sc,
+                                               "quotas": "{}", "created_at": time.time(),
+                                               "revoked_at": None})
+                return True
+            if r.key_hash == h and r.scope == sc and r.revoked_at is None:
+                return False
+            conn.execute(update(api_keys).where(api_keys.c.name == name)
+                         .values(key_hash=h, scope=sc, revoked_at=None))
+        return True
+
     def revoke(self, name: str) -> bool:
         """Revoke key ``name`` (effective for the next request); False if already revoked.
 
