@@ -623,7 +623,8 @@ def protocol_load_history(req: LoadHistoryRequest) -> dict[str, Any]:
     """rsfcore.protocols.load_history for any piecewise-constant load-point history (e.g.
     several velocity steps), with per-segment steady-state and peak friction changes."""
     ph = _machine(req)
-    start: Any = "steady" if req.start == "steady" else (req.start.V_m_s, req.start.theta_s)
+    st = req.start_state
+    start: Any = "steady" if st == "steady" else (st.V_m_s, st.theta_s)
     res = guard(_protocols.load_history, ph,
                 [(s.duration_s, s.V_load_m_s) for s in req.segments],
                 n_points_per_segment=req.n_points_per_segment, rtol=req.rtol, start=start)

@@ -26,7 +26,7 @@ MAX_PROTOCOL_SAMPLES = 200_000
 class _Machine(_Model):
     physical: PhysicalSI = F(..., "an object {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s}",
                              "The spring-slider in SI units (V_load_m_s is not used: the "
-                             "protocol sets the load point).", name="physical")
+                             "protocol sets the load point).")
     eps: float = F(1.0, "[0, 1]", "Evolution-law parameter: 0 = slip law, 1 = aging law (-).",
                    name="eps", ge=0.0, le=1.0)
     f_star: float = F(0.6, "[-10, 10]", "Reference friction f_* at V_* (-).", name="f_star",
@@ -49,8 +49,8 @@ class VelocityStepRequest(_Machine):
     slip_after_m: float | None = F(None, "null or [0, 1e3] m", "Start of the comparison "
                                    "window with `eq: delta tau` [m] (default 20 a sigma/k).",
                                    name="slip_after_m", ge=0, le=1e3)
-    n_points: int = F(400, "[2, 100000]", "Output samples, evenly spaced in time.",
-                      name="n_points", ge=2, le=100_000)
+    n_points: int = F(400, "[2, 10000]", "Output samples, evenly spaced in time.",
+                      name="n_points", ge=2, le=10_000)
 
 
 class SlideHoldSlideRequest(_Machine):
@@ -93,9 +93,9 @@ class LoadHistoryRequest(_Machine):
     n_points_per_segment: int = F(200, "[2, 100000]", "Output samples per segment, evenly "
                                   "spaced in time.", name="n_points_per_segment", ge=2,
                                   le=100_000)
-    start: Literal["steady"] | ProtocolStart = F(
+    start_state: Literal["steady"] | ProtocolStart = F(
         "steady", "'steady' or {V_m_s, theta_s}", "Start at steady state at the first "
-        "segment's velocity (V_* if it is 0), or at an explicit state.", name="start")
+        "segment's velocity (V_* if it is 0), or at an explicit state.", name="start_state")
 
     @model_validator(mode="after")
     def _total(self) -> "LoadHistoryRequest":

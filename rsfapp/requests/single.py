@@ -75,7 +75,7 @@ class PhysicalSI(_Model):
                           "[Pa/m]; kappa = k Dc/(a sigma).", name="k_Pa_per_m", ge=0, le=1e30)
     V_star_m_s: float = F(..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].",
                           name="V_star_m_s", gt=0, le=1e3)
-    V_load_m_s: float | None = F(None, "null or [0, 1e3] m/s", "Load-point velocity V_o "
+    V_load_m_s: float | None = F(None, "[0, 1e3] m/s", "Load-point velocity V_o "
                                  "[m/s] (default V_*; 0 = stationary load point).",
                                  name="V_load_m_s", ge=0, le=1e3)
 

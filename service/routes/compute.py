@@ -84,20 +84,47 @@ async def _as_png(resp: Response, plot: Callable[[dict[str, Any]], bytes]) -> Re
     return image_response(data, "png", hit, headers={"X-Cache-Key": key})
 
 
-@router.post("/trajectory", responses={**_R, **_DEFERRED, **png_content(
-        "The outcome and trajectory (JSON), or with format=png the phase plane (phi, psi) "
-        "and phi(T) as a PNG image.", model=TrajectoryResult)}, summary="One trajectory, downsampled")
+_TRAJ_FORMATS = ("json", "png", "csv")
+_TRAJ_200 = png_content("The outcome and trajectory (JSON), with format=png the phase plane "
+                        "(phi, psi) and phi(T) as a PNG image, with format=csv the samples "
+                        "as CSV.", model=TrajectoryResult)
+_TRAJ_200[200]["content"]["text/csv"] = {"schema": {"type": "string"}}
+
+
+@router.post("/trajectory", responses={**_R, **_DEFERRED, **_TRAJ_200},
+             summary="One trajectory, downsampled")
 async def trajectory(req: TrajectoryRequest, ctx: CtxDep,
                      format: Annotated[str, format_query(  # noqa: A002
-                         _JSON_OR_PNG, "json", "'png': phase-plane (phi, psi) and phi(T) "
-                         "plot of the trajectory.")] = "json") -> Response:
+                         _TRAJ_FORMATS, "json", "'png': phase-plane (phi, psi) and phi(T) "
+                         "plot of the trajectory; 'csv': the samples, one row each (header "
+                         "X-Sampling says the spacing).")] = "json") -> Response:
     """Outcome and the trajectory (T, phi, psi, ln_theta, slip, load_point) at
-    ``n_points`` samples; SI columns when ``physical`` is given. Cached (field `cached`, header `X-Cache: hit|miss`).
-    With ``?format=png``: the phase plane and phi(T) as a PNG (image cached too)."""
-    fmt = choice(format, _JSON_OR_PNG, "format")
+    ``n_points`` samples, spaced as ``sampling`` says ('tau': evenly in the integrator's
+    bounded time; 'T': evenly in T; 'seconds': evenly in t, needs physical); the answer's
+    ``sampling`` field states it.  SI columns and an ``si`` block when ``physical`` (SI
+    inputs) or ``scales`` is given. Cached (field `cached`, header `X-Cache: hit|miss`).
+    With ``?format=png``: the phase plane and phi(T) as a PNG (image cached too); with
+    ``?format=csv``: the samples as CSV."""
+    fmt = choice(format, _TRAJ_FORMATS, "format")
     resp = await ctx.answer("trajectory", req, partial(adapter.trajectory,
                                                        max_steps=ctx.settings.quick_steps))
+    if fmt == "csv":
+        return _as_csv(resp)
     return resp if fmt == "json" else await _as_png(resp, images.trajectory_png)
+
+
+def _as_csv(resp: Response) -> Response:
+    """The samples of a 200 trajectory answer as CSV (other answers unchanged)."""
+    if resp.status_code != 200:
+        return resp
+    result = json.loads(bytes(resp.body))
+    cols = result.get("trajectory") or {}
+    from .protocols import csv_table
+    samp = result.get("sampling", {}).get("kind", "tau")
+    return Response(csv_table(cols), media_type="text/csv", headers={
+        "X-Cache-Key": result["cache_key"], "X-Sampling": samp,
+        "X-Cache": resp.headers.get("X-Cache", "miss"),
+        "Content-Disposition": 'attachment; filename="trajectory.csv"'})
 
 
 @router.post("/critical", responses={200: {"model": CriticalResult, "description": "The critical size."}, **_R},
