@@ -28,7 +28,13 @@ class Settings(BaseSettings):
             ``sqlite:///<data_dir>/cache.sqlite3``.  Use ``postgresql+psycopg://...``
             when workers run on several hosts (SQLite needs one shared local disk).
         chunk_seconds: target duration of one sweep chunk [s], (0, 600].
-        sweep_max_points: largest accepted sweep grid (points), >= 1.
+        sweep_max_points: largest accepted sweep (points), >= 1; default 1e8 (a sweep
+            is chunked lazily: nothing per point is created before it is computed).
+        sweep_max_scattered: largest number of scattered points in one request (they
+            travel in the request body), >= 1.
+        sweep_max_chunks: largest number of chunks of one sweep (chunks grow to fit).
+        sweep_window: chunks of one sweep sent to the queue ahead of the workers; each
+            finished chunk sends the next one (a 10^8-point sweep never floods the broker).
         queue: Celery queue used by the API and the workers.
         inline_budget_s: a single query still computing after this long [s] is answered
             202 + Location /v1/results/{key} and finishes in the background.
@@ -74,7 +80,10 @@ class Settings(BaseSettings):
     broker_url: str = ""
     cache_url: str = ""
     chunk_seconds: float = Field(default=2.0, gt=0, le=600)
-    sweep_max_points: int = Field(default=40_000, ge=1)
+    sweep_max_points: int = Field(default=100_000_000, ge=1)
+    sweep_max_scattered: int = Field(default=1_000_000, ge=1)
+    sweep_max_chunks: int = Field(default=100_000, ge=1)
+    sweep_window: int = Field(default=64, ge=1)
     queue: str = "rsf"
     lease_s: float = Field(default=30.0, gt=0, le=3600)
     inline_budget_s: float = Field(default=2.0, gt=0, le=3600)

@@ -18,5 +18,8 @@ def warm_up() -> None:
         trajectory.classify(Params(2.0, 0.5, 0.5, 1.0), "velocity-jump", 0.1)
         trajectory.simulate(Params(2.0, 1.2, 0.5, 1.0), "velocity-jump", 0.5, n_points=5)
         critical.critical_perturbation(Params(2.0, 1.5, 0.5, 1.0))
+        from rsfcore import batch
+
+        batch.critical_points([2.0, 2.0], [1.5, 3.0], [0.5, 0.2], [1.0, 0.0])
     except Exception:  # noqa: BLE001 - serving must not depend on the warm-up
         log.exception("rsfcore warm-up failed")

@@ -1,22 +1,27 @@
 """Celery tasks: compute one chunk of a sweep, or one long single query.
 
-A chunk is a range [i0, i1) of flat grid indices (idx = i * n_y + j).  Points already
-stored (from a killed earlier attempt) are skipped; writes are idempotent, so a chunk
-may safely run again.  Cancellation is checked between points (the database at most
-every 0.2 s).  Task names are stable strings (:data:`rsfapp.queue.RUN_CHUNK`, ...).
+A chunk is a range [i0, i1) of flat point indices of the sweep's spec
+(:class:`rsfapp.grid.SweepSpec`); its parameters are computed from the spec, its points
+by one compiled batch call (:func:`rsfapp.sweepdata.compute_chunk` ->
+:func:`rsfcore.batch.critical_points`), and its results stored as one compressed block,
+written once (a chunk delivered twice, or recomputed after its worker was killed, is
+stored once).  After a chunk, the worker sends the sweep's next pending chunk (lazy
+dispatch, :meth:`rsfapp.store.SweepStore.next_chunks`).  Task names are stable strings
+(:data:`rsfapp.queue.RUN_CHUNK`, ...).
 """
 from __future__ import annotations
 
 import logging
-import time
 from typing import Any
 
 from celery import Task
 
 from rsfapp import adapter, requests
 from rsfapp.config import get_settings
-from rsfapp.queue import COMPUTE_SINGLE, RUN_CHUNK
-from rsfapp.store import SweepStore, stores_for
+from rsfapp.queue import COMPUTE_SINGLE, RUN_CHUNK, Queue
+from rsfapp.store import stores_for
+from rsfapp.store.sweeps import encode_block
+from rsfapp.sweepdata import compute_chunk
 
 from .celery_app import app
 
@@ -24,27 +29,12 @@ __all__ = ["run_chunk", "run_chunk_body", "compute_single"]
 log = logging.getLogger("rsf.worker")
 
 
-class _CancelProbe:
-    """Callable telling whether the sweep was cancelled, polling the DB at most every dt."""
-
-    def __init__(self, sweeps: SweepStore, sweep_id: str, dt: float = 0.2) -> None:
-        self.sweeps, self.sweep_id, self.dt = sweeps, sweep_id, dt
-        self.t, self.state = 0.0, False
-
-    def __call__(self) -> bool:
-        now = time.monotonic()
-        if not self.state and now - self.t >= self.dt:
-            self.t = now
-            self.state = self.sweeps.is_cancelled(self.sweep_id)
-        return self.state
-
-
 def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
     """Compute and store one chunk; returns a small summary (also for direct calls).
 
-    Points are computed one by one (a failing point is recorded and the others go on)
-    and flushed to the database every 0.5 s or 500 points, so a killed worker loses at
-    most that much work; cancellation is checked between points.
+    A chunk of a cancelled sweep is skipped; a chunk already running elsewhere is left to
+    its worker; a chunk whose block is already stored is only marked done.  Cancellation
+    therefore takes effect within one chunk per worker process.
     """
     s = get_settings()
     sweeps = stores_for(s).sweeps
@@ -52,32 +42,20 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
     if rng is None:
         return {"skipped": True}
     i0, i1 = rng
-    spec = sweeps.get_spec(sweep_id)
-    if spec is None:  # deleted meanwhile
-        return {"skipped": True}
-    xs, ys = spec["x"]["values"], spec["y"]["values"]
-    ny = len(ys)
-    have = sweeps.done_indices(sweep_id, i0, i1)
-    probe = _CancelProbe(sweeps, sweep_id)
-    buf: list[dict[str, Any]] = []
-    n_new = 0
-    t_flush = time.monotonic()
-    for k in range(i0, i1):
-        if k in have:
-            continue
-        if probe():
-            n_new += sweeps.store_points(sweep_id, idx, buf)
-            sweeps.finish_chunk(sweep_id, idx, complete=False)
-            return {"cancelled": True, "stored": n_new}
-        i, j = divmod(k, ny)
-        buf.append(dict(adapter.compute_point(spec, xs[i], ys[j]), idx=k, i=i, j=j, x=xs[i],
-                        y=ys[j]))
-        if len(buf) >= 500 or time.monotonic() - t_flush > 0.5:
-            n_new += sweeps.store_points(sweep_id, idx, buf)
-            buf, t_flush = [], time.monotonic()
-    n_new += sweeps.store_points(sweep_id, idx, buf)
+    stored = False
+    if not sweeps.has_block(sweep_id, idx):
+        spec = sweeps.get_spec(sweep_id)
+        if spec is None:  # deleted meanwhile
+            return {"skipped": True}
+        arrays, errors = compute_chunk(spec, i0, i1)
+        stored = sweeps.store_block(sweep_id, idx, i0, i1, encode_block(arrays), errors)
     sweeps.finish_chunk(sweep_id, idx, complete=True)
-    return {"stored": n_new}
+    nxt = sweeps.next_chunks(sweep_id, s.sweep_window)
+    if nxt:
+        q = Queue(s, app)
+        for c in nxt:
+            q.send_chunk(sweep_id, c)
+    return {"stored": stored, "points": i1 - i0}
 
 
 @app.task(name=RUN_CHUNK, bind=True, acks_late=True, reject_on_worker_lost=True,

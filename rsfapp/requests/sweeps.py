@@ -1,4 +1,19 @@
-"""Request model of a sweep (a grid over parameters, computed by the workers)."""
+"""Request model of a sweep: an N-D grid (1 to 5 axes) or scattered points, computed by
+the workers.
+
+Three equivalent ways to give the points:
+
+* ``axes``: a list of 1-5 axes, each ``{name, values}`` or ``{name, start, stop, n, log}``;
+  the grid is their outer product, flattened in C order (the first axis varies slowest);
+* ``points``: an object of equal-length arrays (``{"ba": [...], "eps": [...]}``), one
+  point per index (Monte Carlo or lab-derived samples);
+* ``x`` / ``y``: the original 2-D form, the same as ``axes: [x, y]``.
+
+Parameters not swept take their ``fixed`` values.  ``kappa`` (= k Dc/(a sigma)) and
+``kappa_ratio`` (= kappa/kappa_crit, kappa_crit = b/a - 1) are alternatives: give or sweep
+one of them.  Per point the workers compute the critical size, or, when a ``size`` is
+fixed or swept, the outcome of that perturbation.
+"""
 from __future__ import annotations
 
 from typing import Annotated, Literal
@@ -8,29 +23,41 @@ from pydantic import Field
 from ._base import RTOL, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
 
-__all__ = ["AXIS_RANGES", "AxisName", "SweepAxis", "SweepFixed", "SweepRequest"]
+__all__ = ["AXIS_RANGES", "AxisName", "MAX_AXIS_N", "MAX_AXIS_VALUES", "SweepAxis",
+           "SweepFixed", "SweepRequest"]
 
-AxisName = Literal["kappa_ratio", "eps", "ba", "size"]
-#: Valid range of each sweep axis (checked per value, reported as <axis>.values[i]).
+AxisName = Literal["ba", "kappa", "kappa_ratio", "eps", "vo", "size"]
+#: Valid range of each swept parameter (lo, hi, text); checked per value and reported as
+#: e.g. ``axes[2].stop`` or ``points.eps[17]``.
 AXIS_RANGES: dict[str, tuple[float, float, str]] = {
+    "ba": (1.0, 1e6, "(1, 1e6]"),
+    "kappa": (0.0, 1e6, "[0, 1e6]"),
     "kappa_ratio": (0.0, 1e6, "[0, 1e6] (and kappa_ratio*(ba-1) <= 1e6)"),
     "eps": (0.0, 1.0, "[0, 1]"),
-    "ba": (1.0, 1e6, "(1, 1e6]"),
-    "size": (-1e3, 1e3, "[-1e3, 1e3]"),
+    "vo": (0.0, 1e300, "0 or (0, 1e300]"),
+    "size": (-1e3, 1e3, "[-1e3, 1e3] (load-point jump: (-1, 1e3])"),
 }
+#: Largest number of explicit values of one axis.
+MAX_AXIS_VALUES = 100_000
+#: Largest n of one start/stop axis (the grid size limit is a setting).
+MAX_AXIS_N = 1_000_000_000
 
 
 class SweepAxis(_Model):
-    """One sweep axis: explicit ``values`` or ``start``/``stop``/``n`` (optionally log)."""
+    """One sweep axis: explicit ``values`` or ``start``/``stop``/``n`` (optionally log).
 
-    name: AxisName = F(..., "'kappa_ratio', 'eps', 'ba' or 'size'", "Swept parameter.",
-                       name="name")
-    values: Annotated[list[float], Field(min_length=1, max_length=1000)] | None = F(
-        None, "null or 1..1000 values in the axis range", "Explicit values.", name="values")
+    Generated values: v_k = start + (stop - start) k/(n - 1) (log: geometric), with the
+    end points exact."""
+
+    name: AxisName = F(..., "'ba', 'kappa', 'kappa_ratio', 'eps', 'vo' or 'size'",
+                       "Swept parameter.", name="name")
+    values: Annotated[list[float], Field(min_length=1, max_length=MAX_AXIS_VALUES)] | None = F(
+        None, f"null or 1..{MAX_AXIS_VALUES} values in the axis range", "Explicit values.",
+        name="values")
     start: float | None = F(None, "axis range (see name)", "First value.", name="start")
     stop: float | None = F(None, "axis range (see name)", "Last value.", name="stop")
-    n: int | None = F(None, "[1, 1000]", "Number of values from start to stop.", name="n",
-                      ge=1, le=1000)
+    n: int | None = F(None, f"[1, {MAX_AXIS_N}]", "Number of values from start to stop.",
+                      name="n", ge=1, le=MAX_AXIS_N)
     log: bool = F(False, "true or false", "Geometric spacing (start, stop > 0).", name="log")
 
 
@@ -38,8 +65,11 @@ class SweepFixed(_Model):
     """Values of the parameters that are not swept (dimensionless)."""
 
     ba: float = F(2.0, "(1, 1e6]", "b/a (-).", name="ba", gt=1.0, le=1e6)
-    kappa_ratio: float = F(1.0, "[0, 1e6]", "kappa/kappa_crit (-).", name="kappa_ratio",
-                           ge=0, le=1e6)
+    kappa_ratio: float | None = F(None, "null or [0, 1e6]", "kappa/kappa_crit (-); default "
+                                  "1 unless kappa is given or swept.", name="kappa_ratio",
+                                  ge=0, le=1e6)
+    kappa: float | None = F(None, "null or [0, 1e6]", "kappa = k Dc/(a sigma) (-), "
+                            "instead of kappa_ratio.", name="kappa", ge=0, le=1e6)
     eps: float = F(0.0, "[0, 1]", "Evolution-law parameter (-).", name="eps", ge=0, le=1)
     vo: float = F(1.0, "0 or (0, 1e300]", "v_o (-).", name="vo", ge=0, le=1e300)
     size: float | None = F(None, "null or [-1e3, 1e3]", "Perturbation size; when given "
@@ -48,14 +78,21 @@ class SweepFixed(_Model):
 
 
 class SweepRequest(_Model):
-    """A 2-D grid over two of {kappa_ratio, eps, ba, size}, computed by the workers."""
+    """An N-D grid (``axes``), scattered ``points`` or the 2-D ``x``/``y`` form (exactly one
+    of them), computed by the workers in chunks."""
 
-    x: SweepAxis
-    y: SweepAxis
+    axes: Annotated[list[SweepAxis], Field(min_length=1, max_length=5)] | None = F(
+        None, "null or 1..5 axes with different names", "Grid axes (outer product, first "
+        "axis slowest).", name="axes")
+    points: dict[AxisName, list[float]] | None = F(
+        None, "null or equal-length arrays (at most RSF_SWEEP_MAX_SCATTERED)",
+        "Scattered points: one array per swept parameter.", name="points")
+    x: SweepAxis | None = None
+    y: SweepAxis | None = None
     fixed: SweepFixed = Field(default_factory=SweepFixed)
     perturbation: Perturbation = F("velocity-jump", "'velocity-jump' or 'load-point-jump'",
                                    "Kind of perturbation.", name="perturbation")
     rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance (-).", name="rtol", **RTOL)
-    chunk_points: int | None = F(None, "null or [1, 10000]", "Points per chunk (default: "
-                                 "about chunk_seconds of work).", name="chunk_points",
-                                 ge=1, le=10_000)
+    chunk_points: int | None = F(None, "null or [1, 1000000]", "Points per chunk (default: "
+                                 "about RSF_CHUNK_SECONDS of work).", name="chunk_points",
+                                 ge=1, le=1_000_000)

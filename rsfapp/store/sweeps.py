@@ -1,33 +1,65 @@
-"""Sweep bookkeeping in the application database: sweeps, chunks and points.
+"""Sweep bookkeeping in the application database: sweeps, chunks and result blocks.
+
+Layout (:mod:`rsfapp.db.tables`):
+
+* ``sweeps``: one row per sweep, its compact spec (:class:`rsfapp.grid.SweepSpec` JSON:
+  axes as start/stop/n, never the expanded points) and status;
+* ``sweep_inputs``: the scattered points of a ``points`` sweep (one compressed blob);
+* ``sweep_chunks``: one row per chunk, a range [i0, i1) of flat point indices;
+* ``sweep_blocks``: one row per finished chunk: its results as compressed numpy arrays
+  (:func:`encode_block`) plus a JSON side table of the failed points' messages.
 
 Guarantees:
-* every point is stored exactly once: primary key (sweep_id, idx), idempotent inserts;
+
+* every point is stored exactly once: a chunk's block is written once (primary key
+  (sweep_id, idx), idempotent insert), whoever computes it first;
 * a chunk is claimed by one live worker at a time (owner = host:pid, heartbeat);
   a chunk whose owner died (SIGKILL) or whose lease expired is requeued at worker start;
-* cancel marks the sweep; running chunks check it between points and stop;
-* failures are points with an ``error`` message; the sweep goes on.
-Flat index idx = i * n_y + j for x[i], y[j].
+* lazy dispatch: chunk rows start ``pending``; only ``sweep_window`` of them are sent to
+  the queue (``queued``), and each finished chunk sends the next pending one, so a sweep
+  of 10^8 points costs a few thousand small rows and never floods the broker;
+* cancel marks the sweep and its pending/queued chunks; a running chunk (one compiled
+  call) finishes and is stored, so work stops within one chunk per worker process;
+* failures are flagged per point in the block, with their messages; the sweep goes on.
+
+Chunk states: pending -> queued -> running -> done, or cancelled (resumed to pending).
 """
 from __future__ import annotations
 
+import io
 import json
 import os
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from datetime import UTC, datetime
 from typing import Any, NamedTuple
 
-from sqlalchemy import Connection, Row, and_, func, select, update
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import Connection, Row, and_, delete, func, select, update
 
 from ..db.engine import Database, insert_ignore
-from ..db.tables import chunks, points, sweeps
+from ..db.tables import chunks, points, sweep_blocks, sweep_inputs, sweeps
+from ..grid import SweepSpec
 
-__all__ = ["ChunkRange", "Created", "SweepStore", "owner_id"]
+__all__ = ["Block", "ChunkRange", "Created", "SweepStore", "decode_block", "encode_block",
+           "iso", "owner_id"]
+
+ACTIVE = ("queued", "running")
 
 
 def owner_id() -> str:
     """This process as a chunk owner: 'host:pid'."""
     return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def iso(t: float | None) -> str | None:
+    """A Unix time as ISO 8601 UTC with milliseconds (``2026-11-23T19:02:11.123Z``)."""
+    if t is None:
+        return None
+    return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds").replace(
+        "+00:00", "Z")
 
 
 def _owner_alive(owner: str | None, heartbeat: float | None, lease_s: float) -> bool:
@@ -45,6 +77,19 @@ def _owner_alive(owner: str | None, heartbeat: float | None, lease_s: float) -> 
     return heartbeat is not None and time.time() - heartbeat < lease_s
 
 
+def encode_block(arrays: dict[str, NDArray[Any]]) -> bytes:
+    """Arrays of one chunk as a compressed .npz (zlib); ~10-15 bytes per point."""
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    return buf.getvalue()
+
+
+def decode_block(data: bytes) -> dict[str, NDArray[Any]]:
+    """Inverse of :func:`encode_block`."""
+    with np.load(io.BytesIO(data), allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
 class ChunkRange(NamedTuple):
     """Flat indices [i0, i1) of a claimed chunk."""
 
@@ -53,10 +98,21 @@ class ChunkRange(NamedTuple):
 
 
 class Created(NamedTuple):
-    """Outcome of :meth:`SweepStore.create`: was the sweep new, which chunks to enqueue."""
+    """Outcome of :meth:`SweepStore.create`: was the sweep new, was it resumed (it had been
+    cancelled), which chunks to send to the queue now."""
 
     created: bool
+    resumed: bool
     todo: list[int]
+
+
+class Block(NamedTuple):
+    """A stored chunk: points [i0, i1), their arrays and {offset: message} of failures."""
+
+    i0: int
+    i1: int
+    arrays: dict[str, NDArray[Any]]
+    errors: dict[int, str]
 
 
 def _chunk(sweep_id: str, idx: int) -> Any:
@@ -64,55 +120,107 @@ def _chunk(sweep_id: str, idx: int) -> Any:
 
 
 class SweepStore:
-    """Sweeps, their chunks and points in ``db``."""
+    """Sweeps, their chunks and result blocks in ``db``."""
 
     def __init__(self, db: Database) -> None:
         self.db = db
+        self._specs: dict[str, SweepSpec] = {}
 
-    def create(self, sweep_id: str, spec: dict[str, Any], n_total: int, chunk_points: int,
-               numerics_version: str) -> Created:
-        """Create the sweep and its chunks unless it exists.
+    # -- submit / resume -----------------------------------------------------------------
+    def create(self, sweep_id: str, spec: SweepSpec, chunk_points: int,
+               numerics_version: str, window: int = 64) -> Created:
+        """Create the sweep and its (pending) chunks unless it exists; dispatch the first
+        ``window`` chunks.
 
-        An existing cancelled sweep is resumed (its unfinished chunks queued again); an
-        existing active or done sweep enqueues nothing.
+        An existing cancelled sweep is resumed (its unfinished chunks pending again, the
+        first ``window`` dispatched); an existing active or done sweep dispatches nothing.
         """
         now = time.time()
+        n_total = spec.n_total
         with self.db.write() as conn:
             row = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).first()
             if row is None:
                 n_chunks = -(-n_total // chunk_points)
                 conn.execute(sweeps.insert().values(
-                    id=sweep_id, spec=json.dumps(spec, sort_keys=True), status="queued",
-                    n_total=n_total, n_chunks=n_chunks, numerics_version=numerics_version,
-                    created_at=now))
+                    id=sweep_id, spec=json.dumps(spec.to_json(), sort_keys=True),
+                    status="queued", n_total=n_total, n_chunks=n_chunks,
+                    numerics_version=numerics_version, created_at=now))
+                if spec.points is not None:
+                    conn.execute(sweep_inputs.insert().values(
+                        sweep_id=sweep_id, data=encode_block(spec.points)))
                 conn.execute(chunks.insert(), [
                     {"sweep_id": sweep_id, "idx": c, "i0": c * chunk_points,
-                     "i1": min(n_total, (c + 1) * chunk_points), "status": "queued",
+                     "i1": min(n_total, (c + 1) * chunk_points), "status": "pending",
                      "attempts": 0}
                     for c in range(n_chunks)])
-                return Created(True, list(range(n_chunks)))
+                return Created(True, False, self._dispatch(conn, sweep_id, window))
             if row[0] != "cancelled":
-                return Created(False, [])
+                return Created(False, False, [])
             conn.execute(update(sweeps).where(sweeps.c.id == sweep_id).values(
                 status="queued", finished_at=None))
             conn.execute(update(chunks).where(and_(chunks.c.sweep_id == sweep_id,
                                                    chunks.c.status == "cancelled"))
-                         .values(status="queued", owner=None))
-            idx = conn.execute(select(chunks.c.idx).where(and_(
-                chunks.c.sweep_id == sweep_id, chunks.c.status == "queued"))).scalars().all()
-            return Created(False, [int(i) for i in idx])
+                         .values(status="pending", owner=None))
+            return Created(False, True, self._dispatch(conn, sweep_id, window))
 
-    def get_spec(self, sweep_id: str) -> dict[str, Any] | None:
-        """The stored spec of a sweep (None if unknown)."""
+    @staticmethod
+    def _dispatch(conn: Connection, sweep_id: str, window: int) -> list[int]:
+        """Mark up to ``window`` minus the chunks in flight (queued/running) pending
+        chunks queued, lowest index first; returns them (the caller sends them)."""
+        busy = conn.execute(select(func.count()).select_from(chunks).where(and_(
+            chunks.c.sweep_id == sweep_id, chunks.c.status.in_(ACTIVE)))).scalar() or 0
+        k = window - int(busy)
+        if k <= 0:
+            return []
+        idx = [int(i) for i in conn.execute(
+            select(chunks.c.idx).where(and_(chunks.c.sweep_id == sweep_id,
+                                            chunks.c.status == "pending"))
+            .order_by(chunks.c.idx).limit(k)).scalars()]
+        if idx:
+            conn.execute(update(chunks).where(and_(chunks.c.sweep_id == sweep_id,
+                                                   chunks.c.idx.in_(idx),
+                                                   chunks.c.status == "pending"))
+                         .values(status="queued"))
+        return idx
+
+    def next_chunks(self, sweep_id: str, window: int) -> list[int]:
+        """Chunks to send now to keep ``window`` in flight (none unless the sweep is
+        active)."""
+        with self.db.write() as conn:
+            s = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).scalar()
+            if s not in ACTIVE:
+                return []
+            return self._dispatch(conn, sweep_id, window)
+
+    def get_spec(self, sweep_id: str) -> SweepSpec | None:
+        """The stored spec of a sweep (None if unknown); cached per process (immutable)."""
+        sp = self._specs.get(sweep_id)
+        if sp is not None:
+            return sp
         with self.db.read() as conn:
             row = conn.execute(select(sweeps.c.spec).where(sweeps.c.id == sweep_id)).first()
-        return None if row is None else dict(json.loads(row[0]))
+            if row is None:
+                return None
+            d = json.loads(row[0])
+            pts = None
+            if d.get("mode") == "points":
+                blob = conn.execute(select(sweep_inputs.c.data).where(
+                    sweep_inputs.c.sweep_id == sweep_id)).scalar()
+                pts = decode_block(blob) if blob is not None else None
+                if pts is not None:
+                    pts = {n: pts[n] for n in d["points"]["names"]}
+        sp = SweepSpec.from_json(d, pts)
+        if len(self._specs) > 64:
+            self._specs.clear()
+        self._specs[sweep_id] = sp
+        return sp
 
+    # -- workers ---------------------------------------------------------------------------
     def claim(self, sweep_id: str, idx: int, lease_s: float) -> ChunkRange | None:
         """Claim chunk ``idx`` for this process; None if there is nothing to do.
 
-        Nothing to do: the sweep is unknown or cancelled, the chunk is done, or another
-        live worker holds it.
+        Nothing to do: the sweep is unknown or cancelled, the chunk is done or cancelled,
+        or another live worker holds it.
         """
         me = owner_id()
         now = time.time()
@@ -136,6 +244,13 @@ class SweepStore:
                                  started_at=func.coalesce(sweeps.c.started_at, now)))
             return ChunkRange(int(c.i0), int(c.i1))
 
+    def heartbeat(self, sweep_id: str, idx: int) -> None:
+        """Refresh the lease of a running chunk held by this process."""
+        with self.db.write() as conn:
+            conn.execute(update(chunks).where(and_(_chunk(sweep_id, idx),
+                                                   chunks.c.owner == owner_id()))
+                         .values(heartbeat=time.time()))
+
     def release_chunk(self, sweep_id: str, idx: int) -> None:
         """Put a running chunk back in the queue (its worker hit an infrastructure error)."""
         with self.db.write() as conn:
@@ -143,31 +258,28 @@ class SweepStore:
                                                    chunks.c.status == "running"))
                          .values(status="queued", owner=None))
 
-    def done_indices(self, sweep_id: str, i0: int, i1: int) -> set[int]:
-        """Flat indices in [i0, i1) already stored."""
+    def has_block(self, sweep_id: str, idx: int) -> bool:
+        """True if chunk ``idx``'s results are stored (an earlier attempt finished)."""
         with self.db.read() as conn:
-            rows = conn.execute(select(points.c.idx).where(and_(
-                points.c.sweep_id == sweep_id, points.c.idx >= i0,
-                points.c.idx < i1))).scalars()
-            return {int(r) for r in rows}
+            return conn.execute(select(sweep_blocks.c.idx).where(and_(
+                sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
+            ).first() is not None
 
-    def store_points(self, sweep_id: str, chunk_idx: int, rows: list[dict[str, Any]]) -> int:
-        """Insert point rows (idempotent) and refresh the chunk heartbeat; rows added."""
-        now = time.time()
-        for r in rows:
-            r.setdefault("sweep_id", sweep_id)
-            r.setdefault("created_at", now)
+    def store_block(self, sweep_id: str, idx: int, i0: int, i1: int, data: bytes,
+                    errors: dict[int, str]) -> bool:
+        """Store chunk ``idx``'s results once (a second write is ignored); True if new."""
+        row = {"sweep_id": sweep_id, "idx": idx, "i0": i0, "i1": i1,
+               "n_failed": len(errors), "data": data,
+               "errors": json.dumps({str(k): v for k, v in errors.items()}) if errors
+               else None, "created_at": time.time()}
         with self.db.write() as conn:
-            n = insert_ignore(conn, points, rows)
-            conn.execute(update(chunks).where(_chunk(sweep_id, chunk_idx))
-                         .values(heartbeat=now))
-        return n
+            return insert_ignore(conn, sweep_blocks, [row]) > 0
 
     def is_cancelled(self, sweep_id: str) -> bool:
-        """True once the sweep has been cancelled."""
+        """True once the sweep has been cancelled (or deleted)."""
         with self.db.read() as conn:
             s = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).scalar()
-        return bool(s == "cancelled")
+        return s is None or s == "cancelled"
 
     def finish_chunk(self, sweep_id: str, idx: int, complete: bool) -> None:
         """Mark the chunk done (or cancelled if incomplete); close the sweep when all done."""
@@ -178,93 +290,140 @@ class SweepStore:
             left = conn.execute(select(func.count()).select_from(chunks).where(and_(
                 chunks.c.sweep_id == sweep_id, chunks.c.status != "done"))).scalar()
             if left == 0:
-                conn.execute(update(sweeps).where(sweeps.c.id == sweep_id)
+                conn.execute(update(sweeps).where(and_(sweeps.c.id == sweep_id,
+                                                       sweeps.c.status != "done"))
                              .values(status="done", finished_at=now))
 
-    def cancel(self, sweep_id: str) -> str | None:
-        """Cancel a sweep; returns its new status (None if unknown). Done sweeps stay done."""
+    # -- API -------------------------------------------------------------------------------
+    def cancel(self, sweep_id: str) -> tuple[str, bool] | None:
+        """Cancel a sweep: (its status, whether this call changed anything); None if
+        unknown.  Done and already cancelled sweeps are left as they are."""
         with self.db.write() as conn:
             s = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).scalar()
-            if s is None or s == "done":
-                return None if s is None else str(s)
+            if s is None:
+                return None
+            if s not in ACTIVE:
+                return str(s), False
             conn.execute(update(sweeps).where(sweeps.c.id == sweep_id)
                          .values(status="cancelled", finished_at=time.time()))
             conn.execute(update(chunks).where(and_(chunks.c.sweep_id == sweep_id,
-                                                   chunks.c.status == "queued"))
+                                                   chunks.c.status.in_(("pending", "queued"))))
                          .values(status="cancelled"))
-            return "cancelled"
+            return "cancelled", True
+
+    def delete(self, sweep_id: str) -> bool:
+        """Delete a sweep with its chunks, inputs and results; False if unknown."""
+        with self.db.write() as conn:
+            for t in (sweep_blocks, sweep_inputs, chunks, points):
+                conn.execute(delete(t).where(t.c.sweep_id == sweep_id))
+            n = conn.execute(delete(sweeps).where(sweeps.c.id == sweep_id)).rowcount
+        self._specs.pop(sweep_id, None)
+        return bool(n)
 
     @staticmethod
-    def _summary(conn: Connection, row: Row[Any], n_failures: int = 100) -> dict[str, Any]:
+    def _summary(conn: Connection, row: Row[Any]) -> dict[str, Any]:
         n_done, n_failed = conn.execute(
-            select(func.count(), func.count(points.c.error)).where(points.c.sweep_id == row.id)
-        ).one()
+            select(func.coalesce(func.sum(sweep_blocks.c.i1 - sweep_blocks.c.i0), 0),
+                   func.coalesce(func.sum(sweep_blocks.c.n_failed), 0))
+            .where(sweep_blocks.c.sweep_id == row.id)).one()
+        n_done, n_failed = int(n_done), int(n_failed)
         now = time.time()
         eta = None
-        if row.status in ("queued", "running") and row.started_at and n_done:
+        if row.status in ACTIVE and row.started_at and n_done:
             eta = (now - row.started_at) / n_done * (row.n_total - n_done)
         elif row.status == "done":
             eta = 0.0
-        out: dict[str, Any] = {
-            "id": row.id, "status": row.status, "n_done": int(n_done),
-            "n_total": row.n_total, "n_failed": int(n_failed), "n_chunks": row.n_chunks,
-            "eta_s": eta, "created_at": row.created_at, "started_at": row.started_at,
-            "finished_at": row.finished_at, "numerics_version": row.numerics_version,
-            "spec": json.loads(row.spec)}
-        if n_failures:
-            fails = conn.execute(
-                select(points.c.idx, points.c.i, points.c.j, points.c.x, points.c.y,
-                       points.c.error)
-                .where(and_(points.c.sweep_id == row.id, points.c.error.is_not(None)))
-                .order_by(points.c.idx).limit(n_failures)).all()
-            out["failures"] = [dict(f._mapping) for f in fails]
-        return out
+        spec = json.loads(row.spec)
+        try:
+            summ = SweepSpec.from_json(spec).summary() if spec.get("v") else {}
+        except (KeyError, TypeError, ValueError):
+            summ = {}
+        return {"id": row.id, "status": row.status, "n_done": n_done,
+                "n_total": int(row.n_total), "n_failed": n_failed,
+                "n_chunks": int(row.n_chunks), "eta_s": eta,
+                "created_at": iso(row.created_at), "started_at": iso(row.started_at),
+                "finished_at": iso(row.finished_at),
+                "numerics_version": row.numerics_version, **summ}
 
     def status(self, sweep_id: str) -> dict[str, Any] | None:
-        """Status, progress, ETA [s] and the first 100 failures of a sweep."""
+        """Status, progress, ETA [s] (no axis values)."""
         with self.db.read() as conn:
             row = conn.execute(select(sweeps).where(sweeps.c.id == sweep_id)).first()
             return None if row is None else self._summary(conn, row)
 
     def list_sweeps(self, limit: int, offset: int) -> list[dict[str, Any]]:
-        """Sweeps, newest first, with progress (no failure lists)."""
+        """Sweeps, newest first, with progress."""
         with self.db.read() as conn:
             rows = conn.execute(select(sweeps).order_by(sweeps.c.created_at.desc())
                                 .limit(limit).offset(offset)).all()
-            return [self._summary(conn, r, n_failures=0) for r in rows]
+            return [self._summary(conn, r) for r in rows]
 
-    def page_points(self, sweep_id: str, offset: int, limit: int) -> list[dict[str, Any]]:
-        """Stored points ordered by flat index, from the ``offset``-th stored one."""
+    def failures(self, sweep_id: str, limit: int = 100) -> list[tuple[int, str]]:
+        """(flat index, message) of the first ``limit`` failed points."""
+        out: list[tuple[int, str]] = []
         with self.db.read() as conn:
-            rows = conn.execute(
-                select(points.c.idx, points.c.i, points.c.j, points.c.x, points.c.y,
-                       points.c.kind, points.c.critical_size, points.c.outcome,
-                       points.c.rel_accuracy, points.c.error)
-                .where(points.c.sweep_id == sweep_id).order_by(points.c.idx)
-                .limit(limit).offset(offset)).all()
-        return [dict(r._mapping) for r in rows]
+            rows = conn.execute(select(sweep_blocks.c.i0, sweep_blocks.c.errors).where(and_(
+                sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.n_failed > 0))
+                .order_by(sweep_blocks.c.i0)).all()
+        for i0, errs in rows:
+            for k, msg in sorted(json.loads(errs or "{}").items(), key=lambda kv: int(kv[0])):
+                out.append((int(i0) + int(k), str(msg)))
+                if len(out) >= limit:
+                    return out
+        return out
 
-    def stale_chunks(self, lease_s: float) -> list[tuple[str, int]]:
-        """Chunks of active sweeps that no live worker holds (queued, or owner dead).
+    def blocks(self, sweep_id: str, i0: int = 0, i1: int | None = None) -> Iterator[Block]:
+        """Stored blocks overlapping [i0, i1), in index order (read a few at a time)."""
+        hi = i1 if i1 is not None else 2**62
+        with self.db.read() as conn:
+            keys = conn.execute(select(sweep_blocks.c.idx).where(and_(
+                sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.i1 > i0,
+                sweep_blocks.c.i0 < hi)).order_by(sweep_blocks.c.i0)).scalars().all()
+        for k in keys:
+            with self.db.read() as conn:
+                r = conn.execute(select(sweep_blocks).where(and_(
+                    sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == k))).first()
+            if r is None:  # deleted meanwhile
+                return
+            errs = {int(a): str(b) for a, b in json.loads(r.errors or "{}").items()}
+            yield Block(int(r.i0), int(r.i1), decode_block(r.data), errs)
 
-        Stale running chunks are reset to queued.  Used at worker start to requeue work
-        lost with a killed worker (the filesystem broker deletes a message once delivered).
-        """
+    def disk_bytes(self, sweep_id: str) -> int:
+        """Bytes of stored result blobs of a sweep (payload only)."""
+        with self.db.read() as conn:
+            return int(conn.execute(select(func.coalesce(func.sum(
+                func.length(sweep_blocks.c.data)), 0)).where(
+                sweep_blocks.c.sweep_id == sweep_id)).scalar() or 0)
+
+    # -- recovery ----------------------------------------------------------------------------
+    def stale_chunks(self, lease_s: float, window: int = 64) -> list[tuple[str, int]]:
+        """Chunks of active sweeps to send again: queued ones, running ones whose owner is
+        dead (reset to queued) and, for a sweep with nothing in flight, the next pending
+        ones.  Used at worker start to requeue work lost with a killed worker (the
+        filesystem broker deletes a message once delivered)."""
         out: list[tuple[str, int]] = []
         with self.db.write() as conn:
             rows = conn.execute(
                 select(chunks.c.sweep_id, chunks.c.idx, chunks.c.status, chunks.c.owner,
                        chunks.c.heartbeat)
                 .join(sweeps, sweeps.c.id == chunks.c.sweep_id)
-                .where(and_(sweeps.c.status.in_(("queued", "running")),
-                            chunks.c.status.in_(("queued", "running"))))).all()
+                .where(and_(sweeps.c.status.in_(ACTIVE),
+                            chunks.c.status.in_(ACTIVE)))).all()
+            active: set[str] = set()
             for r in rows:
                 if r.status == "running":
                     if _owner_alive(r.owner, r.heartbeat, lease_s):
+                        active.add(str(r.sweep_id))
                         continue
                     conn.execute(update(chunks).where(_chunk(r.sweep_id, r.idx))
                                  .values(status="queued", owner=None))
                 out.append((str(r.sweep_id), int(r.idx)))
+                active.add(str(r.sweep_id))
+            idle = conn.execute(select(sweeps.c.id).where(sweeps.c.status.in_(ACTIVE))
+                                ).scalars().all()
+            for sid in idle:
+                if sid not in active:
+                    out += [(str(sid), i) for i in self._dispatch(conn, str(sid), window)]
         return out
 
     @staticmethod

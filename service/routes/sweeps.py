@@ -1,22 +1,41 @@
-"""Sweep endpoints: submit (202 + Location), list, status, paged points, stability
-diagram (JSON or PNG, also while the sweep runs), cancel.
+"""Sweep endpoints: submit (202 + Location), list, status, spec, points (paged), the whole
+result (NetCDF, CSV or JSON, streamed), a 2-D diagram slice (JSON or PNG), cancel and
+delete.
 
-A sweep's id is derived from its canonical spec and the numerics version, so submitting
-the same sweep twice returns the same sweep (``X-Cache: hit``) instead of recomputing.
+A sweep is an N-D grid (1-5 ``axes``), scattered ``points`` or the 2-D ``x``/``y`` form
+(:mod:`rsfapp.requests.sweeps`).  Its id is derived from its canonical spec and the
+numerics version, so submitting the same sweep twice returns the same sweep.
+
+Lifecycle:
+
+* ``POST`` of a new sweep: 202, ``created: true``; of a running or queued one: 202,
+  ``created: false``; of a finished one: 200 with ``X-Cache: hit``; of a cancelled one:
+  it is **resumed** (its unfinished chunks are queued again), 202 with ``resumed: true``;
+* ``DELETE /v1/sweeps/{id}`` cancels an active sweep (chunks not started are dropped, a
+  running chunk finishes: work stops within one chunk per worker process); on a sweep
+  that is already cancelled or done it changes nothing (``changed: false``);
+* ``DELETE /v1/sweeps/{id}?purge=true`` deletes the sweep with all its data (cancelling
+  it first if active): 204.
+
+Timestamps are ISO 8601 UTC.  Status polls are small (no axis values: ``GET .../spec``
+has them).
 """
 from __future__ import annotations
 
 import json
 import logging
-from typing import Annotated
+from typing import Annotated, Any
 
+import numpy as np
 from fastapi import APIRouter, Path, Query
 from starlette.concurrency import run_in_threadpool
-from starlette.responses import Response
+from starlette.responses import Response, StreamingResponse
 
-from rsfapp import adapter
+from rsfcore.critical import KINDS
+
+from rsfapp import sweepdata
 from rsfapp.adapter import numerics_version
-from rsfapp.grid import expand
+from rsfapp.grid import SweepSpec, expand, plan_chunks
 from rsfapp.keys import cache_key
 from rsfapp.queue import Queue
 from rsfapp.requests import SweepRequest
@@ -32,12 +51,6 @@ log = logging.getLogger("rsf.service")
 SweepId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="Sweep id (32 hex).")]
 _R = {422: {"description": "Invalid input (problem+json naming the field and its range)."}}
 _N = {404: {"description": "Unknown sweep (problem+json)."}}
-
-#: Expected seconds of work per point, for the default chunk size.  Measured: outcome
-#: ~60 us; critical sizes 10 us .. 0.4 s (closed form / separatrix / bisection).
-_COST_S = {"critical": 0.02, "outcome": 1e-4}
-#: Default chunking splits a sweep in at least this many chunks (parallel workers).
-_MIN_CHUNKS = 8
 
 
 def _json(obj: object, status: int = 200, headers: dict[str, str] | None = None) -> Response:
@@ -60,119 +73,258 @@ def _enqueue(queue: Queue, sweep_id: str, chunk_ids: list[int]) -> str | None:
     return None
 
 
+def _failures(sweeps: SweepStore, spec: SweepSpec | None, sweep_id: str,
+              limit: int = 100) -> list[dict[str, Any]]:
+    out: list[dict[str, Any]] = []
+    for idx, msg in sweeps.failures(sweep_id, limit):
+        f: dict[str, Any] = {"idx": idx}
+        if spec is not None:
+            if spec.mode == "grid":
+                f["index"] = [int(k) for k in np.unravel_index(idx, spec.shape)]
+            f["params"] = {k: float(v[0]) for k, v in spec.swept_values(idx, idx + 1).items()}
+        f["error"] = msg
+        out.append(f)
+    return out
+
+
 @router.post("", status_code=202, responses={**_R, 200: {"description": "Already done."}},
              summary="Submit a sweep")
 async def submit(req: SweepRequest, stores: StoresDep, queue: QueueDep,
                  s: SettingsDep) -> Response:
-    """Start a 2-D sweep over two of {kappa_ratio, eps, ba, size}; answers 202 with a
-    Location to poll. Per point: the critical size (kind, critical_size) or, when a size
-    is given or swept, the outcome. Identical submissions return the same sweep."""
+    """Start a sweep: an N-D grid (``axes``: 1-5 of ba, kappa or kappa_ratio, eps, vo,
+    size; each ``{name, values}`` or ``{name, start, stop, n, log}``), scattered ``points``
+    (equal-length arrays per parameter) or the 2-D ``x``/``y`` form, with ``fixed`` values
+    for the rest.  Per point: the critical size (kind, critical_size, rel_accuracy) or,
+    when a size is fixed or swept, the outcome.  Up to RSF_SWEEP_MAX_POINTS points
+    (default 1e8), chunked lazily.
+
+    Answers 202 with a ``Location`` to poll; ``created`` (new sweep) and ``resumed`` (a
+    cancelled sweep started again) say what happened.  A finished sweep answers 200 with
+    ``X-Cache: hit``.  Invalid input: 422 problem+json naming the field (``axes[2].stop``,
+    ``points.eps[17]``), nothing written."""
     sweeps = stores.sweeps
-    spec = expand(req, s.sweep_max_points)
-    n_total = len(spec["x"]["values"]) * len(spec["y"]["values"])
+    spec = await run_in_threadpool(expand, req, s.sweep_max_points, s.sweep_max_scattered)
     version = numerics_version()
-    sweep_id = cache_key("sweep", spec, version)[:32]
-    size_given = spec["fixed"]["size"] is not None or "size" in (req.x.name, req.y.name)
-    per = _COST_S["outcome" if size_given else "critical"]
-    chunk = req.chunk_points or max(1, min(10_000, int(s.chunk_seconds / per),
-                                           -(-n_total // _MIN_CHUNKS)))
-    created, todo = await run_in_threadpool(sweeps.create, sweep_id, spec, n_total, chunk,
-                                            version)
+    sweep_id = cache_key("sweep", spec.to_json(), version)[:32]
+    chunk = plan_chunks(spec, s, req.chunk_points)
+    created = await run_in_threadpool(sweeps.create, sweep_id, spec, chunk, version,
+                                      s.sweep_window)
+    todo = created.todo
     warning = await run_in_threadpool(_enqueue, queue, sweep_id, todo) if todo else None
     st = await run_in_threadpool(sweeps.status, sweep_id)
     if st is None:  # pragma: no cover - created just above
         raise _unknown(sweep_id)
-    st.pop("failures", None)
+    st.update(created=created.created, resumed=created.resumed)
     if warning:
         st["warning"] = warning
-    loc = f"/v1/sweeps/{sweep_id}"
-    code = 200 if st["status"] == "done" else 202
-    return _json(st, code, {"Location": loc, "X-Cache": "miss" if created else "hit"})
+    headers = {"Location": f"/v1/sweeps/{sweep_id}"}
+    if st["status"] == "done":
+        headers["X-Cache"] = "hit"
+        return _json(st, 200, headers)
+    if created.created:
+        headers["X-Cache"] = "miss"
+    return _json(st, 202, headers)
 
 
 @router.get("", summary="List sweeps")
 async def list_all(stores: StoresDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100,
                    offset: Annotated[int, Query(ge=0, le=10**9)] = 0) -> Response:
-    """Sweeps, newest first, with status and progress."""
+    """Sweeps, newest first, with status and progress (as the status endpoint, without
+    failures)."""
     return _json({"sweeps": await run_in_threadpool(stores.sweeps.list_sweeps, limit,
                                                       offset)})
+
+
+async def _status(stores: Any, sweep_id: str) -> dict[str, Any]:
+    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
+    if st is None:
+        raise _unknown(sweep_id)
+    return dict(st)
 
 
 @router.get("/{sweep_id}", responses=_N, summary="Sweep status")
 async def get_status(sweep_id: SweepId, stores: StoresDep) -> Response:
     """status (queued|running|done|cancelled), n_done, n_total, n_failed, eta_s [s],
-    failures (first 100, with messages)."""
-    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
-    if st is None:
-        raise _unknown(sweep_id)
+    created_at/started_at/finished_at (ISO 8601 UTC), dims (names and lengths, no values),
+    fixed, output, and ``failures``: the first 100 failed points {idx, index, params,
+    error}."""
+    st = await _status(stores, sweep_id)
+    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
+    st["failures"] = await run_in_threadpool(_failures, stores.sweeps, spec, sweep_id)
     return _json(st)
+
+
+@router.get("/{sweep_id}/spec", responses=_N, summary="Sweep spec")
+async def get_spec(sweep_id: SweepId, stores: StoresDep) -> Response:
+    """The stored spec: axes (``start/stop/n/log`` or explicit ``values``), fixed values,
+    perturbation, rtol, output; scattered sweeps give their parameter names and digest
+    (the points themselves are in ``/data``)."""
+    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
+    if spec is None:
+        raise _unknown(sweep_id)
+    return _json(spec.to_json())
 
 
 @router.get("/{sweep_id}/points", responses=_N, summary="Sweep points (paged)")
 async def get_points(sweep_id: SweepId, stores: StoresDep,
                      offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
                      limit: Annotated[int, Query(ge=1, le=10_000)] = 1000) -> Response:
-    """Stored points ordered by flat index idx = i*n_y + j, available while running.
-    Each point: idx, i, j, x, y, kind, critical_size, outcome, rel_accuracy, error."""
-    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
-    if st is None:
-        raise _unknown(sweep_id)
-    pts = await run_in_threadpool(stores.sweeps.page_points, sweep_id, offset, limit)
-    nxt = offset + len(pts) if len(pts) == limit else None
+    """Points ``offset`` .. ``offset + limit - 1`` in flat-index order (C order over the
+    axes), available while running.  Each point: idx, index (grid), the swept parameter
+    values, computed, kind, critical_size (null if infinite or missing), outcome,
+    rel_accuracy, failed, error."""
+    st = await _status(stores, sweep_id)
+    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
+    assert spec is not None
+    i0, i1 = min(offset, spec.n_total), min(offset + limit, spec.n_total)
+
+    def page() -> list[dict[str, Any]]:
+        vals = spec.swept_values(i0, i1)
+        pts: list[dict[str, Any]] = []
+        for k in range(i0, i1):
+            p: dict[str, Any] = {"idx": k}
+            if spec.mode == "grid":
+                p["index"] = [int(v) for v in np.unravel_index(k, spec.shape)]
+            p.update({n: float(v[k - i0]) for n, v in vals.items()})
+            p.update(computed=False, kind=None, critical_size=None, outcome=None,
+                     rel_accuracy=None, failed=None, error=None)
+            pts.append(p)
+        for b in stores.sweeps.blocks(sweep_id, i0, i1):
+            for k in range(max(b.i0, i0), min(b.i1, i1)):
+                o = k - b.i0
+                a = b.arrays
+                kd = int(a["kind"][o])
+                oc = int(a["outcome"][o]) if "outcome" in a else -1
+                cs, ra = float(a["critical_size"][o]), float(a["rel_accuracy"][o])
+                pts[k - i0].update(
+                    computed=True, kind=KINDS[kd] if kd >= 0 else None,
+                    critical_size=cs if np.isfinite(cs) else None,
+                    outcome=("stable", "unstable")[oc] if oc >= 0 else None,
+                    rel_accuracy=ra if np.isfinite(ra) else None,
+                    failed=bool(a["failed"][o]), error=b.errors.get(o))
+        return pts
+
+    pts = await run_in_threadpool(page)
+    nxt = i1 if i1 < spec.n_total else None
     return _json({"id": sweep_id, "status": st["status"], "n_done": st["n_done"],
                   "n_total": st["n_total"], "offset": offset, "limit": limit,
                   "next_offset": nxt, "points": pts})
 
 
+_DATA_FORMATS = ("netcdf", "csv", "json")
+
+
+@router.get("/{sweep_id}/data", summary="Sweep result (NetCDF, CSV or JSON)",
+            responses={**_N, 200: {"description": "The whole result, also while running "
+                                   "(missing points NaN / empty).", "content": {
+                                       "application/x-netcdf": {}, "text/csv": {},
+                                       "application/json": {}}},
+                       422: {"description": "Invalid format (problem+json)."}})
+async def get_data(sweep_id: SweepId, stores: StoresDep,
+                   format: Annotated[str, format_query(  # noqa: A002
+                       _DATA_FORMATS, "netcdf",
+                       "'netcdf': a NetCDF file (xarray.open_dataset opens it; grid axes as "
+                       "named coordinates, scattered sweeps on a 'point' dimension); "
+                       "'csv': one row per point with a header; 'json': flat arrays.")]
+                   = "netcdf") -> Response:
+    """The whole result, streamed, also while the sweep runs (points not computed yet are
+    NaN / -1 / empty).  Variables per point: ``critical_size`` (0 zero, inf infinite),
+    ``kind`` (0 zero, 1 finite, 2 infinite, -1 missing/failed), ``outcome`` (0 stable,
+    1 unstable, -1 missing or no size asked), ``rel_accuracy``, ``failed``.  Headers
+    ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``."""
+    fmt = choice(format, _DATA_FORMATS, "format")
+    st = await _status(stores, sweep_id)
+    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
+    assert spec is not None
+    h = {"X-Sweep-Status": st["status"], "X-Sweep-Progress": f"{st['n_done']}/{st['n_total']}",
+         "Content-Disposition": f'attachment; filename="sweep-{sweep_id}.'
+                                f'{ {"netcdf": "nc"}.get(fmt, fmt)}"'}
+    if fmt == "csv":
+        return StreamingResponse(sweepdata.csv_rows(stores.sweeps, spec, sweep_id),
+                                 media_type="text/csv", headers=h)
+    arrays = await run_in_threadpool(sweepdata.assemble, stores.sweeps, sweep_id, spec.n_total)
+    if fmt == "json":
+        fails = await run_in_threadpool(stores.sweeps.failures, sweep_id, 100)
+        return StreamingResponse(sweepdata.json_chunks(spec, st, arrays, fails),
+                                 media_type="application/json", headers=h)
+
+    def nc() -> bytes:
+        return sweepdata.netcdf_bytes(sweepdata.to_dataset(spec, st, arrays))
+
+    data = await run_in_threadpool(nc)
+    step = 1 << 20
+
+    def pieces() -> Any:
+        for k in range(0, len(data), step):
+            yield data[k:k + step]
+
+    h["Content-Length"] = str(len(data))
+    return StreamingResponse(pieces(), media_type="application/x-netcdf", headers=h)
+
+
 _JSON_OR_PNG = ("json", "png")
-_PAGE = 10_000
 
 
-def _all_points(sweeps: SweepStore, sweep_id: str) -> list[dict[str, object]]:
-    out: list[dict[str, object]] = []
-    while True:
-        page = sweeps.page_points(sweep_id, len(out), _PAGE)
-        out += page
-        if len(page) < _PAGE:
-            return out
-
-
-@router.get("/{sweep_id}/diagram", summary="Stability diagram of a sweep (JSON or PNG)",
+@router.get("/{sweep_id}/diagram", summary="Stability diagram of a 2-D slice (JSON or PNG)",
             responses={**_N, **png_content(
-                "The sweep assembled on its grid (JSON), or with format=png the stability "
-                "diagram image (critical size, or stable/unstable when a size is given).",
-                {422: {"description": "Invalid format (problem+json naming the field)."}})})
+                "The sweep (or a 2-D slice of it) on its grid (JSON), or with format=png "
+                "the stability diagram image (critical size, or stable/unstable when a "
+                "size is given).",
+                {422: {"description": "Invalid format or slice (problem+json naming the "
+                                      "field)."}})})
 async def get_diagram(sweep_id: SweepId, stores: StoresDep,
                       format: Annotated[str, format_query(  # noqa: A002
                           _JSON_OR_PNG, "json", "'png': the stability diagram image.")]
-                      = "json") -> Response:
-    """The finished or partial sweep as a stability diagram on its (x, y) grid, laid out
-    like ``rsfcore.diagram.DiagramResult.to_dict()``: ``critical_size[i][j]`` at (x[i], y[j])
-    (null where infinite or not yet computed), ``kind`` 0 zero / 1 finite / 2 infinite,
-    ``outcome`` 0 stable / 1 unstable when the sweep classifies a size, ``present[i][j]``
-    (computed without error), with status, n_done, n_total, n_failed.
-    ``?format=png``: the image, points not computed yet (or failed) left blank; headers
+                      = "json",
+                      slice: Annotated[str | None, Query(  # noqa: A002
+                          description="Values of all but two grid axes, e.g. "
+                          "'ba:2.0' or 'ba:2.0,vo:1' (nearest grid value). Valid range: "
+                          "comma-separated <axis>:<number>; not needed for a 2-D grid.",
+                          max_length=500)] = None) -> Response:
+    """A finished or partial grid sweep as a stability diagram over two of its axes (the
+    others fixed by ``slice``), laid out like ``rsfcore.diagram.DiagramResult.to_dict()``:
+    ``critical_size[i][j]`` at (x[i], y[j]) (null where infinite or not yet computed),
+    ``kind`` 0 zero / 1 finite / 2 infinite, ``outcome`` 0 stable / 1 unstable when the
+    sweep classifies a size, ``present[i][j]`` (computed without error), ``slice`` (the
+    values of the other axes), with status, n_done, n_total, n_failed.  ``?format=png``:
+    the image, points not computed yet (or failed) left blank; headers
     ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``.  Images of finished
     sweeps are cached."""
     fmt = choice(format, _JSON_OR_PNG, "format")
-    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
-    if st is None:
-        raise _unknown(sweep_id)
-    pts = await run_in_threadpool(_all_points, stores.sweeps, sweep_id)
-    d = adapter.sweep_diagram(st, pts)
+    st = await _status(stores, sweep_id)
+    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
+    assert spec is not None
+    fixed_idx = sweepdata.parse_slice(spec, slice)
+    arrays = await run_in_threadpool(sweepdata.assemble, stores.sweeps, sweep_id, spec.n_total)
+    d = sweepdata.diagram(spec, st, arrays, fixed_idx)
     if fmt == "json":
         return _json(d)
     final = d["status"] in ("done", "cancelled")
-    key = f"sweep-{sweep_id}-{d['status']}-{d['n_done']}-{d['n_failed']}.png"
+    tag = "-".join(f"{k}{v}" for k, v in sorted(fixed_idx.items()))
+    key = f"sweep-{sweep_id}-{tag}-{d['status']}-{d['n_done']}-{d['n_failed']}.png"
     data, hit = await image(key, lambda: images.diagram_png(d), store=final)
     return image_response(data, "png", hit, final=final, headers={
         "X-Sweep-Status": d["status"], "X-Sweep-Progress": f"{d['n_done']}/{d['n_total']}"})
 
 
-@router.delete("/{sweep_id}", responses=_N, summary="Cancel a sweep")
-async def cancel(sweep_id: SweepId, stores: StoresDep) -> Response:
-    """Cancel: queued chunks are dropped, running chunks stop at their next point."""
-    new = await run_in_threadpool(stores.sweeps.cancel, sweep_id)
-    if new is None:
+@router.delete("/{sweep_id}", responses={**_N, 204: {"description": "Deleted (purge)."}},
+               summary="Cancel a sweep, or delete it with ?purge=true")
+async def cancel(sweep_id: SweepId, stores: StoresDep,
+                 purge: Annotated[bool, Query(description="Delete the sweep and all its "
+                                              "data (cancelling it first if active). "
+                                              "Valid range: true or false.")] = False
+                 ) -> Response:
+    """Without ``purge``: cancel an active sweep (chunks not started are dropped; a
+    running chunk finishes, so work stops within one chunk per worker process).  On a
+    sweep already cancelled or done nothing changes (``changed: false``).  Re-submitting
+    a cancelled sweep resumes it.  With ``purge=true``: delete the sweep, its chunks and
+    results; 204."""
+    res = await run_in_threadpool(stores.sweeps.cancel, sweep_id)
+    if res is None:
         raise _unknown(sweep_id)
-    return _json(await run_in_threadpool(stores.sweeps.status, sweep_id))
+    if purge:
+        await run_in_threadpool(stores.sweeps.delete, sweep_id)
+        return Response(status_code=204)
+    st = await _status(stores, sweep_id)
+    st["changed"] = res[1]
+    return _json(st)

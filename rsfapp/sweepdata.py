@@ -1,0 +1,273 @@
+"""Sweep numbers: one chunk computed by rsfcore's batch kernel, and a sweep's stored blocks
+assembled into arrays, an xarray Dataset (NetCDF), CSV rows, JSON or a 2-D diagram slice.
+
+Per point (arrays of the chunk / of the whole sweep in flat-index order):
+
+* ``critical_size`` (float64): 0 for kind zero, inf for infinite, NaN where missing
+  (not computed yet) or failed;
+* ``kind`` (int8): 0 zero, 1 finite, 2 infinite, -1 missing or failed;
+* ``outcome`` (int8): 0 stable, 1 unstable, -1 missing, failed or not asked (no size);
+* ``rel_accuracy`` (float64): estimated relative accuracy of critical_size, NaN missing;
+* ``failed`` (bool): the point could not be computed (message in the side table);
+* ``computed`` (bool, assembled arrays only): the point's chunk is stored.
+
+Nothing here knows about HTTP; I/O is only through a :class:`~rsfapp.store.SweepStore`.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from rsfcore import batch
+from rsfcore.critical import KINDS
+from rsfcore.params import ParameterError
+
+from .grid import SpecError, SweepSpec
+from .store.sweeps import SweepStore
+
+__all__ = ["VARIABLES", "compute_chunk", "assemble", "to_dataset", "netcdf_bytes",
+           "csv_rows", "json_chunks", "diagram", "parse_slice"]
+
+#: Result variables of every point (NetCDF / CSV / JSON).
+VARIABLES: tuple[str, ...] = ("critical_size", "kind", "outcome", "rel_accuracy", "failed")
+_OUTCOMES = ("stable", "unstable")
+
+
+def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[Any]],
+                                                              dict[int, str]]:
+    """Results of flat indices [i0, i1): one :func:`rsfcore.batch.critical_points` call.
+
+    Returns (arrays, errors): the per-point arrays of the module docstring (plus
+    ``method``, ``on_boundary`` and, for outcomes, ``outcome_uncertain``) and
+    {offset in the chunk: "Type: message"} of the failed points.  A ParameterError (an
+    input the spec validation let through) fails every point of the chunk, with its
+    message, instead of the chunk.
+    """
+    p = spec.params(i0, i1)
+    n = i1 - i0
+    try:
+        r = batch.critical_points(p["ba"], p["kappa"], p["eps"], p["vo"],
+                                  perturbation=spec.perturbation, rtol=spec.rtol,
+                                  size=p["size"])
+    except ParameterError as exc:
+        msg = f"ParameterError: {exc}"[:2000]
+        return ({"critical_size": np.full(n, math.nan), "rel_accuracy": np.full(n, math.nan),
+                 "kind": np.full(n, -1, np.int8), "method": np.full(n, -1, np.int8),
+                 "failed": np.ones(n, np.bool_), "on_boundary": np.zeros(n, np.bool_),
+                 "outcome": np.full(n, -1, np.int8)}, {k: msg for k in range(n)})
+    arrays: dict[str, NDArray[Any]] = {
+        "critical_size": r.critical_size, "rel_accuracy": r.rel_accuracy, "kind": r.kind,
+        "method": r.method, "failed": r.failed, "on_boundary": r.on_boundary}
+    if r.outcome is not None and r.outcome_uncertain is not None:
+        arrays["outcome"] = r.outcome
+        arrays["outcome_uncertain"] = r.outcome_uncertain
+    return arrays, dict(r.errors)
+
+
+def _empty(n: int) -> dict[str, NDArray[Any]]:
+    return {"critical_size": np.full(n, math.nan), "kind": np.full(n, -1, np.int8),
+            "outcome": np.full(n, -1, np.int8), "rel_accuracy": np.full(n, math.nan),
+            "failed": np.zeros(n, np.bool_), "computed": np.zeros(n, np.bool_)}
+
+
+def assemble(store: SweepStore, sweep_id: str, n_total: int) -> dict[str, NDArray[Any]]:
+    """Flat arrays of every point (missing points NaN / -1, ``computed`` False)."""
+    out = _empty(n_total)
+    for b in store.blocks(sweep_id):
+        sl = slice(b.i0, b.i1)
+        for k in ("critical_size", "kind", "rel_accuracy", "failed"):
+            out[k][sl] = b.arrays[k]
+        if "outcome" in b.arrays:
+            out["outcome"][sl] = b.arrays["outcome"]
+        out["computed"][sl] = True
+    return out
+
+
+def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArray[Any]]) -> Any:
+    """An xarray Dataset: grid axes as named dimensions with coordinates (or a ``point``
+    dimension with the swept parameters as variables), the result variables, the fixed
+    parameters and sweep metadata as attributes."""
+    import xarray as xr
+
+    legends = {"kind": "-1 missing/failed, 0 zero, 1 finite, 2 infinite",
+               "outcome": "-1 missing/failed/not asked, 0 stable, 1 unstable",
+               "failed": "1 = could not be computed (see the status failures)",
+               "critical_size": "0 for kind zero, inf for infinite, NaN where missing or "
+                                "failed (d for a velocity jump, dv/v_o for a load-point jump)",
+               "rel_accuracy": "estimated relative accuracy of critical_size"}
+    if spec.mode == "grid":
+        dims = tuple(a.name for a in spec.axes)
+        coords: dict[str, Any] = {a.name: a.all() for a in spec.axes}
+        shape = spec.shape
+    else:
+        dims = ("point",)
+        coords = {"point": np.arange(spec.n_total, dtype=np.int32)}
+        shape = (spec.n_total,)
+    data: dict[str, Any] = {}
+    for v in VARIABLES:
+        a = arrays[v]
+        if v == "failed":
+            a = a.astype(np.int8)
+        data[v] = (dims, a.reshape(shape), {"description": legends[v]})
+    if spec.mode == "points":
+        for name, vals in spec.coords().items():
+            data[name] = (("point",), vals, {"description": f"swept parameter {name}"})
+    attrs: dict[str, Any] = {"sweep_id": status.get("id", ""), "status": status.get("status", ""),
+                             "perturbation": spec.perturbation, "rtol": spec.rtol,
+                             "output": spec.output, "n_total": spec.n_total,
+                             "n_done": int(status.get("n_done", 0)),
+                             "n_failed": int(status.get("n_failed", 0)),
+                             "numerics_version": str(status.get("numerics_version", ""))}
+    for k, v in spec.fixed.items():
+        if v is not None:
+            attrs[f"fixed_{k}"] = float(v)
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def netcdf_bytes(ds: Any) -> bytes:
+    """The Dataset as a NetCDF file (classic 64-bit-offset format, scipy engine)."""
+    return bytes(ds.to_netcdf(engine="scipy", format="NETCDF3_64BIT"))
+
+
+def _fmt(v: float) -> str:
+    return "" if math.isnan(v) else repr(float(v))
+
+
+def csv_rows(store: SweepStore, spec: SweepSpec, sweep_id: str,
+             batch_rows: int = 50_000) -> Iterator[str]:
+    """CSV text in pieces: a header, then one row per point in flat-index order:
+    idx, the swept parameters, kind, critical_size, outcome, rel_accuracy, failed, error.
+    Missing points have empty result fields."""
+    names = spec.swept
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["idx", *names, "kind", "critical_size", "outcome", "rel_accuracy",
+                "failed", "error"])
+    yield buf.getvalue()
+    blocks = store.blocks(sweep_id)
+    nxt = next(blocks, None)
+    i = 0
+    n = spec.n_total
+    while i < n:
+        if nxt is not None and nxt.i0 == i:
+            j, b = nxt.i1, nxt
+            nxt = next(blocks, None)
+        else:
+            j, b = min(n, nxt.i0 if nxt is not None else n, i + batch_rows), None
+        vals = spec.swept_values(i, j)
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        for k in range(j - i):
+            row: list[Any] = [i + k, *(repr(float(vals[m][k])) for m in names)]
+            if b is None:
+                row += ["", "", "", "", "", ""]
+            else:
+                kd = int(b.arrays["kind"][k])
+                oc = int(b.arrays["outcome"][k]) if "outcome" in b.arrays else -1
+                row += [KINDS[kd] if kd >= 0 else "", _fmt(b.arrays["critical_size"][k]),
+                        _OUTCOMES[oc] if oc >= 0 else "", _fmt(b.arrays["rel_accuracy"][k]),
+                        int(bool(b.arrays["failed"][k])), b.errors.get(k, "")]
+            w.writerow(row)
+        yield buf.getvalue()
+        i = j
+
+
+def _jlist(a: NDArray[Any], kind: str) -> str:
+    if kind == "f":
+        return "[" + ",".join(repr(float(x)) if math.isfinite(x) else "null"
+                              for x in a.tolist()) + "]"
+    return json.dumps(a.astype(int).tolist())
+
+
+def json_chunks(spec: SweepSpec, status: dict[str, Any],
+                arrays: dict[str, NDArray[Any]], failures: list[tuple[int, str]]) -> Iterator[str]:
+    """JSON document in pieces: status fields, ``coords`` (axis values, or the swept
+    parameters of each point), and one flat list per variable in flat-index order
+    (non-finite numbers and missing points are null; ``kind`` tells infinite from
+    missing), ``computed``, and ``failures`` [{idx, error}] (first 100)."""
+    head = {k: status[k] for k in ("id", "status", "n_total", "n_done", "n_failed",
+                                   "numerics_version") if k in status}
+    head.update(spec.summary())
+    head["shape"] = list(spec.shape)
+    head["kind_legend"] = list(KINDS)
+    head["outcome_legend"] = list(_OUTCOMES)
+    yield json.dumps(head)[:-1] + ', "coords": {'
+    for n, (name, vals) in enumerate(spec.coords().items()):
+        yield ("," if n else "") + json.dumps(name) + ":" + _jlist(vals, "f")
+    yield '}, "data": {'
+    for n, v in enumerate((*VARIABLES, "computed")):
+        kind = "f" if arrays[v].dtype.kind == "f" else "i"
+        yield ("," if n else "") + json.dumps(v) + ":" + _jlist(arrays[v], kind)
+    yield '}, "failures": ' + json.dumps([{"idx": i, "error": m} for i, m in failures]) + "}"
+
+
+def parse_slice(spec: SweepSpec, text: str | None) -> dict[str, int]:
+    """``slice`` query text ("ba:2.0,vo:1") -> {axis name: index of the nearest value};
+    the remaining axes must be exactly two.  Raises SpecError naming ``slice``."""
+    if spec.mode != "grid":
+        raise SpecError("slice", "a diagram needs a grid sweep", "a grid (axes) sweep")
+    fixed: dict[str, int] = {}
+    names = [a.name for a in spec.axes]
+    for part in filter(None, (text or "").split(",")):
+        name, sep, val = part.partition(":")
+        name = name.strip()
+        if not sep or name not in names:
+            raise SpecError("slice", f"{part!r} is not <axis>:<value>",
+                            "comma-separated <axis>:<value> with axes " + ", ".join(names))
+        try:
+            x = float(val)
+        except ValueError:
+            raise SpecError("slice", f"{val!r} is not a number", "a number") from None
+        ax = spec.axes[names.index(name)]
+        fixed[name] = int(np.argmin(np.abs(ax.all() - x)))
+    # an axis of length 1 needs no slice value
+    for a in spec.axes:
+        if a.n == 1 and a.name not in fixed and len(spec.axes) - len(fixed) > 2:
+            fixed[a.name] = 0
+    if len(spec.axes) - len(fixed) != 2:
+        raise SpecError("slice", f"{len(spec.axes) - len(fixed)} axes left free",
+                        "values for all but two axes, e.g. slice=" +
+                        ",".join(f"{n}:<value>" for n in names[2:]) if len(names) > 2
+                        else "a 2-D grid")
+    return fixed
+
+
+def diagram(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArray[Any]],
+            fixed_idx: dict[str, int]) -> dict[str, Any]:
+    """A 2-D slice as a stability diagram, laid out like
+    ``rsfcore.diagram.DiagramResult.to_dict()``: critical_size[i][j] at (x[i], y[j]) (null
+    where infinite or missing), kind codes 0 zero / 1 finite / 2 infinite, outcome codes 0
+    stable / 1 unstable (null where missing) for outcome sweeps, present[i][j] (computed
+    without error), plus status, n_done, n_total, n_failed and ``slice`` (the values of the
+    other axes)."""
+    free = [a for a in spec.axes if a.name not in fixed_idx]
+    sel = tuple(fixed_idx.get(a.name, slice(None)) for a in spec.axes)
+
+    def sl(v: str) -> NDArray[Any]:
+        return np.asarray(arrays[v].reshape(spec.shape)[sel])
+
+    cs, kind, oc = sl("critical_size"), sl("kind"), sl("outcome")
+    ok = sl("computed") & ~sl("failed")
+    outcome_mode = spec.output == "outcome"
+    present = ok & (oc >= 0) if outcome_mode else ok
+    csl = [[(float(v) if math.isfinite(v) else None) for v in row] for row in cs.tolist()]
+    kl = np.where(kind >= 0, kind, 1).astype(int).tolist()
+    ol = [[(float(v) if v >= 0 else None) for v in row] for row in oc.tolist()]
+    sl_vals = {a.name: float(a.at(np.array([fixed_idx[a.name]]))[0])
+               for a in spec.axes if a.name in fixed_idx}
+    fixed = {k: v for k, v in spec.fixed.items() if v is not None}
+    fixed.update(sl_vals)
+    return {"x_name": free[0].name, "x": free[0].all().tolist(), "y_name": free[1].name,
+            "y": free[1].all().tolist(), "critical_size": csl, "kind": kl,
+            "kind_legend": list(KINDS), "outcome": ol if outcome_mode else None,
+            "outcome_legend": list(_OUTCOMES), "present": present.tolist(),
+            "perturbation": spec.perturbation, "rtol": spec.rtol, "fixed": fixed,
+            "slice": sl_vals, "id": status["id"], "status": status["status"],
+            "n_done": status["n_done"], "n_total": status["n_total"],
+            "n_failed": status["n_failed"], "numerics_version": status.get("numerics_version")}

@@ -1,0 +1,233 @@
+"""Sweeps in process (TestClient, real SQLite; chunks computed by calling the worker's
+task body directly): N-D grids, scattered points, validation, lifecycle, data formats.
+The same flows through real uvicorn + Celery workers are in tests/e2e/test_worker_sweeps.py."""
+from __future__ import annotations
+
+import io
+import math
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from rsfcore import critical
+from rsfcore.params import Params
+
+pytestmark = pytest.mark.timeout(300)
+
+
+def run_all(c: TestClient, sid: str) -> None:
+    """Compute every chunk of ``sid`` in this process (what a worker does)."""
+    from worker.tasks import run_chunk_body
+
+    n = c.get(f"/v1/sweeps/{sid}").json()["n_chunks"]
+    for k in range(n):
+        run_chunk_body(sid, k)
+
+
+def submit(c: TestClient, body: dict[str, Any], code: int = 202) -> dict[str, Any]:
+    r = c.post("/v1/sweeps", json=body)
+    assert r.status_code == code, r.text
+    return r.json()
+
+
+def rows(data: Path) -> dict[str, int]:
+    con = sqlite3.connect(data / "cache.sqlite3", timeout=30)
+    try:
+        return {t: con.execute(f"SELECT count(*) FROM {t}").fetchone()[0]
+                for t in ("sweeps", "sweep_chunks", "sweep_blocks", "sweep_inputs")}
+    finally:
+        con.close()
+
+
+def ref_critical(ba: float, kappa: float, eps: float, vo: float,
+                 pert: str = "velocity-jump") -> critical.CriticalResult:
+    return critical.critical_perturbation(Params(ba, kappa, eps, vo), pert, rtol=1e-10)
+
+
+def test_3d_grid_with_vo_axis_matches_rsfcore(c: TestClient) -> None:
+    body = {"axes": [{"name": "kappa_ratio", "start": 0.5, "stop": 4.0, "n": 5},
+                     {"name": "eps", "values": [0.0, 0.3, 0.6]},
+                     {"name": "vo", "values": [0.0, 1.0]}],
+            "fixed": {"ba": 2.5}, "chunk_points": 7}
+    st = submit(c, body)
+    assert st["created"] is True and st["resumed"] is False and st["n_total"] == 30
+    assert st["dims"] == [{"name": "kappa_ratio", "n": 5}, {"name": "eps", "n": 3},
+                          {"name": "vo", "n": 2}]
+    assert "axes" not in st and "spec" not in st  # polls do not resend axis values
+    sid = st["id"]
+    run_all(c, sid)
+    st = c.get(f"/v1/sweeps/{sid}").json()
+    assert st["status"] == "done" and st["n_done"] == 30 and st["n_failed"] == 0
+    assert st["finished_at"].endswith("Z") and "T" in st["created_at"]
+    pts = c.get(f"/v1/sweeps/{sid}/points", params={"limit": 100}).json()["points"]
+    assert [p["idx"] for p in pts] == list(range(30))
+    kinds = set()
+    for p in pts:
+        ref = ref_critical(2.5, p["kappa_ratio"] * 1.5, p["eps"], p["vo"])
+        kinds.add(ref.kind)
+        assert p["kind"] == ref.kind
+        if ref.kind == "finite":
+            # same compiled kernel: equal to 1e-12 relative (in fact identical)
+            assert p["critical_size"] == pytest.approx(ref.critical_size, rel=1e-12)
+    assert kinds == {"zero", "finite", "infinite"}
+    # resubmitting a finished sweep is a lookup
+    r = c.post("/v1/sweeps", json=body)
+    assert r.status_code == 200 and r.headers["x-cache"] == "hit"
+
+
+def test_scattered_points_and_data_formats(c: TestClient) -> None:
+    import xarray as xr
+
+    rng = np.random.default_rng(5)
+    n = 40
+    pts = {"ba": rng.uniform(1.2, 6.0, n).tolist(), "kappa": rng.uniform(0.0, 8.0, n).tolist(),
+           "eps": rng.uniform(0.0, 0.9, n).tolist()}
+    st = submit(c, {"points": pts, "fixed": {"vo": 2.0}, "perturbation": "load-point-jump",
+                    "chunk_points": 16})
+    sid = st["id"]
+    assert st["dims"] == [{"name": "point", "n": n, "parameters": ["ba", "kappa", "eps"]}]
+    run_all(c, sid)
+    r = c.get(f"/v1/sweeps/{sid}/data", params={"format": "netcdf"})
+    assert r.status_code == 200 and r.headers["x-sweep-progress"] == f"{n}/{n}"
+    ds = xr.open_dataset(io.BytesIO(r.content), engine="scipy")
+    assert ds["critical_size"].dims == ("point",)
+    for v in ("critical_size", "kind", "outcome", "rel_accuracy", "failed", "ba", "eps"):
+        assert v in ds
+    for i in range(n):
+        ref = ref_critical(pts["ba"][i], pts["kappa"][i], pts["eps"][i], 2.0,
+                           "load-point-jump")
+        got = float(ds["critical_size"][i])
+        assert ds["ba"][i] == pts["ba"][i]
+        if ref.kind == "finite":
+            assert got == pytest.approx(ref.critical_size, rel=1e-12)
+        elif ref.kind == "infinite":
+            assert math.isinf(got)
+        else:
+            assert got == 0.0
+    csv = c.get(f"/v1/sweeps/{sid}/data", params={"format": "csv"}).text.splitlines()
+    assert csv[0] == "idx,ba,kappa,eps,kind,critical_size,outcome,rel_accuracy,failed,error"
+    assert len(csv) == n + 1
+    js = c.get(f"/v1/sweeps/{sid}/data", params={"format": "json"}).json()
+    assert len(js["data"]["critical_size"]) == n and js["coords"]["ba"] == pts["ba"]
+
+
+def test_grid_netcdf_coordinates_and_partial_data(c: TestClient) -> None:
+    import xarray as xr
+
+    body = {"axes": [{"name": "eps", "start": 0.0, "stop": 0.8, "n": 3},
+                     {"name": "kappa_ratio", "start": 1.0, "stop": 9.0, "n": 4, "log": True}],
+            "fixed": {"ba": 3.0}, "chunk_points": 5}
+    sid = submit(c, body)["id"]
+    from worker.tasks import run_chunk_body
+    run_chunk_body(sid, 0)  # one chunk of three: partial data
+    r = c.get(f"/v1/sweeps/{sid}/data")
+    ds = xr.open_dataset(io.BytesIO(r.content), engine="scipy")
+    assert ds["critical_size"].dims == ("eps", "kappa_ratio")
+    np.testing.assert_array_equal(ds["eps"].values, [0.0, 0.4, 0.8])
+    # geometric spacing 1, 9^(1/3), 9^(2/3), 9 (exact end points)
+    np.testing.assert_allclose(ds["kappa_ratio"].values, 9.0 ** (np.arange(4) / 3), rtol=1e-15)
+    assert ds["kappa_ratio"].values[-1] == 9.0
+    flat = ds["kind"].values.ravel()
+    assert (flat[:5] >= 0).all() and (flat[5:] == -1).all()
+    assert np.isnan(ds["critical_size"].values.ravel()[5:]).all()
+    assert ds.attrs["status"] == "running" and ds.attrs["fixed_ba"] == 3.0
+
+
+def test_diagram_slice_of_3d_grid(c: TestClient) -> None:
+    body = {"axes": [{"name": "ba", "values": [2.0, 3.0]},
+                     {"name": "kappa_ratio", "start": 0.5, "stop": 3.0, "n": 4},
+                     {"name": "eps", "start": 0.0, "stop": 0.9, "n": 3}],
+            "fixed": {"size": 0.7}}
+    sid = submit(c, body)["id"]
+    run_all(c, sid)
+    d = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3.0"}).json()
+    assert d["x_name"] == "kappa_ratio" and d["y_name"] == "eps" and d["slice"] == {"ba": 3.0}
+    assert len(d["outcome"]) == 4 and len(d["outcome"][0]) == 3
+    assert all(all(row) for row in d["present"])
+    png = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3", "format": "png"})
+    assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+    r = c.get(f"/v1/sweeps/{sid}/diagram")
+    assert r.status_code == 422 and r.json()["field"] == "slice"
+
+
+@pytest.mark.parametrize("body,field,valid", [
+    ({"axes": [{"name": "ba", "values": [2.0]}, {"name": "eps", "values": [0.1]},
+               {"name": "eps", "start": 0, "stop": 2, "n": 3}]}, "axes[2].name", "not already"),
+    ({"axes": [{"name": "ba", "values": [2.0]}, {"name": "kappa", "values": [0.1]},
+               {"name": "eps", "start": 0, "stop": 2, "n": 3}]}, "axes[2].stop", "[0, 1]"),
+    ({"points": {"ba": [2.0] * 20, "eps": [0.1] * 17 + [1.5, 0.1, 0.1]}}, "points.eps[17]",
+     "[0, 1]"),
+    ({"points": {"ba": [2.0, 3.0], "eps": [0.1]}}, "points.eps", "length 2"),
+    ({"axes": [{"name": "kappa", "values": [2.0]}], "fixed": {"kappa_ratio": 1.0}},
+     "fixed.kappa_ratio", "null"),
+    ({"axes": [{"name": "vo", "values": [1.0, 0.0]}], "perturbation": "load-point-jump"},
+     "axes[0].values[1]", "(0, 1e300]"),
+    ({"axes": [{"name": "eps", "start": 0, "stop": 1, "n": 1000},
+               {"name": "ba", "start": 2, "stop": 3, "n": 1000},
+               {"name": "vo", "start": 1, "stop": 3, "n": 1000}]}, "axes", "<= 100000000"),
+    ({"axes": [{"name": "eps", "values": [0.1]}], "x": {"name": "ba", "values": [2.0]}},
+     "x", "one of"),
+])
+def test_bad_sweep_is_422_naming_field_and_writes_nothing(
+        c: TestClient, api_stack, body: dict[str, Any], field: str, valid: str) -> None:
+    data = api_stack[1]
+    c.get("/health")
+    before = rows(data)
+    r = c.post("/v1/sweeps", json=body)
+    assert r.status_code == 422, r.text
+    assert r.headers["content-type"].startswith("application/problem+json")
+    p = r.json()
+    assert p["field"] == field, p
+    assert valid in (p.get("valid") or "") + p["detail"], p
+    assert rows(data) == before
+
+
+def test_lifecycle_cancel_resume_delete(c: TestClient, api_stack) -> None:
+    body = {"axes": [{"name": "eps", "start": 0.0, "stop": 0.9, "n": 10},
+                     {"name": "kappa_ratio", "start": 1.0, "stop": 5.0, "n": 10}],
+            "chunk_points": 10}
+    st = submit(c, body)
+    sid = st["id"]
+    from worker.tasks import run_chunk_body
+    run_chunk_body(sid, 0)
+    r1 = c.delete(f"/v1/sweeps/{sid}")
+    assert r1.status_code == 200 and r1.json()["status"] == "cancelled" and r1.json()["changed"]
+    r2 = c.delete(f"/v1/sweeps/{sid}")
+    assert r2.json()["changed"] is False
+    assert r2.json()["finished_at"] == r1.json()["finished_at"]  # a second cancel changes nothing
+    assert run_chunk_body(sid, 1) == {"skipped": True}
+    again = c.post("/v1/sweeps", json=body)
+    assert again.status_code == 202 and again.json()["resumed"] is True
+    assert "x-cache" not in again.headers
+    run_all(c, sid)
+    st = c.get(f"/v1/sweeps/{sid}").json()
+    assert st["status"] == "done" and st["n_done"] == 100
+    assert c.delete(f"/v1/sweeps/{sid}").json()["changed"] is False  # done stays done
+    assert c.delete(f"/v1/sweeps/{sid}", params={"purge": "true"}).status_code == 204
+    assert c.get(f"/v1/sweeps/{sid}").status_code == 404
+    con = sqlite3.connect(api_stack[1] / "cache.sqlite3")
+    try:
+        for t in ("sweep_blocks", "sweep_chunks", "sweeps"):
+            assert con.execute(f"SELECT count(*) FROM {t} WHERE "
+                               f"{'id' if t == 'sweeps' else 'sweep_id'} = ?",
+                               (sid,)).fetchone()[0] == 0
+    finally:
+        con.close()
+
+
+def test_huge_sweep_is_accepted_lazily(c: TestClient, api_stack) -> None:
+    """10^8 points: 202 at once, a few thousand chunk rows at most, a window queued."""
+    body = {"axes": [{"name": n, "start": lo, "stop": hi, "n": 100} for n, lo, hi in
+                     (("ba", 1.5, 5.0), ("kappa_ratio", 0.5, 5.0), ("eps", 0.0, 0.9),
+                      ("vo", 0.0, 10.0))]}
+    q = c.app.state.recording_queue
+    before = len(q.chunks)
+    st = submit(c, body)
+    assert st["n_total"] == 10**8 and st["n_chunks"] <= 100_000
+    assert len(q.chunks) - before == min(64, st["n_chunks"])
+    r = c.delete(f"/v1/sweeps/{st['id']}", params={"purge": "true"})
+    assert r.status_code == 204
