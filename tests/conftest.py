@@ -113,19 +113,20 @@ class Worker(Proc):
     _n = 0
 
     def __init__(self, data_dir: Path, broker_url: str = "", pool: str = "solo",
-                 concurrency: int = 1, plugin: bool = False, **extra: str) -> None:
+                 concurrency: int = 1, plugin: bool = False, include: str = "",
+                 **extra: str) -> None:
         Worker._n += 1
         name = f"w{Worker._n}-{os.getpid()}@127.0.0.1"
         log = data_dir / f"worker-{Worker._n}.log"
         env = service_env(data_dir, broker_url, **extra)
-        if plugin:
+        if plugin or include:
             env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{ROOT / 'tests' / 'e2e'}"
         super().__init__([sys.executable, "-m", "celery", "-A", "worker.celery_app:app",
                           "worker", "-Q", "rsf", f"--pool={pool}",
                           f"--concurrency={concurrency}", "--loglevel=INFO",
                           "--without-gossip", "--without-mingle", "--without-heartbeat",
                           "-n", name, *(["--include", "test_worker_faultplugin"] if plugin
-                                        else [])],
+                                        else []), *(["--include", include] if include else [])],
                          env, log)
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
