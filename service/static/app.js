@@ -16,6 +16,37 @@ const state = {
 };
 window.rsfUi = state;          // for debugging (and the browser test)
 
+/* ------------------------------------------------------------------ API key */
+/* A server with API keys answers 401 without one.  The key is asked for once, kept in
+   this tab's sessionStorage (gone when the tab closes, never sent to another origin) and
+   sent as "Authorization: Bearer <key>" by every request of the page. */
+const KEY_ITEM = "rsf-api-key";
+const plainFetch = window.fetch.bind(window);
+function apiKey() { try { return sessionStorage.getItem(KEY_ITEM) || ""; } catch (e) { return ""; } }
+function askKey(message) {
+  const form = $("#key-form");
+  if (!form) return;
+  $("#key-message").textContent = message || "This server needs an API key.";
+  form.hidden = false;
+}
+window.fetch = async (url, opts = {}) => {
+  const sameOrigin = new URL(String(url), location.href).origin === location.origin;
+  const headers = new Headers(opts.headers || {});
+  const key = apiKey();
+  if (sameOrigin && key && !headers.has("authorization")) headers.set("authorization", "Bearer " + key);
+  const r = await plainFetch(url, { ...opts, headers });
+  if (sameOrigin && r.status === 401) askKey(key ? "The API key was refused (unknown or revoked)." : "");
+  return r;
+};
+function useKey(ev) {
+  ev.preventDefault();
+  const v = $("#key-input").value.trim();
+  try { if (v) sessionStorage.setItem(KEY_ITEM, v); else sessionStorage.removeItem(KEY_ITEM); } catch (e) { /* private mode */ }
+  $("#key-input").value = "";
+  $("#key-form").hidden = true;
+  health(); loadFigures(); refreshSweeps();
+}
+
 /* ------------------------------------------------------------------ helpers */
 function fmt(v, digits = 4) {
   if (v === null || v === undefined) return "\u2014";
@@ -371,7 +402,14 @@ function showFigure() {
   busy(status, "rendering (first time takes a few seconds)\u2026");
   img.onload = () => { busy(status, ""); $("#figure-figure").hidden = false; };
   img.onerror = () => { busy(status, ""); status.textContent = "could not render"; };
-  img.src = `/v1/figures/${encodeURIComponent(name)}?format=png`;
+  blobURL(`/v1/figures/${encodeURIComponent(name)}?format=png`)
+    .then(res => { img.src = res.url; })
+    .catch(() => { busy(status, ""); status.textContent = "could not render"; });
+}
+async function openSvg(ev) {  // through fetch, so that the API key is sent
+  ev.preventDefault();
+  try { window.open((await blobURL(ev.currentTarget.href)).url, "_blank"); }
+  catch (e) { $("#figure-status").textContent = "could not render: " + (e.message || e); }
 }
 
 /* ------------------------------------------------------------------ wiring */
@@ -389,6 +427,8 @@ document.addEventListener("DOMContentLoaded", () => {
   });
   $("#figure-select").addEventListener("change", () => { figureCaption(); showFigure(); });
   $("#figure-show").addEventListener("click", showFigure);
+  $("#figure-svg").addEventListener("click", openSvg);
+  $("#key-form").addEventListener("submit", useKey);
   kappaHint();
   syncFixed();
   health();
