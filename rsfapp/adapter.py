@@ -26,13 +26,15 @@ from rsfcore.units import (PhysicalInputs, load_point_jump_si, load_point_jump_s
 from .requests import (SI_PERTURBATION_FIELDS, VALID, AnalyticRequest, BoundariesRequest,
                        ClassifyRequest, CriticalRequest, PhysicalSI, StiffnessRequest,
                        TrajectoryRequest)
+from .requests.fits import FIT_LAWS, FitRequest
 from .requests.protocols import LoadHistoryRequest, SlideHoldSlideRequest, VelocityStepRequest
 
 __all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "SAMPLING_NOTE", "numerics_version",
            "classify", "trajectory", "critical", "resolve_params", "resolve_size", "si_inputs",
            "classify_batch", "critical_batch", "item_error", "validate_items",
            "protocol_velocity_step", "protocol_slide_hold_slide", "protocol_load_history",
-           "protocol_table", "PROTOCOL_COLUMNS", "analytic_u",
+           "protocol_table", "PROTOCOL_COLUMNS", "fit", "fit_key_request", "fit_record_of",
+           "fit_table", "FIT_COLUMNS", "analytic_u",
            "boundaries", "stiffness", "guard",
            "sweep_diagram", "compute_point", "point_values"]
 
@@ -648,3 +650,64 @@ def protocol_table(result: dict[str, Any]) -> dict[str, list[Any]]:
         if k in result:
             cols[k] = result[k]
     return cols
+
+
+# --- fits of lab records (POST /v1/fits, worker.tasks.fit_record; rsfcore.fit) ------------
+def fit_record_of(req: FitRequest) -> Any:
+    """The request's record parsed by rsfcore.fit.read_record (ParameterError naming
+    ``record`` and what is wrong)."""
+    from rsfcore import fit as _fit
+
+    try:
+        return guard(_fit.read_record, req.record)
+    except ParameterError as exc:
+        if exc.field.startswith("record"):
+            raise
+        raise ParameterError(f"record.{exc.field}", exc.value, exc.valid) from None
+
+
+def fit_key_request(req: FitRequest) -> dict[str, Any]:
+    """What identifies a fit: the record's content hash and the options (cache key)."""
+    return {"record_sha256": fit_record_of(req).digest(), **req.options()}
+
+
+def fit(req: FitRequest) -> dict[str, Any]:
+    """Fit the record (rsfcore.fit): the reported law's FitResult.to_dict() (params,
+    stderr, residuals and series, misfit, stability answer in SI with uncertainty), plus
+    ``law_comparison`` (misfit and information criteria per law) when ``compare``."""
+    from rsfcore import fit as _fit
+
+    rec = fit_record_of(req)
+    opts: dict[str, Any] = {"stiffness": req.stiffness_per_m, "fit_stiffness": req.fit_stiffness,
+                            "nagata_c": req.nagata_c, "rtol": req.rtol,
+                            "uncertainty_samples": req.uncertainty_samples, "seed": req.seed}
+    comparison: dict[str, Any] | None = None
+    if req.compare:
+        cmp = guard(_fit.compare_laws, rec, laws=FIT_LAWS, **opts)
+        law = req.law or cmp.best or (req.law or "aging")
+        res = cmp.fits[law]
+        if res.ok and res.stability is None:
+            guard(_fit.attach_stability, res, uncertainty_samples=req.uncertainty_samples,
+                  seed=req.seed)
+        comparison = {"best": cmp.best, "misfit_floor": cmp.misfit_floor,
+                      "scores": [s.to_dict() for s in cmp.scores],
+                      "params": {k: f.params for k, f in cmp.fits.items()},
+                      "stderr": {k: f.stderr for k, f in cmp.fits.items()},
+                      "status": {k: f.status.value for k, f in cmp.fits.items()}}
+    else:
+        assert req.law is not None
+        res = guard(_fit.fit_record, rec, req.law, **opts)
+    out = res.to_dict(series=True)
+    out["law_comparison"] = jsonsafe(comparison)
+    out["options"] = req.options()
+    return jsonsafe(out)
+
+
+#: Columns of a fit's CSV (data, model, residuals).
+FIT_COLUMNS = ("t_s", "v_lp_m_s", "mu", "model", "residuals")
+
+
+def fit_table(result: dict[str, Any]) -> dict[str, list[Any]]:
+    """The series of a fit answer as columns (FIT_COLUMNS)."""
+    s = result.get("series") or {}
+    return {k: s[k] for k in FIT_COLUMNS if k in s}

@@ -14,11 +14,12 @@ from celery import Celery
 
 from .config import Settings, get_settings
 
-__all__ = ["Queue", "make_app", "RUN_CHUNK", "COMPUTE_SINGLE"]
+__all__ = ["Queue", "make_app", "RUN_CHUNK", "COMPUTE_SINGLE", "FIT_RECORD"]
 
 #: Task names (stable: messages already queued must keep working).
 RUN_CHUNK = "worker.tasks.run_chunk"
 COMPUTE_SINGLE = "worker.tasks.compute_single"
+FIT_RECORD = "worker.tasks.fit_record"
 
 
 def make_app(settings: Settings | None = None) -> Celery:
@@ -61,3 +62,7 @@ class Queue:
         """Enqueue a long single query (see :mod:`rsfapp.store.jobs`)."""
         self.app.send_task(COMPUTE_SINGLE, args=[kind, request, key, version],
                            queue=self.settings.queue)
+
+    def send_fit(self, request: dict[str, Any], key: str, version: str) -> None:
+        """Enqueue the fit of a lab record (``request``: a FitRequest as JSON)."""
+        self.app.send_task(FIT_RECORD, args=[request, key, version], queue=self.settings.queue)

@@ -68,28 +68,25 @@ def plot_protocol(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -
 
 
 def plot_fit(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -> bytes:
-    """Data and fitted friction against time or load-point displacement (top) and the
-    residuals (bottom) of a fit answer (keys ``data``/``fit`` columns as rsfcore.fit gives
-    them: ``t_s`` or ``x_m``, ``mu`` and ``mu_fit``; or ``residuals``)."""
-    curves = result.get("curves") or result.get("series") or {}
-    x = _arr(curves.get("t_s") or curves.get("x"))
-    mu = _arr(curves.get("mu"))
-    fit = _arr(curves.get("mu_fit"))
-    res = _arr(curves.get("residuals")) if curves.get("residuals") is not None else mu - fit
-    if not x.size or x.size != mu.size or mu.size != fit.size:
-        raise ParameterError("result", None, "a fit answer with curves {t_s, mu, mu_fit}")
+    """Data and fitted friction against time (top) and the residuals (bottom) of a fit
+    answer (rsfcore.fit FitResult.to_dict() with ``series`` {t_s, mu, model, residuals})."""
+    s = result.get("series") or {}
+    t, mu, model = _arr(s.get("t_s")), _arr(s.get("mu")), _arr(s.get("model"))
+    res = _arr(s.get("residuals")) if s.get("residuals") is not None else model - mu
+    if not t.size or t.size != mu.size or mu.size != model.size:
+        raise ParameterError("result", None, "a fit answer with series {t_s, mu, model}")
     fig = new_figure(8.0, 5.5)
     ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    ax1.plot(x, mu, ".", color="0.5", ms=2, label="data")
-    ax1.plot(x, fit, "r-", lw=1.1, label="fit")
+    ax1.plot(t, mu, ".", color="0.5", ms=2, label="data")
+    ax1.plot(t, model, "r-", lw=1.1, label="fit")
     ax1.set_ylabel("friction mu (-)")
     ax1.legend(fontsize=7)
-    ax2.plot(x, res, ".", color="k", ms=2)
+    ax2.plot(t, res, ".", color="k", ms=2)
     ax2.axhline(0.0, color="r", lw=0.8)
-    ax2.set_ylabel("residual")
+    ax2.set_ylabel("model - data")
     ax2.set_xlabel("t (s)")
     p = result.get("params", {})
-    law = result.get("law", "")
-    txt = ", ".join(f"{k}={v:.4g}" for k, v in p.items() if isinstance(v, (int, float)))
-    fig.suptitle(f"{law} law: {txt}", fontsize=9)
+    txt = ", ".join(f"{k}={v:.4g}" for k, v in p.items()
+                    if k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m") and isinstance(v, (int, float)))
+    fig.suptitle(f"{result.get('law', '')} law ({result.get('status', '')}): {txt}", fontsize=9)
     return figure_bytes(fig, fmt, dpi)

@@ -18,6 +18,7 @@ from .errors import install_handlers
 from .routes import compute, docs, figures, meta, sweeps, ui
 from .routes import batch as batch_routes
 from .routes import protocols as protocol_routes
+from .routes import fits as fit_routes
 
 __all__ = ["create_app", "app"]
 log = logging.getLogger("rsf.service")
@@ -53,6 +54,7 @@ def create_app() -> FastAPI:
     a.include_router(compute.router)
     a.include_router(batch_routes.router)
     a.include_router(protocol_routes.router)
+    a.include_router(fit_routes.router)
     a.include_router(sweeps.router)
     a.include_router(figures.router)
     a.include_router(ui.router)

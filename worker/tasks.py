@@ -18,14 +18,15 @@ from celery import Task
 
 from rsfapp import adapter, requests
 from rsfapp.config import get_settings
-from rsfapp.queue import COMPUTE_SINGLE, RUN_CHUNK, Queue
+from rsfapp.queue import COMPUTE_SINGLE, FIT_RECORD, RUN_CHUNK, Queue
+from rsfapp.reaper import Lease
 from rsfapp.store import stores_for
 from rsfapp.store.sweeps import encode_block
 from rsfapp.sweepdata import compute_chunk
 
 from .celery_app import app
 
-__all__ = ["run_chunk", "run_chunk_body", "compute_single"]
+__all__ = ["run_chunk", "run_chunk_body", "compute_single", "fit_record", "fit_record_body"]
 log = logging.getLogger("rsf.worker")
 
 
@@ -47,7 +48,9 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
         spec = sweeps.get_spec(sweep_id)
         if spec is None:  # deleted meanwhile
             return {"skipped": True}
-        arrays, errors = compute_chunk(spec, i0, i1)
+        # the lease is renewed while the chunk computes (rsfapp.reaper)
+        with Lease(lambda: sweeps.heartbeat(sweep_id, idx), s.heartbeat_s):
+            arrays, errors = compute_chunk(spec, i0, i1)
         stored = sweeps.store_block(sweep_id, idx, i0, i1, encode_block(arrays), errors)
     sweeps.finish_chunk(sweep_id, idx, complete=True)
     nxt = sweeps.next_chunks(sweep_id, s.sweep_window)
@@ -70,7 +73,9 @@ def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
             stores_for(get_settings()).sweeps.release_chunk(sweep_id, idx)
         except Exception:  # noqa: BLE001
             log.exception("could not release chunk %s/%d", sweep_id, idx)
-        raise self.retry(exc=exc, countdown=2.0) from exc
+        # backoff 2, 4, 8, 16, 30 s: rides out a database or broker restart
+        raise self.retry(exc=exc, countdown=min(2.0 * 2 ** self.request.retries, 30.0)) \
+            from exc
 
 
 _SINGLE = {
@@ -94,3 +99,29 @@ def compute_single(kind: str, request: dict[str, Any], key: str, version: str) -
         st.jobs.mark_failed(key, f"{type(exc).__name__}: {exc}")
         return
     st.results.put(key, kind, version, request, result)
+
+
+def fit_record_body(request: dict[str, Any], key: str, version: str) -> None:
+    """Fit one lab record (rsfapp.adapter.fit); the result lands in the result store under
+    ``key`` (stored request: the options and the record's hash, not the record), a
+    failure in the job store (for GET /v1/fits/{key})."""
+    from rsfapp.requests.fits import FitRequest
+
+    st = stores_for(get_settings())
+    if st.results.get(key) is not None:  # delivered again after it was already done
+        return
+    try:
+        req = FitRequest.model_validate(request)
+        summary = adapter.fit_key_request(req)
+        result = adapter.fit(req)
+    except Exception as exc:  # noqa: BLE001 - every failure is recorded for the client
+        log.warning("fit %s failed: %s", key, exc)
+        st.jobs.mark_failed(key, f"{type(exc).__name__}: {exc}")
+        return
+    st.results.put(key, "fit", version, summary, result)
+
+
+@app.task(name=FIT_RECORD, acks_late=True)
+def fit_record(request: dict[str, Any], key: str, version: str) -> None:
+    """Celery entry point of :func:`fit_record_body` (POST /v1/fits)."""
+    fit_record_body(request, key, version)

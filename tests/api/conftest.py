@@ -23,12 +23,16 @@ class RecordingQueue:
     def __init__(self) -> None:
         self.chunks: list[tuple[str, int]] = []
         self.singles: list[tuple[str, dict[str, Any], str, str]] = []
+        self.fits: list[tuple[dict[str, Any], str, str]] = []
 
     def send_chunk(self, sweep_id: str, idx: int) -> None:
         self.chunks.append((sweep_id, idx))
 
     def send_single(self, kind: str, request: dict[str, Any], key: str, version: str) -> None:
         self.singles.append((kind, request, key, version))
+
+    def send_fit(self, request: dict[str, Any], key: str, version: str) -> None:
+        self.fits.append((request, key, version))
 
 
 @pytest.fixture(scope="module")

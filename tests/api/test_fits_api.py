@@ -1,0 +1,84 @@
+"""POST /v1/fits round trip on a synthetic record: 202 + Location, the queued message run
+by the worker's task body in process, then the fit (recovering the true parameters of the
+noise-free record), its plot and CSV, the law comparison and the cache by record hash."""
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from rsfcore.fit import fit_record, synthetic_record
+
+pytestmark = pytest.mark.timeout(300)
+
+TRUE = {"mu0": 0.6, "a": 0.01, "b": 0.015, "Dc_m": 1e-5, "eps": 1.0}
+K_PER_M = 2000.0     # 4x the critical stiffness (b - a)/Dc = 500 1/m: stable machine
+
+
+def _record_csv() -> str:
+    t = np.linspace(0.0, 60.0, 601)
+    v = np.where(t < 20, 1e-6, np.where(t < 40, 1e-5, 1e-6))
+    rec = synthetic_record(t, v, k_per_m=K_PER_M, **TRUE)
+    return rec.to_csv()
+
+
+def test_fit_round_trip(c: TestClient) -> None:
+    queue = c.app.state.recording_queue  # type: ignore[attr-defined]
+    text = _record_csv()
+    body = {"record": text, "stiffness_per_m": K_PER_M, "uncertainty_samples": 50}
+    r = c.post("/v1/fits", json=body)
+    assert r.status_code == 202, r.text
+    loc = r.headers["location"]
+    key = r.json()["cache_key"]
+    assert loc == f"/v1/fits/{key}" and queue.fits[-1][1] == key
+    assert c.get(loc).status_code == 202            # queued, not computed yet
+    assert c.post("/v1/fits", json=body).status_code == 202 and len(queue.fits) == 1
+
+    from worker.tasks import fit_record_body
+    fit_record_body(*queue.fits[-1])
+
+    g = c.get(loc)
+    assert g.status_code == 200, g.text
+    res = g.json()
+    assert res["status"] == "ok" and res["law"] == "aging"
+    # noise-free synthetic record of the same forward model: the true values to 1e-6
+    for k, v in TRUE.items():
+        assert res["params"][k] == pytest.approx(v, rel=1e-6), k
+    assert set(res["stderr"]) >= {"mu0", "a", "b", "Dc_m"}
+    comp = res["law_comparison"]
+    assert comp["best"] == "aging" and {s["law"] for s in comp["scores"]} == {
+        "aging", "slip", "nagata", "eps"}
+    st = res["stability"]
+    assert st["critical_stiffness_per_m"] == pytest.approx(500.0, rel=1e-6)
+    assert st["kappa_ratio"] == pytest.approx(4.0, rel=1e-6)
+    # the same fit computed directly by rsfcore
+    ref = fit_record(text, "aging", stiffness=K_PER_M, uncertainty_samples=50)
+    assert res["params"] == ref.to_dict()["params"]
+    # same record, same options -> cached (also when the CSV text differs in form only)
+    again = c.post("/v1/fits", json={**body, "record": text.replace("\n", "\r\n")})
+    assert again.status_code == 200 and again.headers["x-cache"] == "hit"
+    png = c.get(loc + "?format=png")
+    assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+    rows = list(csv.DictReader(io.StringIO(c.get(loc + "?format=csv").text)))
+    assert len(rows) == 601 and set(rows[0]) == {"t_s", "v_lp_m_s", "mu", "model", "residuals"}
+
+
+@pytest.mark.parametrize("body,field", [
+    ({"record": "t_s,mu\n0,0.6\n1,0.6\n"}, "record"),
+    ({"record": "x"}, "record"),
+    ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "law": "magic"}, "law"),
+    ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "compare": False}, "law"),
+    ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "stiffness_per_m": -1}, "stiffness_per_m"),
+])
+def test_fit_bad_input(c: TestClient, body: dict, field: str) -> None:
+    r = c.post("/v1/fits", json=body)
+    assert r.status_code == 422, r.text
+    assert r.json()["field"].startswith(field), r.json()
+
+
+def test_unknown_fit(c: TestClient) -> None:
+    assert c.get("/v1/fits/" + "0" * 64).status_code == 404
+    assert c.get("/v1/fits/nope").status_code == 422
