@@ -1,0 +1,810 @@
+"""Fit a lab velocity-step record for mu0, a, b, Dc (and eps, machine stiffness), then
+answer how close the sample and machine are to instability.
+
+Method: bounded non-linear least squares (scipy.optimize.least_squares, trust-region
+reflective) of the friction residuals mu_model - mu_data, with the compiled forward model
+of rsfcore.fit.model (rsfcore.engine's DOP853 for a finite machine stiffness, the exact
+closed form for an infinitely stiff one).  Fitted coordinates are (mu0, a, b, ln Dc,
+[eps], [ln k]); the Jacobian is by forward differences (steps 1e-6 in these coordinates)
+during the iterations and by central differences at the solution (measured agreement with
+a 1e-4 central-difference reference: ~1e-6 relative).
+
+Start: variable projection on the infinitely-stiff closed form (for fixed Dc and eps the
+friction is linear in mu0, a, b), scanned over 40 values of Dc (log-spaced over the
+record's slip range) and, for laws with eps not fixed, 5 values of eps; the machine
+stiffness starts from the loading slope just after the first velocity step,
+d mu/dt = k (v_new - v_old).
+
+Uncertainty: covariance C = s^2 (J^T J)^-1 in the fitted coordinates, with J the
+Jacobian at the solution and s^2 = RSS/(n - p) the residual variance (floored at the
+forward model's own accuracy, so that noise-free records do not claim zero error);
+standard errors of Dc and k by the delta method (sd(Dc) = Dc sd(ln Dc)).  This is the
+linearised (Gauss-Newton) uncertainty: tests/core/test_fit.py checks that the true
+parameters lie within 2 stated standard errors in >= 90 % of 50 noisy synthetic records.
+
+Identifiability (never a confident wrong answer): the result is ILL_CONDITIONED, and no
+stability answer is given, when a fitted parameter has no effect on the model, when the
+Jacobian with unit-normalised columns has condition number above ``max_condition``
+(1e8), when a, b, Dc or k has a relative standard error above ``max_rel_stderr`` (0.25)
+or eps a standard error above 0.25, or when a, b, Dc or k ends on a bound.  The message
+names the parameters and what the record lacks.
+
+Law comparison: misfit, AIC = n ln(RSS/n) + 2 (p + 1) and BIC = n ln(RSS/n) + (p + 1) ln n
+per law, with RSS floored at n * misfit_floor^2 (misfit_floor = 1e-9 in friction by
+default, ~30 times the forward model's error at the default rtol): misfit differences
+below what the model resolves do not count, and then the simpler law wins.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from ..jsonsafe import jsonsafe
+from ..laws import intermediate_to_nagata
+from ..params import ParameterError, check_range
+from .model import PARAM_NAMES, ForwardModel, Law, ModelSpec, describe, nagata_eps
+from .record import Record, read_record
+from .stability import StabilityAnswer, stability_answer
+
+__all__ = [
+    "FitStatus",
+    "FitResult",
+    "LawComparison",
+    "LawScore",
+    "fit_record",
+    "compare_laws",
+    "attach_stability",
+    "DEFAULT_BOUNDS",
+]
+
+#: Default bounds of the physical parameters (inclusive).  k in friction per metre [1/m].
+DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
+    "mu0": (-10.0, 10.0),
+    "a": (1e-7, 1.0),
+    "b": (-1.0, 1.0),
+    "Dc_m": (1e-10, 10.0),
+    "eps": (0.0, 1.0),
+    "k_per_m": (1e-6, 1e12),
+}
+#: Residual used for samples a trial parameter set cannot reach (runaway or step budget).
+_PENALTY = 1.0
+#: Finite-difference step in the fitted coordinates (relative for a and b).
+_FD_STEP = 1e-6
+_LOG = ("Dc_m", "k_per_m")
+
+
+class FitStatus(str, Enum):
+    """Outcome of a fit.
+
+    OK: converged and every fitted parameter is determined by the record.
+    ILL_CONDITIONED: converged (or not) but some parameter is not determined by the record
+        (see FitResult.message and .identified); no stability answer is given.
+    NOT_CONVERGED: the optimiser stopped on its evaluation budget.
+    FAILED: the forward model could not reproduce the record at the best parameters found
+        (e.g. every trial ran away).
+    """
+
+    OK = "ok"
+    ILL_CONDITIONED = "ill_conditioned"
+    NOT_CONVERGED = "not_converged"
+    FAILED = "failed"
+
+
+@dataclass
+class FitResult:
+    """A fitted record.
+
+    Attributes:
+        status: FitStatus; ``ok`` is True only for FitStatus.OK.
+        message: one or two sentences (what is not determined and why, if anything).
+        law: the evolution law ("aging", "slip", "nagata", "eps").
+        params: all model parameters: mu0 (steady-state friction at v_ref_m_s), a, b,
+            Dc_m [m], eps, k_per_m [1/m] (inf: infinitely stiff), plus "b_minus_a";
+            for law "nagata" also aN, bN, DcN_m, cN (rsfcore.laws.intermediate_to_nagata).
+        fitted: names of the fitted parameters (the others were fixed).
+        stderr: standard errors of the fitted parameters (same units; linearised).
+        correlation: correlation matrix of the fitted parameters (names in ``fitted``).
+        covariance: covariance in the fitted coordinates (mu0, a, b, ln Dc, eps, ln k).
+        identified: per fitted parameter, whether the record determines it.
+        condition_number: of the Jacobian with unit-normalised columns (None = infinite).
+        linearity: (min, max) ratio of the misfit increase 2 standard errors away along
+            the covariance's principal axes to the quadratic prediction (1 for a linear
+            model; None when not checked: noise-free record or singular covariance).
+        residuals: mu_model - mu_data at the record's samples; model: mu_model.
+        rss, rms: residual sum of squares and root mean square (friction).
+        sigma: residual standard deviation sqrt(RSS/(n - p)) used for the covariance
+            (floored at model_accuracy).
+        model_accuracy: max |mu(rtol) - mu(rtol/100)| at the solution (forward model error).
+        n, n_params: samples and fitted parameters.
+        aic, bic: information criteria (module docstring), misfit_floor: floor used.
+        converged: optimiser reported convergence; optimizer_message, n_fev: its details;
+            n_model_evals: forward-model runs in total (Jacobians included).
+        stability: StabilityAnswer (None unless status is OK).
+        v_ref_m_s: reference velocity of mu0 and of the stability answer [m/s].
+        elapsed_s: wall time of the fit [s].
+        record, spec: the inputs (for plots, posterior sampling and re-fits).
+    """
+
+    status: FitStatus
+    message: str
+    law: str
+    params: dict[str, float]
+    fitted: tuple[str, ...]
+    stderr: dict[str, float | None]
+    correlation: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    identified: dict[str, bool]
+    condition_number: float | None
+    linearity: tuple[float, float] | None
+    residuals: NDArray[np.float64]
+    model: NDArray[np.float64]
+    rss: float
+    rms: float
+    sigma: float
+    model_accuracy: float
+    n: int
+    n_params: int
+    aic: float
+    bic: float
+    misfit_floor: float
+    converged: bool
+    optimizer_message: str
+    n_fev: int
+    n_model_evals: int
+    stability: StabilityAnswer | None
+    v_ref_m_s: float
+    elapsed_s: float
+    record: Record = field(repr=False)
+    spec: ModelSpec = field(repr=False)
+    x_internal: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.empty(0))
+    bounds_internal: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False, default=(np.empty(0), np.empty(0)))
+
+    @property
+    def ok(self) -> bool:
+        return self.status is FitStatus.OK
+
+    def to_dict(self, *, series: bool = True) -> dict[str, Any]:
+        """JSON-safe dict (no NaN/inf: infinite or undefined values are null).
+
+        Keys: status, message, law, params, fitted, stderr, correlation {names, matrix},
+        identified, condition_number, misfit {rss, rms, sigma, model_accuracy, n, n_params,
+        aic, bic, misfit_floor}, converged, optimizer_message, n_fev, stability, v_ref_m_s,
+        elapsed_s, spec, record {name, digest, n, n_steps}; with ``series`` also
+        t_s, mu, model, residuals, v_lp_m_s (arrays).
+        """
+        d: dict[str, Any] = {
+            "status": self.status.value,
+            "ok": self.ok,
+            "message": self.message,
+            "law": self.law,
+            "params": dict(self.params),
+            "fitted": list(self.fitted),
+            "stderr": dict(self.stderr),
+            "correlation": {"names": list(self.fitted), "matrix": self.correlation},
+            "identified": dict(self.identified),
+            "condition_number": self.condition_number,
+            "linearity": None if self.linearity is None else list(self.linearity),
+            "misfit": {
+                "rss": self.rss, "rms": self.rms, "sigma": self.sigma, "model_accuracy": self.model_accuracy,
+                "n": self.n, "n_params": self.n_params, "aic": self.aic, "bic": self.bic, "misfit_floor": self.misfit_floor,
+            },
+            "converged": self.converged,
+            "optimizer_message": self.optimizer_message,
+            "n_fev": self.n_fev,
+            "n_model_evals": self.n_model_evals,
+            "stability": None if self.stability is None else self.stability.to_dict(),
+            "v_ref_m_s": self.v_ref_m_s,
+            "elapsed_s": self.elapsed_s,
+            "spec": describe(self.spec),
+            "record": {"name": self.record.name, "digest": self.record.digest(), "n": self.record.n, "n_steps": self.record.n_steps},
+        }
+        if series:
+            d["series"] = {
+                "t_s": self.record.t_s, "v_lp_m_s": self.record.v_lp_m_s, "mu": self.record.mu,
+                "model": self.model, "residuals": self.residuals,
+            }
+        out = jsonsafe(d)
+        assert isinstance(out, dict)
+        return out
+
+
+# ---------------------------------------------------------------------------------------
+# Coordinates
+# ---------------------------------------------------------------------------------------
+def _to_x(names: tuple[str, ...], p: Mapping[str, float]) -> NDArray[np.float64]:
+    return np.array([math.log(p[n]) if n in _LOG else p[n] for n in names], dtype=np.float64)
+
+
+def _from_x(names: tuple[str, ...], x: NDArray[np.float64]) -> dict[str, float]:
+    return {n: (math.exp(float(v)) if n in _LOG else float(v)) for n, v in zip(names, x)}
+
+
+def _fd_steps(names: tuple[str, ...], x: NDArray[np.float64], lb: NDArray[np.float64], ub: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Forward-difference steps: 1e-6 (relative for a, b), pointing away from a near bound."""
+    h = np.empty(len(names))
+    a = x[names.index("a")]
+    for j, n in enumerate(names):
+        if n == "a":
+            hj = _FD_STEP * abs(x[j])
+        elif n == "b":
+            hj = _FD_STEP * max(abs(x[j]), a)
+        else:
+            hj = _FD_STEP * (max(1.0, abs(x[j])) if n == "mu0" else 1.0)
+        if x[j] + hj > ub[j]:
+            hj = -hj
+        h[j] = hj
+    return h
+
+
+# ---------------------------------------------------------------------------------------
+# Start values
+# ---------------------------------------------------------------------------------------
+def _stiff_columns(rec: Record, Dc: float, eps: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """phi = ln(V/V0), ln(V0 theta/Dc) on an infinitely stiff machine; holds: theta grows by
+    dt (aging, eps = 1) or stays (eps < 1: the state rate vanishes with V).  Returns the
+    columns and the mask of moving samples."""
+    t = rec.t_s - rec.t_s[0]
+    v = rec.v_lp_m_s
+    V0 = rec.v_ref_m_s
+    n = rec.n
+    starts = list(rec.segment_starts) + [n]
+    phi = np.zeros(n)
+    lth = np.zeros(n)
+    moving = v > 0.0
+    lth_now = 0.0  # ln(V0 theta/Dc) at the segment start
+    for j in range(len(starts) - 1):
+        i0, i1 = int(starts[j]), int(starts[j + 1])
+        t_end = t[i1] if i1 < n else t[-1]
+        vj = float(v[i0])
+        if vj <= 0.0:
+            if eps >= 1.0:
+                dth = (t[i0:i1] - t[i0]) * V0 / Dc
+                lth[i0:i1] = np.logaddexp(lth_now, np.log(np.maximum(dth, 1e-300)))
+                lth_now = float(np.logaddexp(lth_now, math.log(max((t_end - t[i0]) * V0 / Dc, 1e-300))))
+            else:
+                lth[i0:i1] = lth_now
+            continue
+        ph = math.log(vj / V0)
+        L0 = ph + lth_now
+        x = (t[i0:i1] - t[i0]) * (vj / Dc)
+        x_end = (t_end - t[i0]) * (vj / Dc)
+        if eps == 0.0:
+            L = L0 * np.exp(-x)
+            L_end = L0 * math.exp(-x_end)
+        else:
+            w = math.expm1(min(eps * L0, 700.0))
+            L = np.log1p(w * np.exp(-x)) / eps
+            L_end = math.log1p(w * math.exp(-x_end)) / eps
+        phi[i0:i1] = ph
+        lth[i0:i1] = L - ph
+        lth_now = L_end - ph
+    return phi, lth, moving
+
+
+def _initial_guess(rec: Record, spec: ModelSpec, bounds: Mapping[str, tuple[float, float]]) -> dict[str, float]:
+    """Variable projection on the stiff closed form over a (Dc, eps) grid; k from the loading slope."""
+    xlp = rec.load_point_m
+    total = float(xlp[-1]) if xlp[-1] > 0 else float(rec.v_ref_m_s * (rec.t_s[-1] - rec.t_s[0]))
+    dx = np.diff(xlp)
+    dx = dx[dx > 0]
+    step = float(np.median(dx)) if dx.size else total / rec.n
+    lo = max(bounds["Dc_m"][0] * 1.01, 0.3 * step)
+    hi = min(bounds["Dc_m"][1] * 0.99, max(3.0 * total, 2 * lo))
+    Dcs = np.geomspace(lo, hi, 40)
+    if spec.law is Law.AGING:
+        epss = [1.0]
+    elif spec.law is Law.SLIP:
+        epss = [0.0]
+    else:
+        epss = [0.0, 0.25, 0.5, 0.75, 1.0]
+    best: tuple[float, dict[str, float]] | None = None
+    mu = rec.mu
+    for eps in epss:
+        for Dc in Dcs:
+            phi, lth, m = _stiff_columns(rec, float(Dc), eps)
+            A = np.column_stack([np.ones(int(m.sum())), phi[m], lth[m]])
+            coef, *_ = np.linalg.lstsq(A, mu[m], rcond=None)
+            r = A @ coef - mu[m]
+            rss = float(r @ r)
+            if best is None or rss < best[0]:
+                best = (rss, {"mu0": float(coef[0]), "a": float(coef[1]), "b": float(coef[2]), "Dc_m": float(Dc), "eps": eps})
+    assert best is not None
+    p = best[1]
+    if not (p["a"] > 0.0):
+        p["a"] = 0.01 if bounds["a"][0] < 0.01 < bounds["a"][1] else math.sqrt(bounds["a"][0] * bounds["a"][1])
+    if spec.law is Law.NAGATA and not p["b"] > 0.0:
+        p["b"] = p["a"]
+    if spec.fit_stiffness:
+        p["k_per_m"] = _stiffness_guess(rec, p)
+    return p
+
+
+def _stiffness_guess(rec: Record, p: Mapping[str, float]) -> float:
+    """k from the loading slope after the first step: d mu/dt = k (v_new - v_old) while V lags."""
+    s = rec.segment_starts
+    fallback = 10.0 * max(abs(p["b"] - p["a"]), p["a"]) / p["Dc_m"]
+    if s.shape[0] < 2:
+        return fallback
+    i = int(s[1])
+    dv = float(rec.v_lp_m_s[i] - rec.v_lp_m_s[i - 1])
+    j1 = min(rec.n - 1, i + 3)
+    if j1 <= i - 1 or dv == 0.0:
+        return fallback
+    slopes = np.diff(rec.mu[i - 1:j1 + 1]) / np.diff(rec.t_s[i - 1:j1 + 1]) / dv
+    slopes = slopes[np.isfinite(slopes) & (slopes > 0)]
+    if slopes.size == 0:
+        return fallback
+    return float(np.max(slopes))
+
+
+# ---------------------------------------------------------------------------------------
+# The fit
+# ---------------------------------------------------------------------------------------
+def _law(law: str | Law) -> Law:
+    try:
+        return Law(law)
+    except ValueError:
+        raise ParameterError("law", law, "one of " + ", ".join(m.value for m in Law)) from None
+
+
+def fit_record(
+    record: Record | str | Mapping[str, Any],
+    law: str | Law = "aging",
+    *,
+    stiffness: float | None = None,
+    fit_stiffness: bool = False,
+    nagata_c: float = 2.0,
+    initial: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    rtol: float = 1e-10,
+    max_rel_stderr: float = 0.25,
+    max_condition: float = 1e8,
+    max_nonlinearity: float = 2.0,
+    misfit_floor: float = 1e-9,
+    uncertainty_samples: int = 400,
+    seed: int = 0,
+    max_nfev: int = 200,
+    stability: bool = True,
+) -> FitResult:
+    """Fit a velocity-step record for mu0, a, b, Dc [and eps, machine stiffness].
+
+    Args:
+        record: a Record, or anything rsfcore.fit.read_record accepts (path, CSV/JSON
+            text, mapping of columns t_s | x_lp_m, v_lp_m_s, mu).
+        law: "aging" (eps = 1), "slip" (eps = 0), "nagata" (Nagata law with fixed
+            ``nagata_c``; eps = b/(b + c a)), or "eps" (eps fitted in [0, 1]).
+        stiffness: machine stiffness k in friction per metre of load-point displacement
+            [1/m], > 0, or inf (infinitely stiff; the default when neither this nor
+            fit_stiffness is given).  With fit_stiffness it is the start value.
+        fit_stiffness: fit k as well.
+        nagata_c: Nagata's c >= 0 (law "nagata"; Nagata et al. 2012 found c ~ 2).
+        initial: start values overriding the automatic ones (keys of PARAM_NAMES).
+        bounds: overrides of DEFAULT_BOUNDS, e.g. {"Dc_m": (1e-7, 1e-3)}.
+        rtol: forward-model (engine) tolerance, [1e-13, 1e-6].
+        max_rel_stderr: largest relative standard error of a, b, Dc, k (absolute for
+            eps) for the parameter to count as determined, (0, inf).
+        max_condition: largest condition number of the column-normalised Jacobian.
+        max_nonlinearity: the misfit 2 standard errors away along each principal axis
+            of the covariance must rise between 1/max_nonlinearity and max_nonlinearity
+            times the quadratic prediction 4 sigma^2 (else the linearised uncertainties
+            are not trusted and the fit is ILL_CONDITIONED), (1, inf).
+        misfit_floor: friction misfit below which differences do not count (AIC/BIC).
+        uncertainty_samples: covariance samples for the stability uncertainty, [0, 100000].
+        seed: random seed of those samples (results are reproducible).
+        max_nfev: budget of optimiser iterations' function evaluations.
+        stability: compute the stability answer (when the fit is OK).
+
+    Returns a FitResult (never raises for a record that fits badly: see ``status``).
+    Raises ParameterError for invalid records or options.
+    """
+    t_start = time.perf_counter()
+    rec = read_record(record)
+    lw = _law(law)
+    rtol = check_range("rtol", rtol, 1e-13, 1e-6)
+    nagata_c = check_range("nagata_c", nagata_c, 0.0, 1e6)
+    max_rel_stderr = check_range("max_rel_stderr", max_rel_stderr, 0.0, None, lo_open=True)
+    max_condition = check_range("max_condition", max_condition, 1.0, None)
+    max_nonlinearity = check_range("max_nonlinearity", max_nonlinearity, 1.0, None, lo_open=True)
+    misfit_floor = check_range("misfit_floor", misfit_floor, 0.0, None)
+    uncertainty_samples = int(check_range("uncertainty_samples", uncertainty_samples, 0, 100_000))
+    max_nfev = int(check_range("max_nfev", max_nfev, 1, 100_000))
+    if stiffness is None or (isinstance(stiffness, (int, float)) and math.isinf(stiffness) and stiffness > 0):
+        k_fixed = math.inf
+    else:
+        k_fixed = check_range("stiffness", stiffness, 0.0, None, lo_open=True)
+    bnd = dict(DEFAULT_BOUNDS)
+    if lw is Law.NAGATA:
+        bnd["b"] = (1e-7, 1.0)
+    if bounds:
+        for key, val in bounds.items():
+            if key not in PARAM_NAMES:
+                raise ParameterError(f"bounds.{key}", val, "a key of " + ", ".join(PARAM_NAMES))
+            try:
+                lo, hi = (float(v) for v in val)
+            except (TypeError, ValueError):
+                raise ParameterError(f"bounds.{key}", val, "a (lower, upper) pair") from None
+            if not lo < hi or (key in _LOG and not lo > 0.0):
+                raise ParameterError(f"bounds.{key}", val, "lower < upper" + (" and lower > 0" if key in _LOG else ""))
+            bnd[key] = (lo, hi)
+    spec = ModelSpec(law=lw, fit_stiffness=bool(fit_stiffness), stiffness_per_m=k_fixed, nagata_c=nagata_c, rtol=rtol)
+    model = ForwardModel(rec, spec)
+    names = spec.fitted
+
+    # -- start ---------------------------------------------------------------------------
+    p0 = _initial_guess(rec, spec, bnd)
+    if spec.fit_stiffness and math.isfinite(k_fixed):
+        p0["k_per_m"] = k_fixed
+    if initial:
+        for key, val in initial.items():
+            if key not in PARAM_NAMES:
+                raise ParameterError(f"initial.{key}", val, "a key of " + ", ".join(PARAM_NAMES))
+            p0[key] = check_range(f"initial.{key}", val, None, None)
+    lb = _to_x(names, {n: bnd[n][0] for n in names})
+    ub = _to_x(names, {n: bnd[n][1] for n in names})
+    x0 = _to_x(names, {n: min(max(p0[n], bnd[n][0]), bnd[n][1]) for n in names})
+    span = ub - lb
+    x0 = np.clip(x0, lb + 1e-9 * span, ub - 1e-9 * span)
+
+    mu_data = rec.mu
+    cache: dict[bytes, NDArray[np.float64]] = {}
+
+    def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        key = x.tobytes()
+        if key in cache:
+            return cache[key]
+        p = model.full(_from_x(names, x))
+        m, n_ok = model.friction(p)
+        r = m - mu_data
+        if n_ok < rec.n:
+            r[n_ok:] = _PENALTY
+        bad = ~np.isfinite(r)
+        if bad.any():
+            r[bad] = _PENALTY
+        if len(cache) > 64:
+            cache.clear()
+        cache[key] = r
+        return r
+
+    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        r0 = resid(x)
+        h = _fd_steps(names, x, lb, ub)
+        J = np.empty((r0.shape[0], len(names)))
+        for j in range(len(names)):
+            xp = x.copy()
+            xp[j] += h[j]
+            J[:, j] = (resid(xp) - r0) / h[j]
+        return J
+
+    sol = least_squares(resid, x0, jac=jac, bounds=(lb, ub), method="trf", x_scale="jac",
+                        ftol=1e-14, xtol=1e-14, gtol=1e-14, max_nfev=max_nfev)
+    x = sol.x
+    p_hat = model.full(_from_x(names, x))
+    mu_model, n_ok = model.friction(p_hat)
+    complete = n_ok == rec.n
+    r = mu_model - mu_data
+    if not complete:
+        r[n_ok:] = np.nan
+
+    # -- accuracy of the forward model at the solution ------------------------------------
+    if math.isinf(p_hat["k_per_m"]):
+        model_acc = 1e-15 * float(np.max(np.abs(mu_data)))
+    else:
+        tight = ForwardModel(rec, ModelSpec(lw, spec.fit_stiffness, spec.stiffness_per_m, spec.nagata_c, max(1e-14, rtol * 1e-2)))
+        mu_t, n_t = tight.friction(p_hat)
+        model_acc = float(np.max(np.abs(mu_t[:min(n_t, n_ok)] - mu_model[:min(n_t, n_ok)]))) if min(n_t, n_ok) else math.inf
+
+    # -- statistics --------------------------------------------------------------------
+    n, p = rec.n, len(names)
+    rss = float(np.sum(r[np.isfinite(r)] ** 2)) if complete else math.inf
+    rms = math.sqrt(rss / n) if complete else math.inf
+    sigma = math.sqrt(rss / max(1, n - p)) if complete else math.inf
+    sigma_eff = max(sigma, model_acc)
+    floor_rss = n * misfit_floor**2
+    rss_eff = max(rss, floor_rss)
+    aic = n * math.log(rss_eff / n) + 2.0 * (p + 1) if complete else math.inf
+    bic = n * math.log(rss_eff / n) + (p + 1) * math.log(n) if complete else math.inf
+
+    cov = np.full((p, p), np.nan)
+    corr = np.full((p, p), np.nan)
+    stderr: dict[str, float | None] = {nm: None for nm in names}
+    identified = {nm: False for nm in names}
+    cond: float | None = None
+    linearity: tuple[float, float] | None = None
+    problems: list[str] = []
+    if complete:
+        J = _central_jacobian(resid, x, names, lb, ub)
+        norms = np.sqrt(np.sum(J**2, axis=0))
+        dead = [names[j] for j in range(p) if not norms[j] > 1e-300]
+        if dead:
+            cond = None
+            problems.append(f"{', '.join(dead)} {'has' if len(dead) == 1 else 'have'} no effect on the model for this record")
+        else:
+            Jn = J / norms
+            _, S, Vt = np.linalg.svd(Jn, full_matrices=False)
+            cond = float(S[0] / S[-1]) if S[-1] > 0 else None
+            if S[-1] > 0:
+                cov_n = (Vt.T / S**2) @ Vt
+                cov = sigma_eff**2 * cov_n / np.outer(norms, norms)
+                sd = np.sqrt(np.diag(cov))
+                corr = cov / np.outer(sd, sd)
+                for j, nm in enumerate(names):
+                    stderr[nm] = float(sd[j]) * (p_hat[nm] if nm in _LOG else 1.0)
+            if cond is None or cond > max_condition:
+                weak = [names[j] for j in range(p) if abs(Vt[-1, j]) > 0.3]
+                problems.append(
+                    f"{', '.join(weak)} cannot be separated (Jacobian condition number "
+                    f"{'inf' if cond is None else f'{cond:.3g}'} > {max_condition:.3g})"
+                )
+                dead = weak
+        for j, nm in enumerate(names):
+            ok = nm not in dead and stderr[nm] is not None
+            if ok and nm != "mu0":
+                se = stderr[nm]
+                assert se is not None
+                if nm == "eps":
+                    rel = se
+                elif nm == "b":
+                    rel = se / max(abs(p_hat["b"]), p_hat["a"])
+                else:
+                    rel = se / abs(p_hat[nm])
+                if not rel <= max_rel_stderr:
+                    ok = False
+                    what = "standard error" if nm == "eps" else "relative standard error"
+                    problems.append(f"{nm} is not constrained ({what} {rel:.3g} > {max_rel_stderr:.3g})")
+            if nm in ("a", "b", "Dc_m", "k_per_m"):
+                tol = 1e-6 * (ub[j] - lb[j])
+                if x[j] <= lb[j] + tol or x[j] >= ub[j] - tol:
+                    ok = False
+                    side = "lower" if x[j] <= lb[j] + tol else "upper"
+                    problems.append(f"{nm} ended on its {side} bound {bnd[nm][0 if side == 'lower' else 1]:g}")
+            identified[nm] = ok
+        # Is the misfit quadratic out to 2 standard errors?  Along each principal axis of
+        # the covariance the increase of RSS at +-2 sd must be 4 sigma^2 for a linear
+        # model; the ratio measures how far the linearised uncertainty can be trusted.
+        if np.all(np.isfinite(cov)) and sigma > 2.0 * model_acc:
+            ratio_lo, ratio_hi, culprits = _linearity(resid, names, x, cov, rss, sigma, lb, ub)
+            linearity = (ratio_lo, ratio_hi)
+            if ratio_lo < 1.0 / max_nonlinearity or ratio_hi > max_nonlinearity:
+                problems.append(
+                    f"{', '.join(culprits)} {'is' if len(culprits) == 1 else 'are'} not determined within the linear "
+                    f"approximation (the misfit rises {ratio_lo:.3g} to {ratio_hi:.3g} times the quadratic prediction "
+                    f"2 standard errors away; allowed 1/{max_nonlinearity:g} to {max_nonlinearity:g})"
+                )
+                for nm in culprits:
+                    identified[nm] = False
+
+    converged = bool(sol.status > 0)
+    if not complete:
+        status = FitStatus.FAILED
+        message = ("The forward model could not reproduce the record at the best parameters found "
+                   "(trial slip ran away or exceeded the step budget); the record may show stick-slip.")
+    elif problems:
+        status = FitStatus.ILL_CONDITIONED
+        message = ("The record does not determine all parameters: " + "; ".join(problems) + ". "
+                   + _advice(rec, names, problems))
+    elif not converged:
+        status = FitStatus.NOT_CONVERGED
+        message = f"The optimiser stopped after {sol.nfev} evaluations without converging ({sol.message})."
+    else:
+        status = FitStatus.OK
+        message = f"Converged: rms misfit {rms:.3g} over {n} samples with {p} fitted parameters."
+
+    params = dict(p_hat)
+    params["b_minus_a"] = p_hat["b"] - p_hat["a"]
+    if lw is Law.NAGATA and p_hat["eps"] > 0 and p_hat["b"] > 0:
+        nag = intermediate_to_nagata(p_hat["a"], p_hat["b"], p_hat["Dc_m"], p_hat["eps"])
+        params.update({"aN": nag["aN"], "bN": nag["bN"], "DcN_m": nag["DcN"], "cN": nag["cN"]})
+
+    res = FitResult(
+        status=status, message=message, law=lw.value, params=params, fitted=names, stderr=stderr,
+        correlation=corr, covariance=cov, identified=identified, condition_number=cond, linearity=linearity,
+        residuals=r, model=mu_model, rss=rss, rms=rms, sigma=sigma_eff, model_accuracy=model_acc,
+        n=n, n_params=p, aic=aic, bic=bic, misfit_floor=misfit_floor, converged=converged,
+        optimizer_message=str(sol.message), n_fev=int(sol.nfev), n_model_evals=model.n_evals, stability=None,
+        v_ref_m_s=rec.v_ref_m_s, elapsed_s=time.perf_counter() - t_start, record=rec, spec=spec,
+        x_internal=x, bounds_internal=(lb, ub),
+    )
+    if status is FitStatus.OK and stability:
+        attach_stability(res, uncertainty_samples=uncertainty_samples, seed=seed)
+    res.elapsed_s = time.perf_counter() - t_start
+    return res
+
+
+def attach_stability(res: FitResult, *, uncertainty_samples: int = 400, seed: int = 0) -> StabilityAnswer | None:
+    """Compute (or recompute) ``res.stability`` from the fit's parameters and covariance.
+
+    Only for FitStatus.OK (an ill-conditioned fit gets no stability answer: None).
+    """
+    if not res.ok:
+        res.stability = None
+        return None
+    model = ForwardModel(res.record, res.spec)
+    samples = _draw(res.fitted, res.x_internal, res.covariance, model, uncertainty_samples, seed)
+    full = {k: res.params[k] for k in PARAM_NAMES}
+    res.stability = stability_answer(full, samples, v_ref_m_s=res.v_ref_m_s, stiffness_fitted=res.spec.fit_stiffness)
+    return res.stability
+
+
+def _central_jacobian(resid: Any, x: NDArray[np.float64], names: tuple[str, ...],
+                      lb: NDArray[np.float64], ub: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Central differences (one-sided at a bound) with the steps of _fd_steps."""
+    h = np.abs(_fd_steps(names, x, lb, ub))
+    r0 = resid(x)
+    J = np.empty((r0.shape[0], len(names)))
+    for j in range(len(names)):
+        up = x[j] + h[j] <= ub[j]
+        dn = x[j] - h[j] >= lb[j]
+        xp, xm = x.copy(), x.copy()
+        if up and dn:
+            xp[j] += h[j]
+            xm[j] -= h[j]
+            J[:, j] = (resid(xp) - resid(xm)) / (2 * h[j])
+        elif up:
+            xp[j] += h[j]
+            J[:, j] = (resid(xp) - r0) / h[j]
+        else:
+            xm[j] -= h[j]
+            J[:, j] = (r0 - resid(xm)) / h[j]
+    return J
+
+
+def _linearity(resid: Any, names: tuple[str, ...], x: NDArray[np.float64], cov: NDArray[np.float64], rss: float,
+               sigma: float, lb: NDArray[np.float64], ub: NDArray[np.float64]) -> tuple[float, float, list[str]]:
+    """(min, max) over principal axes and both signs of [RSS(x +- 2 sd axis) - RSS]/(4 sigma^2),
+    and the names of the parameters the worst axis moves by more than one standard error.
+    Moves that would leave the bounds are skipped."""
+    w, U = np.linalg.eigh(0.5 * (cov + cov.T))
+    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    lo, hi = math.inf, -math.inf
+    worst, worst_dev = 0, -1.0
+    for j in range(w.shape[0]):
+        d = 2.0 * math.sqrt(max(w[j], 0.0)) * U[:, j]
+        for sgn in (1.0, -1.0):
+            xs = x + sgn * d
+            if np.any(xs < lb) or np.any(xs > ub):
+                continue
+            r = resid(xs)
+            rho = (float(r @ r) - rss) / (4.0 * sigma**2)
+            lo, hi = min(lo, rho), max(hi, rho)
+            dev = abs(math.log(rho)) if rho > 0 else math.inf
+            if dev > worst_dev:
+                worst, worst_dev = j, dev
+    d = 2.0 * math.sqrt(max(w[worst], 0.0)) * U[:, worst]
+    culprits = [names[i] for i in range(len(names)) if abs(d[i]) / sd[i] > 1.0] or list(names)
+    if not math.isfinite(lo):
+        lo = hi = 1.0
+    return lo, hi, culprits
+
+
+def _draw(names: tuple[str, ...], x: NDArray[np.float64], cov: NDArray[np.float64], model: ForwardModel,
+          n: int, seed: int) -> list[dict[str, float]]:
+    """n parameter sets from N(x, cov) in the fitted coordinates; eps clipped to [0, 1]."""
+    if n <= 0 or not np.all(np.isfinite(cov)):
+        return []
+    rng = np.random.default_rng(seed)
+    # symmetric square root (cov may be semi-definite to rounding)
+    w, U = np.linalg.eigh(0.5 * (cov + cov.T))
+    L = U * np.sqrt(np.maximum(w, 0.0))
+    xs = x + rng.standard_normal((n, len(names))) @ L.T
+    out = []
+    for xi in xs:
+        q = _from_x(names, xi)
+        if "eps" in q:
+            q["eps"] = min(1.0, max(0.0, q["eps"]))
+        if not q["a"] > 0.0:
+            continue
+        if model.spec.law is Law.NAGATA and not q["b"] > 0.0:
+            continue
+        out.append(model.full(q))
+    return out
+
+
+def _advice(rec: Record, names: tuple[str, ...], problems: list[str]) -> str:
+    txt = " ".join(problems)
+    if rec.n_steps == 0:
+        return "The record has no velocity step: a, b and Dc need at least one step in load-point velocity."
+    if "Dc_m" in txt:
+        return ("Dc needs the friction transient after a velocity step to be resolved: a step followed by "
+                "load-point displacement of several Dc, sampled densely during the evolution.")
+    return "Add steps or longer records, or fix some parameters (law, stiffness)."
+
+
+# ---------------------------------------------------------------------------------------
+# Law comparison
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LawScore:
+    """One law's entry in a comparison (misfit and information criteria)."""
+
+    law: str
+    status: str
+    rms: float
+    n_params: int
+    aic: float
+    bic: float
+    delta_aic: float
+    delta_bic: float
+    akaike_weight: float
+
+    def to_dict(self) -> dict[str, Any]:
+        out = jsonsafe(self.__dict__)
+        assert isinstance(out, dict)
+        return out
+
+
+@dataclass
+class LawComparison:
+    """Fits of one record under several laws.
+
+    Attributes:
+        best: the law with the lowest AIC among converged fits (None if none converged).
+        scores: LawScore per law (AIC/BIC recomputed with one common misfit floor).
+        fits: FitResult per law.
+        misfit_floor: the common floor (friction).
+    """
+
+    best: str | None
+    scores: list[LawScore]
+    fits: dict[str, FitResult]
+    misfit_floor: float
+
+    def to_dict(self, *, series: bool = False) -> dict[str, Any]:
+        return {
+            "best": self.best,
+            "misfit_floor": self.misfit_floor,
+            "scores": [s.to_dict() for s in self.scores],
+            "fits": {k: v.to_dict(series=series) for k, v in self.fits.items()},
+        }
+
+
+def compare_laws(
+    record: Record | str | Mapping[str, Any],
+    laws: Iterable[str | Law] = ("aging", "slip", "nagata", "eps"),
+    **options: Any,
+) -> LawComparison:
+    """Fit ``record`` with each law (same options as :func:`fit_record`) and rank them by AIC.
+
+    The common misfit floor is max(misfit_floor, 10 x the largest forward-model accuracy of
+    the fits), so that misfit differences the model cannot resolve do not decide; then the
+    law with fewer parameters wins.  Stability answers are computed only for the best law.
+    """
+    rec = read_record(record)
+    lws = [_law(x) for x in laws]
+    if not lws:
+        raise ParameterError("laws", list(laws), "a non-empty list of " + ", ".join(m.value for m in Law))
+    want_stab = options.pop("stability", True)
+    fits = {lw.value: fit_record(rec, lw, stability=False, **options) for lw in lws}
+    floor = max([options.get("misfit_floor", 1e-9)] + [10.0 * f.model_accuracy for f in fits.values() if math.isfinite(f.model_accuracy)])
+    rows = []
+    for name, f in fits.items():
+        if math.isfinite(f.rss):
+            rss_eff = max(f.rss, f.n * floor**2)
+            k = f.n_params + 1
+            aic = f.n * math.log(rss_eff / f.n) + 2.0 * k
+            bic = f.n * math.log(rss_eff / f.n) + k * math.log(f.n)
+        else:
+            aic = bic = math.inf
+        rows.append((name, f, aic, bic))
+    usable = [r for r in rows if r[1].status in (FitStatus.OK, FitStatus.ILL_CONDITIONED) and r[1].converged and math.isfinite(r[2])]
+    best = min(usable, key=lambda r: (r[2], r[1].n_params))[0] if usable else None
+    amin = min((r[2] for r in usable), default=math.inf)
+    bmin = min((r[3] for r in usable), default=math.inf)
+    wsum = sum(math.exp(-0.5 * (r[2] - amin)) for r in usable) if usable else 0.0
+    scores = []
+    for name, f, aic, bic in rows:
+        use = any(r[0] == name for r in usable)
+        scores.append(LawScore(
+            law=name, status=f.status.value, rms=f.rms, n_params=f.n_params, aic=aic, bic=bic,
+            delta_aic=aic - amin if use else math.inf, delta_bic=bic - bmin if use else math.inf,
+            akaike_weight=math.exp(-0.5 * (aic - amin)) / wsum if use and wsum > 0 else 0.0,
+        ))
+    if best is not None and want_stab and fits[best].ok:
+        attach_stability(fits[best], uncertainty_samples=options.get("uncertainty_samples", 400), seed=options.get("seed", 0))
+    return LawComparison(best=best, scores=scores, fits=fits, misfit_floor=floor)
