@@ -337,6 +337,11 @@ def worker(
 from .keys import app as _keys_app  # noqa: E402
 
 app.add_typer(_keys_app, name="keys")
+from .lab import fit_command, protocol_app, si_app  # noqa: E402  (SI, protocols, fits)
+
+app.add_typer(si_app, name="si")
+app.add_typer(protocol_app, name="protocol")
+app.command("fit")(fit_command)
 
 
 def main() -> None:
