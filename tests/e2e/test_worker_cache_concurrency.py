@@ -26,12 +26,12 @@ while time.time() < float(sys.argv[3]):   # start together
 for k in range(wid * n // 2, wid * n // 2 + n):
     key = cache_key("test", {"k": k}, "v")
     st.results.put(key, "test", "v", {"k": k}, {"value": k * k, "by": "any"})
-# Overlapping sweep points, in batches of 10.
-rows = [dict(idx=k, i=k // 10, j=k % 10, x=float(k), y=0.0, kind="finite",
-             critical_size=float(k), outcome=None, rel_accuracy=None, error=None)
-        for k in range(wid * n // 2, wid * n // 2 + n)]
-for b in range(0, len(rows), 10):
-    st.sweeps.store_points("s" * 32, 0, [dict(r) for r in rows[b:b + 10]])
+# Overlapping sweep chunks (result blocks), each written once whoever comes first.
+from rsfapp.store.sweeps import encode_block
+import numpy as np
+for k in range(wid * n // 2, wid * n // 2 + n):
+    st.sweeps.store_block("s" * 32, k, k, k + 1,
+                          encode_block({"critical_size": np.array([float(k)])}), {})
 print("ok", wid)
 """
 
@@ -39,10 +39,13 @@ print("ok", wid)
 def test_concurrent_writers_lose_nothing(tmp_path: Path) -> None:
     import time
     env = service_env(tmp_path)
-    # Create the schema and one sweep (points reference it).
+    # Create the schema and one sweep (blocks reference it).
     subprocess.run([sys.executable, "-c",
                     "from rsfapp.config import get_settings; from rsfapp.store import stores_for; "
-                    "stores_for(get_settings()).sweeps.create('s'*32, {}, 10000, 10000, 'v')"],
+                    "from rsfapp.grid import expand; from rsfapp.requests import SweepRequest; "
+                    "spec = expand(SweepRequest(axes=[{'name': 'eps', 'start': 0, 'stop': 1, "
+                    "'n': 10000}]), 10**8); "
+                    "stores_for(get_settings()).sweeps.create('s'*32, spec, 1, 'v')"],
                    env=env, cwd=ROOT, check=True)
     n_proc, n = 4, 200
     start = str(time.time() + 1.5)
@@ -61,7 +64,7 @@ def test_concurrent_writers_lose_nothing(tmp_path: Path) -> None:
         got = {json.loads(r)["k"]: json.loads(v)["value"] for r, v in rows}
         assert len(rows) == len(expected) and set(got) == expected
         assert all(v == k * k for k, v in got.items())
-        cnt, distinct = con.execute("SELECT count(*), count(DISTINCT idx) FROM sweep_points"
+        cnt, distinct = con.execute("SELECT count(*), count(DISTINCT idx) FROM sweep_blocks"
                                     ).fetchone()
         assert cnt == distinct == len(expected)
     finally:

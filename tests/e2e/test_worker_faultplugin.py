@@ -4,10 +4,12 @@ A numerical failure of rsfcore cannot be produced on demand with valid parameter
 sweeps of the fast core finish too quickly to be killed or cancelled half-way.  So the
 tests start real Celery workers with ``--include test_worker_faultplugin`` and:
 
-* ``RSF_TEST_FAIL_EPS=<eps>``: rsfcore's critical_perturbation / classify raise
-  FloatingPointError for points with that eps (the sweep must record it and go on);
-* ``RSF_TEST_POINT_DELAY_S=<s>``: each point takes that much longer (so a sweep is still
-  running when the test kills the worker or cancels it).
+* ``RSF_TEST_FAIL_EPS=<eps>``: the compiled batch kernel (rsfcore.critical.critical_batch,
+  as called by rsfcore.batch) flags the points with that eps for the per-point fallback,
+  and the fallback (rsfcore.critical.bisect_critical) raises FloatingPointError for them:
+  the real failure-isolation path of a chunk (the sweep must record them and go on);
+* ``RSF_TEST_POINT_DELAY_S=<s>``: each batch call sleeps that long per point (so a sweep
+  is still running when the test kills the worker or cancels it).
 
 Nothing happens unless those variables are set; the module holds no tests itself.
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import Any
 
 
 def _install() -> None:
@@ -22,25 +25,28 @@ def _install() -> None:
     delay = float(os.environ.get("RSF_TEST_POINT_DELAY_S", "0") or 0)
     if fail_eps is None and delay <= 0:
         return
-    import rsfcore.trajectory as traj
-    targets = [(traj, "classify")]
-    try:
-        import rsfcore.critical as crit
-        targets.append((crit, "critical_perturbation"))
-    except ImportError:
-        pass
+    import numpy as np
 
-    for mod, name in targets:
-        orig = getattr(mod, name)
+    import rsfcore.critical as crit
 
-        def wrapped(params, *a, __orig=orig, **kw):  # noqa: ANN001, ANN002, ANN003
-            if delay > 0:
-                time.sleep(delay)
-            if fail_eps is not None and abs(params.eps - float(fail_eps)) < 1e-12:
-                raise FloatingPointError(f"injected failure at eps={params.eps}")
-            return __orig(params, *a, **kw)
+    kernel, bisect = crit.critical_batch, crit.bisect_critical
 
-        setattr(mod, name, wrapped)
+    def slow_or_flagging(ba: Any, kappa: Any, eps: Any, *a: Any) -> Any:
+        if delay > 0:
+            time.sleep(delay * len(ba))
+        out = kernel(ba, kappa, eps, *a)
+        if fail_eps is not None:
+            flags = a[-1]
+            flags[np.abs(eps - float(fail_eps)) < 1e-12] |= crit.FLAG_FALLBACK
+        return out
+
+    def failing(params: Any, *a: Any, **kw: Any) -> Any:
+        if fail_eps is not None and abs(params.eps - float(fail_eps)) < 1e-12:
+            raise FloatingPointError(f"injected failure at eps={params.eps}")
+        return bisect(params, *a, **kw)
+
+    crit.critical_batch = slow_or_flagging
+    crit.bisect_critical = failing
 
 
 _install()
