@@ -1,19 +1,22 @@
 """The Celery application of the workers: ``celery -A worker.celery_app:app worker``.
 
 The app itself comes from :func:`rsfapp.queue.make_app` (the API sends with the same
-configuration); this module registers the tasks (:mod:`worker.tasks`) and two signal
-handlers: warm-up of rsfcore's kernels before the pool forks, and, when a worker is
-ready, requeueing of sweep chunks that no live worker holds (the filesystem broker
-deletes a message once delivered, so work held by a killed worker is resent here).
+configuration); this module registers the tasks (:mod:`worker.tasks`) and the signal
+handlers: warm-up of rsfcore's kernels before the pool forks; when a worker is ready,
+requeueing of sweep chunks that no live worker holds (the filesystem broker deletes a
+message once delivered, so work held by a killed worker is resent here) and the start
+of its reaper thread (:class:`rsfapp.reaper.Reaper`: worker registry, chunks whose lease
+expired, self-repair of sweeps), stopped at shutdown.
 """
 from __future__ import annotations
 
 import logging
 
-from celery.signals import worker_init, worker_ready
+from celery.signals import worker_init, worker_ready, worker_shutdown
 
 from rsfapp.config import get_settings
 from rsfapp.queue import Queue, make_app
+from rsfapp.reaper import Reaper
 from rsfapp.store import stores_for
 from rsfapp.warmup import warm_up
 
@@ -42,3 +45,25 @@ def _requeue_unfinished(**_kw: object) -> None:
         return
     if n:
         log.warning("requeued %d unfinished sweep chunk(s)", n)
+
+
+_reaper: list[Reaper] = []
+
+
+@worker_ready.connect
+def _start_reaper(sender: object = None, **_kw: object) -> None:
+    """Start this worker's reaper thread (in the main process, not the pool children)."""
+    s = get_settings()
+    name = str(getattr(sender, "hostname", "") or f"{s.node}")
+    pool = getattr(sender, "pool", None)
+    conc = int(getattr(pool, "num_processes", 0) or app.conf.worker_concurrency or 1)
+    r = Reaper(s, name, conc, Queue(s, app).send_chunk)
+    r.start()
+    _reaper.append(r)
+
+
+@worker_shutdown.connect
+def _stop_reaper(**_kw: object) -> None:
+    """Stop the reaper and leave the worker registry."""
+    while _reaper:
+        _reaper.pop().stop()

@@ -13,8 +13,15 @@ Guarantees:
 
 * every point is stored exactly once: a chunk's block is written once (primary key
   (sweep_id, idx), idempotent insert), whoever computes it first;
-* a chunk is claimed by one live worker at a time (owner = host:pid, heartbeat);
-  a chunk whose owner died (SIGKILL) or whose lease expired is requeued at worker start;
+* a chunk is claimed by one live worker at a time (owner = node:pid, RSF_NODE); its
+  worker renews the lease (``heartbeat``) while computing it, and the reaper in every
+  worker (:mod:`rsfapp.reaper`) requeues a chunk whose lease expired
+  (:meth:`SweepStore.reap_expired`) and closes sweeps whose chunks are all done
+  (:meth:`SweepStore.close_finished`); at worker start, chunks with no live owner are
+  requeued as well;
+* completion is decided under a row lock on the sweep (``SELECT ... FOR UPDATE``; SQLite:
+  ``BEGIN IMMEDIATE``), so two chunks finishing together on PostgreSQL (READ COMMITTED)
+  cannot both see the other unfinished (write skew) and leave the sweep running;
 * lazy dispatch: chunk rows start ``pending``; only ``sweep_window`` of them are sent to
   the queue (``queued``), and each finished chunk sends the next pending one, so a sweep
   of 10^8 points costs a few thousand small rows and never floods the broker;
@@ -49,9 +56,15 @@ __all__ = ["Block", "ChunkRange", "Created", "SweepStore", "decode_block", "enco
 ACTIVE = ("queued", "running")
 
 
+def _node() -> str:
+    from ..config import get_settings
+
+    return get_settings().node
+
+
 def owner_id() -> str:
-    """This process as a chunk owner: 'host:pid'."""
-    return f"{socket.gethostname()}:{os.getpid()}"
+    """This process as a chunk owner: 'node:pid' (node = RSF_NODE, default host name)."""
+    return f"{_node()}:{os.getpid()}"
 
 
 def iso(t: float | None) -> str | None:
@@ -66,7 +79,7 @@ def _owner_alive(owner: str | None, heartbeat: float | None, lease_s: float) -> 
     if not owner:
         return False
     host, _, pid = owner.rpartition(":")
-    if host == socket.gethostname():
+    if host == _node() == socket.gethostname():
         try:
             os.kill(int(pid), 0)
         except (ProcessLookupError, ValueError):
@@ -244,12 +257,15 @@ class SweepStore:
                                  started_at=func.coalesce(sweeps.c.started_at, now)))
             return ChunkRange(int(c.i0), int(c.i1))
 
-    def heartbeat(self, sweep_id: str, idx: int) -> None:
-        """Refresh the lease of a running chunk held by this process."""
+    def heartbeat(self, sweep_id: str, idx: int) -> bool:
+        """Refresh the lease of a running chunk held by this process; False if it is no
+        longer held (the reaper took it back after its lease expired)."""
         with self.db.write() as conn:
-            conn.execute(update(chunks).where(and_(_chunk(sweep_id, idx),
-                                                   chunks.c.owner == owner_id()))
-                         .values(heartbeat=time.time()))
+            n = conn.execute(update(chunks).where(and_(_chunk(sweep_id, idx),
+                                                       chunks.c.owner == owner_id(),
+                                                       chunks.c.status == "running"))
+                             .values(heartbeat=time.time())).rowcount
+        return bool(n)
 
     def release_chunk(self, sweep_id: str, idx: int) -> None:
         """Put a running chunk back in the queue (its worker hit an infrastructure error)."""
@@ -285,6 +301,7 @@ class SweepStore:
         """Mark the chunk done (or cancelled if incomplete); close the sweep when all done."""
         now = time.time()
         with self.db.write() as conn:
+            self._lock_sweep(conn, sweep_id)
             conn.execute(update(chunks).where(_chunk(sweep_id, idx))
                          .values(status="done" if complete else "cancelled", heartbeat=now))
             left = conn.execute(select(func.count()).select_from(chunks).where(and_(
@@ -425,6 +442,61 @@ class SweepStore:
                 if sid not in active:
                     out += [(str(sid), i) for i in self._dispatch(conn, str(sid), window)]
         return out
+
+    @staticmethod
+    def _lock_sweep(conn: Connection, sweep_id: str) -> None:
+        """Row lock on the sweep until the transaction ends (PostgreSQL ``FOR UPDATE``;
+        SQLite write transactions are already exclusive): decisions about the sweep's
+        completion are serialised."""
+        conn.execute(select(sweeps.c.id).where(sweeps.c.id == sweep_id).with_for_update())
+
+    def reap_expired(self, lease_s: float) -> list[tuple[str, int]]:
+        """Running chunks of active sweeps whose lease expired (no heartbeat for
+        ``lease_s`` seconds) are put back to ``queued``; returns them (the caller sends
+        them).  One conditional update per chunk, so of several reapers exactly one
+        takes a given chunk back."""
+        now = time.time()
+        cutoff = now - lease_s
+        out: list[tuple[str, int]] = []
+        with self.db.write() as conn:
+            rows = conn.execute(
+                select(chunks.c.sweep_id, chunks.c.idx)
+                .join(sweeps, sweeps.c.id == chunks.c.sweep_id)
+                .where(and_(sweeps.c.status.in_(ACTIVE), chunks.c.status == "running",
+                            func.coalesce(chunks.c.heartbeat, 0.0) < cutoff))).all()
+            for r in rows:
+                n = conn.execute(update(chunks).where(and_(
+                    _chunk(r.sweep_id, r.idx), chunks.c.status == "running",
+                    func.coalesce(chunks.c.heartbeat, 0.0) < cutoff))
+                    .values(status="queued", owner=None, heartbeat=now)).rowcount
+                if n:
+                    out.append((str(r.sweep_id), int(r.idx)))
+        return out
+
+    def close_finished(self, window: int = 64) -> tuple[int, list[tuple[str, int]]]:
+        """Self-repair of active sweeps: close those whose chunks are all done (under the
+        sweep's row lock); for those with pending chunks but none in flight (the sender
+        of the next chunks died), dispatch the next ones.  Returns (sweeps closed,
+        chunks to send)."""
+        now = time.time()
+        closed, send = 0, []
+        with self.db.write() as conn:
+            rows = conn.execute(
+                select(sweeps.c.id, sweeps.c.n_chunks,
+                       func.count(chunks.c.idx).filter(chunks.c.status == "done"),
+                       func.count(chunks.c.idx).filter(chunks.c.status.in_(ACTIVE)))
+                .join(chunks, chunks.c.sweep_id == sweeps.c.id)
+                .where(sweeps.c.status.in_(ACTIVE))
+                .group_by(sweeps.c.id, sweeps.c.n_chunks)).all()
+            for sid, n_chunks, n_done, n_busy in rows:
+                if n_done == n_chunks:
+                    self._lock_sweep(conn, sid)
+                    closed += conn.execute(update(sweeps).where(and_(
+                        sweeps.c.id == sid, sweeps.c.status.in_(ACTIVE)))
+                        .values(status="done", finished_at=now)).rowcount or 0
+                elif n_busy == 0:
+                    send += [(str(sid), i) for i in self._dispatch(conn, str(sid), window)]
+        return closed, send
 
     @staticmethod
     def requeue(pairs: list[tuple[str, int]], send: Callable[[str, int], None]) -> int:

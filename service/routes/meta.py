@@ -42,10 +42,11 @@ async def health(stores: StoresDep, settings: SettingsDep) -> Response:
                     headers=None if ok else {"Retry-After": str(settings.retry_after_s)})
 
 
-@router.get("/health/live", summary="Liveness only (no I/O)")
+@router.get("/health/live", summary="Liveness only (no I/O)", include_in_schema=False)
 async def live() -> Response:
     """200 while this API process answers; checks nothing else (for proxies and as
-    the trivial endpoint of bench/load_service.py)."""
+    the trivial endpoint of bench/load_service.py).  Outside the schema, hence open
+    without an API key and without touching the database."""
     return Response(b'{"status":"ok"}', media_type="application/json")
 
 

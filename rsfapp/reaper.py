@@ -1,0 +1,141 @@
+"""Chunk leases and the reaper: a lost worker host costs seconds, not a restart.
+
+* :class:`Lease`: while a worker process computes a chunk, a thread renews the chunk's
+  lease (its ``heartbeat``) every ``RSF_LEASE_S / 3`` seconds.
+* :class:`Reaper`: a thread in every worker's main process.  Every
+  :func:`scan_interval` seconds it refreshes this worker's row in the worker registry
+  (for /health), requeues the running chunks whose lease expired (their worker died,
+  lost its host, or lost the database), and closes sweeps whose chunks are all done
+  (self-repair).  Several reapers may run at once: a chunk is taken back by one atomic
+  conditional update, so it is requeued once.
+
+Worst case from a worker's death to its chunk being sent again: ``RSF_LEASE_S`` (the
+last renewal happened before the death) plus one scan interval; the chunk then takes
+one chunk's time on another worker.  Redelivered messages are harmless: storage is
+exactly-once per point.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import threading
+from collections.abc import Callable
+from types import TracebackType
+from typing import NamedTuple
+
+from .config import Settings
+from .health import register_worker, unregister_worker
+from .store import stores_for
+
+__all__ = ["Lease", "Reaper", "TickResult", "scan_interval"]
+log = logging.getLogger("rsf.reaper")
+
+
+def scan_interval(lease_s: float) -> float:
+    """Seconds between two scans of a reaper: lease / 10, clamped to [0.2, 2] s."""
+    return max(0.2, min(lease_s / 10.0, 2.0))
+
+
+class Lease:
+    """Context manager renewing a lease in a background thread while a chunk runs.
+
+    Args:
+        renew: called every ``every`` seconds; returns False once the lease is lost
+            (another worker took the chunk), which sets :attr:`lost`.
+        every: renewal interval [s], > 0.
+    """
+
+    def __init__(self, renew: Callable[[], bool], every: float) -> None:
+        self.renew, self.every = renew, every
+        self.lost = False
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="rsf-lease", daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.every):
+            try:
+                if not self.renew():
+                    self.lost = True
+                    return
+            except Exception as exc:  # noqa: BLE001 - database down: try again next time
+                log.warning("lease renewal failed: %s", str(exc).splitlines()[0])
+
+    def __enter__(self) -> Lease:
+        self._thread.start()
+        return self
+
+    def __exit__(self, _t: type[BaseException] | None, _e: BaseException | None,
+                 _tb: TracebackType | None) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+
+class TickResult(NamedTuple):
+    """What one reaper scan did: chunks sent (lease expired or dispatch repaired),
+    sweeps closed."""
+
+    requeued: int
+    closed: int
+
+
+class Reaper(threading.Thread):
+    """The reaper thread of one worker (see the module docstring).
+
+    Args:
+        settings: this process's settings (database, lease).
+        name: this worker's unique name in the registry (e.g. the Celery node name).
+        concurrency: its processes (reported by /health).
+        send: enqueues chunk ``idx`` of sweep ``sweep_id``.
+    """
+
+    def __init__(self, settings: Settings, name: str, concurrency: int,
+                 send: Callable[[str, int], None]) -> None:
+        super().__init__(name="rsf-reaper", daemon=True)
+        self.settings, self.worker_name, self.concurrency, self.send = (
+            settings, name, concurrency, send)
+        self._stop = threading.Event()
+        self._failing = False
+
+    def tick(self) -> TickResult:
+        """One scan (raises on database errors)."""
+        s = self.settings
+        st = stores_for(s)
+        register_worker(st.db, self.worker_name, s.node, os.getpid(), self.concurrency,
+                        stale_after_s=10 * s.lease_s)
+        expired = st.sweeps.reap_expired(s.lease_s)
+        for sweep_id, idx in expired:
+            self.send(sweep_id, idx)
+        if expired:
+            log.warning("requeued %d chunk(s) whose lease expired: %s", len(expired),
+                        ", ".join(f"{a[:8]}/{b}" for a, b in expired[:10]))
+        closed, nxt = st.sweeps.close_finished(s.sweep_window)
+        for sweep_id, idx in nxt:
+            self.send(sweep_id, idx)
+        if closed or nxt:
+            log.warning("self-repair: closed %d finished sweep(s), dispatched %d chunk(s)",
+                        closed, len(nxt))
+        return TickResult(len(expired) + len(nxt), closed)
+
+    def run(self) -> None:
+        dt = scan_interval(self.settings.lease_s)
+        while True:
+            try:
+                self.tick()
+                if self._failing:
+                    log.warning("reaper: database and broker reachable again")
+                self._failing = False
+            except Exception as exc:  # noqa: BLE001 - keep scanning; log once per outage
+                if not self._failing:
+                    log.warning("reaper scan failed (retrying every %.1f s): %s", dt,
+                                str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+                self._failing = True
+            if self._stop.wait(dt):
+                return
+
+    def stop(self) -> None:
+        """End the thread and remove this worker from the registry."""
+        self._stop.set()
+        self.join(timeout=5)
+        with contextlib.suppress(Exception):  # the row expires anyway
+            unregister_worker(stores_for(self.settings).db, self.worker_name)

@@ -1,0 +1,268 @@
+"""Several hosts for real: an API process and two Celery workers acting as different hosts
+(different RSF_NODE names and data directories, nothing shared on disk) on Redis (with
+persistence) and PostgreSQL, all started here on free ports.
+
+Cases: a sweep split across both workers with every point stored exactly once; Redis
+restarted mid-sweep; PostgreSQL restarted mid-sweep (the API answers 503 problem+json
+with Retry-After while it is down, never a 500 or a hang); a worker SIGKILLed mid-sweep
+(its chunk is requeued by the other worker's reaper within the lease, no restart).
+Plus SQLite damage: /health 503 with the reason, and ``rsf api`` refusing to start on a
+damaged header with what is wrong and how to recover (no traceback).
+
+The lease is 3 s here (default 30 s) to keep the run short; every chunk is slowed by
+0.25 s (chunk_delay_plugin) so that a sweep is still running when a fault is injected.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from sqlalchemy import create_engine, text
+
+from tests.conftest import ROOT, Postgres, Proc, Redis, Server, Worker, free_port, service_env
+
+pytestmark = pytest.mark.timeout(240)
+
+LEASE_S = 3.0
+CHUNK_DELAY_S = 0.25
+
+
+def wait_for(pred: Callable[[], Any], timeout: float, what: str, dt: float = 0.1) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        v = pred()
+        if v:
+            return v
+        time.sleep(dt)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+@dataclass
+class Stack:
+    pg: Postgres
+    redis: Redis
+    api: Server
+    workers: dict[str, Worker]
+    client: httpx.Client
+
+    def sql(self, query: str, **params: Any) -> list[Any]:
+        eng = create_engine(self.pg.url)
+        try:
+            with eng.connect() as conn:
+                return list(conn.execute(text(query), params).all())
+        finally:
+            eng.dispose()
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory: pytest.TempPathFactory, redis_exe: str,
+          postgres_bin: Path) -> Iterator[Stack]:
+    base = tmp_path_factory.mktemp("multihost")
+    dirs = {n: base / n for n in ("redis", "api", "host-a", "host-b")}
+    for d in dirs.values():
+        d.mkdir()
+    pg = Postgres(postgres_bin)
+    started: list[Proc] = []
+    try:
+        red = Redis(redis_exe, dirs["redis"], persist=True)
+        started.append(red)
+        env = {"RSF_CACHE_URL": pg.url, "RSF_LEASE_S": str(LEASE_S),
+               "RSF_RETRY_AFTER_S": "2", "RSF_DB_RETRY_S": "1"}
+        api = Server(dirs["api"], red.url, RSF_NODE="api-host", **env)
+        started.append(api)
+        workers = {}
+        for node in ("host-a", "host-b"):
+            workers[node] = Worker(dirs[node], red.url, include="chunk_delay_plugin",
+                                   RSF_NODE=node, RSF_TEST_CHUNK_DELAY_S=str(CHUNK_DELAY_S),
+                                   **env)
+            started.append(workers[node])
+        with httpx.Client(base_url=api.url, timeout=10) as c:
+            yield Stack(pg, red, api, workers, c)
+    finally:
+        for p in reversed(started):
+            p.stop()
+        pg.destroy()
+
+
+def submit(st: Stack, n_kappa: int, n_eps: int, chunk: int) -> str:
+    """A critical-size sweep over (kappa_ratio, eps) of n_kappa x n_eps points."""
+    body = {"axes": [{"name": "kappa_ratio", "start": 0.3, "stop": 2.5, "n": n_kappa},
+                     {"name": "eps", "start": 0.05, "stop": 0.95, "n": n_eps}],
+            "fixed": {"ba": 2.0, "vo": 1.0}, "chunk_points": chunk}
+    r = st.client.post("/v1/sweeps", json=body)
+    assert r.status_code == 202, r.text
+    return str(r.headers["location"].rsplit("/", 1)[1])
+
+
+def status(st: Stack, sid: str) -> dict[str, Any]:
+    r = st.client.get(f"/v1/sweeps/{sid}")
+    assert r.status_code == 200, r.text
+    return dict(r.json())
+
+
+def wait_done(st: Stack, sid: str, timeout: float) -> dict[str, Any]:
+    """Poll until done; a 503 (the database just came back: the API's one-second
+    fail-fast window after an outage) means "ask again", anything else must be 200."""
+
+    def done() -> dict[str, Any] | None:
+        r = st.client.get(f"/v1/sweeps/{sid}")
+        if r.status_code == 503:
+            assert r.headers["content-type"].startswith("application/problem+json")
+            return None
+        assert r.status_code == 200, r.text
+        return dict(r.json()) if r.json()["status"] == "done" else None
+
+    return dict(wait_for(done, timeout, f"sweep {sid} done"))
+
+
+def check_exactly_once(st: Stack, sid: str, n_total: int) -> None:
+    """Every point stored exactly once: the stored blocks tile [0, n_total) without gap
+    or overlap, one block per chunk, and every chunk is done."""
+    blocks = st.sql("SELECT i0, i1 FROM sweep_blocks WHERE sweep_id = :s ORDER BY i0", s=sid)
+    n_chunks = st.sql("SELECT n_chunks FROM sweeps WHERE id = :s", s=sid)[0][0]
+    assert len(blocks) == n_chunks
+    assert blocks[0][0] == 0 and blocks[-1][1] == n_total
+    assert all(a[1] == b[0] for a, b in zip(blocks, blocks[1:], strict=False))
+    left = st.sql("SELECT count(*) FROM sweep_chunks WHERE sweep_id = :s AND status <> 'done'",
+                  s=sid)[0][0]
+    assert left == 0
+
+
+def nodes_of(st: Stack, sid: str) -> set[str]:
+    """Nodes (hosts) that computed the sweep's chunks (owner = node:pid)."""
+    rows = st.sql("SELECT owner FROM sweep_chunks WHERE sweep_id = :s", s=sid)
+    return {str(r[0]).rsplit(":", 1)[0] for r in rows if r[0]}
+
+
+def test_sweep_split_across_two_hosts_every_point_once(stack: Stack) -> None:
+    sid = submit(stack, 40, 50, chunk=100)  # 2000 points, 20 chunks
+    s = wait_done(stack, sid, 60)
+    assert s["n_done"] == s["n_total"] == 2000 and s["n_failed"] == 0
+    check_exactly_once(stack, sid, 2000)
+    assert nodes_of(stack, sid) == {"host-a", "host-b"}
+    h = stack.client.get("/health").json()
+    assert h["status"] == "ok" and h["workers"]["hosts"] == ["host-a", "host-b"], h
+    assert h["broker"]["ok"] and h["database"]["ok"] and h["database"]["dialect"] == "postgresql"
+
+
+def test_redis_restart_mid_sweep(stack: Stack) -> None:
+    sid = submit(stack, 40, 60, chunk=60)  # 2400 points, 40 chunks: ~5 s on two workers
+    wait_for(lambda: 0 < status(stack, sid)["n_done"] < 1200, 30, "progress")
+    stack.redis.restart(down_s=1.0)
+    s = wait_done(stack, sid, 90)
+    assert s["n_done"] == 2400
+    check_exactly_once(stack, sid, 2400)
+
+
+def test_postgres_restart_mid_sweep_503_then_resumes(stack: Stack) -> None:
+    sid = submit(stack, 40, 61, chunk=61)  # 2440 points, 40 chunks
+    wait_for(lambda: 0 < status(stack, sid)["n_done"] < 1200, 30, "progress")
+    stack.pg.stop()
+    answers = []
+    t_end = time.monotonic() + 3.0
+    while time.monotonic() < t_end:
+        t0 = time.monotonic()
+        r = stack.client.get(f"/v1/sweeps/{sid}")
+        answers.append((r.status_code, r.headers.get("content-type"),
+                        r.headers.get("retry-after"), time.monotonic() - t0, r.text[:200]))
+        time.sleep(0.2)
+    h = stack.client.get("/health")
+    stack.pg.start()
+    # Never a 500 or a hang: 503 problem+json with Retry-After, within the retry window.
+    assert answers and all(a[0] == 503 for a in answers), answers
+    assert all(a[1].startswith("application/problem+json") and a[2] == "2" for a in answers)
+    assert max(a[3] for a in answers) < 5.0, answers
+    # /health: 503 with the reason (its report, or the problem+json of the API-key check
+    # that needs the database before the handler runs)
+    assert h.status_code == 503 and h.headers["retry-after"] == "2"
+    hb = h.json()
+    assert "unavailable" in " ".join(hb.get("reasons", [])) + hb.get("reason", ""), h.text
+    s = wait_done(stack, sid, 90)
+    assert s["n_done"] == 2440
+    check_exactly_once(stack, sid, 2440)
+    assert stack.client.get("/health").status_code == 200
+
+
+def test_sigkill_one_host_mid_sweep_completes_on_the_other(stack: Stack) -> None:
+    sid = submit(stack, 40, 80, chunk=80)  # 3200 points, 40 chunks
+    held = wait_for(lambda: stack.sql(
+        "SELECT idx FROM sweep_chunks WHERE sweep_id = :s AND status = 'running' "
+        "AND owner LIKE 'host-a:%'", s=sid), 30, "host-a to hold a chunk", dt=0.02)
+    idx = held[0][0]
+    stack.workers["host-a"].kill()  # SIGKILL, mid-chunk, no restart
+    t_kill = time.monotonic()
+    n_left = 3200 - status(stack, sid)["n_done"]
+    s = wait_done(stack, sid, 90)
+    elapsed = time.monotonic() - t_kill
+    assert s["n_done"] == 3200
+    check_exactly_once(stack, sid, 3200)
+    owner, attempts = stack.sql("SELECT owner, attempts FROM sweep_chunks WHERE sweep_id = :s "
+                                "AND idx = :i", s=sid, i=idx)[0]
+    assert owner.startswith("host-b:") and attempts >= 2
+    # Within the lease plus the other host's own backlog (0.25 s per chunk at least, and
+    # a generous 10 s for a loaded 2-core CI machine), not an hour or a restart.
+    backlog = n_left / 80 * CHUNK_DELAY_S
+    assert elapsed < LEASE_S + backlog + 10.0, (elapsed, backlog)
+    h = stack.client.get("/health").json()
+    assert h["workers"]["hosts"] == ["host-b"], h
+
+
+def _rsf_api(data: Path, log: Path) -> tuple[Proc, str]:
+    port = free_port()
+    cmd = [sys.executable, "-m", "rsfcli.main", "api", "--port", str(port), "--wait-db", "0"]
+    return Proc(cmd, service_env(data), log), f"http://127.0.0.1:{port}"
+
+
+def test_damaged_sqlite_health_503_and_startup_says_how_to_recover(tmp_path: Path) -> None:
+    from rsfapp.db.engine import Database
+
+    db_file = tmp_path / "cache.sqlite3"
+    db = Database(f"sqlite:///{db_file}")
+    db.ensure_schema()
+    con = sqlite3.connect(db_file)
+    con.executemany("INSERT INTO jobs(key, kind, state, message, updated_at) VALUES (?,?,?,?,?)",
+                    [(f"{i:064x}", "classify", "failed", "x" * 400, 0.0) for i in range(400)])
+    con.commit()
+    con.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    con.close()
+    db.dispose()
+    # Damage one page in the last third of the file (the jobs table), not the header.
+    size = db_file.stat().st_size
+    with open(db_file, "r+b") as f:
+        f.seek((size * 3 // 4) // 4096 * 4096)
+        f.write(b"\xff" * 4096)
+    p, url = _rsf_api(tmp_path, tmp_path / "api.log")
+    try:
+        r = wait_for(lambda: _get(url + "/health"), 60, "the API to answer")
+        assert r.status_code == 503, r.text
+        body = r.json()
+        assert body["status"] == "degraded" and not body["database"]["ok"]
+        assert "damaged" in body["database"]["reason"], body
+        assert "mv " in body["database"]["hint"]
+    finally:
+        p.stop()
+    # A damaged header: start-up refuses, says what and how, no traceback.
+    with open(db_file, "r+b") as f:
+        f.write(b"this is no database file")
+    r2 = subprocess.run([sys.executable, "-m", "rsfcli.main", "api", "--port",
+                         str(free_port()), "--wait-db", "0"], env=service_env(tmp_path),
+                        cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert r2.returncode == 1
+    assert "cannot start" in r2.stderr and "is damaged" in r2.stderr, r2.stderr
+    assert "how to recover" in r2.stderr and "Traceback" not in r2.stderr + r2.stdout
+
+
+def _get(url: str) -> httpx.Response | None:
+    try:
+        return httpx.get(url, timeout=5)
+    except httpx.HTTPError:
+        return None
