@@ -35,8 +35,7 @@ __all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "SAMPLING_NOTE", "numeri
            "protocol_velocity_step", "protocol_slide_hold_slide", "protocol_load_history",
            "protocol_table", "PROTOCOL_COLUMNS", "fit", "fit_key_request", "fit_record_of",
            "fit_table", "FIT_COLUMNS", "analytic_u",
-           "boundaries", "stiffness", "guard",
-           "sweep_diagram", "compute_point", "point_values"]
+           "boundaries", "stiffness", "guard"]
 
 
 class ComputeError(RuntimeError):
@@ -294,90 +293,7 @@ def stiffness(req: StiffnessRequest) -> dict[str, Any]:
     return jsonsafe(guard(_stiff.stiffness_summary, req.case, req.mode, **phys))
 
 
-_OUTCOME_CODE = {"stable": 0.0, "unstable": 1.0}
-_KIND_CODE = {"zero": 0, "finite": 1, "infinite": 2}
-
-
-def sweep_diagram(status: dict[str, Any], pts: list[dict[str, Any]]) -> dict[str, Any]:
-    """Assemble a (finished or partial) sweep into a stability diagram.
-
-    The same layout as ``rsfcore.diagram.DiagramResult.to_dict()``: ``critical_size[i][j]``
-    at (x[i], y[j]) (null where infinite or missing), ``kind`` codes 0 zero / 1 finite /
-    2 infinite, ``outcome`` codes 0 stable / 1 unstable (null where missing) when the sweep
-    classifies a size; plus ``present[i][j]`` (point computed without error), ``status``,
-    ``n_done``, ``n_total``, ``n_failed``.
-    """
-    spec = status["spec"]
-    xs, ys = spec["x"]["values"], spec["y"]["values"]
-    nx, ny = len(xs), len(ys)
-    axes = (spec["x"]["name"], spec["y"]["name"])
-    size_mode = spec["fixed"].get("size") is not None or "size" in axes
-    cs: list[list[float | None]] = [[None] * ny for _ in range(nx)]
-    kind = [[1] * ny for _ in range(nx)]
-    outcome: list[list[float | None]] = [[None] * ny for _ in range(nx)]
-    present = [[False] * ny for _ in range(nx)]
-    for p in pts:
-        i, j = int(p["i"]), int(p["j"])
-        if not (0 <= i < nx and 0 <= j < ny) or p.get("error"):
-            continue
-        if size_mode:
-            if p.get("outcome") in _OUTCOME_CODE:
-                outcome[i][j] = _OUTCOME_CODE[p["outcome"]]
-                present[i][j] = True
-        elif p.get("kind") in _KIND_CODE:
-            kind[i][j] = _KIND_CODE[p["kind"]]
-            v = p.get("critical_size")
-            cs[i][j] = float(v) if v is not None and math.isfinite(v) else None
-            present[i][j] = True
-    fixed = {k: v for k, v in spec["fixed"].items() if k not in axes and v is not None}
-    return {"x_name": axes[0], "x": xs, "y_name": axes[1], "y": ys, "critical_size": cs,
-            "kind": kind, "kind_legend": list(_KIND_CODE), "outcome": outcome if size_mode
-            else None, "outcome_legend": list(_OUTCOME_CODE), "present": present,
-            "perturbation": spec["perturbation"], "rtol": spec["rtol"], "fixed": fixed,
-            "id": status["id"], "status": status["status"], "n_done": status["n_done"],
-            "n_total": status["n_total"], "n_failed": status["n_failed"],
-            "numerics_version": status.get("numerics_version")}
-
-
-
-
-def point_values(spec: dict[str, Any], xv: float, yv: float) -> dict[str, Any]:
-    """Parameter values at grid point (xv, yv): the fixed ones with the two axes set."""
-    vals = dict(spec["fixed"])
-    vals[spec["x"]["name"]] = xv
-    vals[spec["y"]["name"]] = yv
-    return vals
-
-
-def _f(v: Any) -> float | None:
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
-
-
-def compute_point(spec: dict[str, Any], xv: float, yv: float) -> dict[str, Any]:
-    """One sweep point: critical size (kind, critical_size) or, with a size, the outcome.
-
-    Returns {"kind", "critical_size", "outcome", "rel_accuracy", "error"}; exceptions of
-    rsfcore are caught and returned as ``error`` (type and message), so one failing point
-    never stops a sweep.
-    """
-    v = point_values(spec, xv, yv)
-    try:
-        p = Params.from_ratio(v["ba"], v["kappa_ratio"], v["eps"], v["vo"])
-        if v.get("size") is not None:
-            r = _traj.classify(p, spec["perturbation"], v["size"], rtol=spec["rtol"])
-            return {"kind": None, "critical_size": None, "outcome": r.outcome,
-                    "rel_accuracy": _f(r.rel_accuracy), "error": None}
-        c = _critical.critical_perturbation(p, spec["perturbation"], rtol=spec["rtol"])
-        d = c.to_dict()
-        return {"kind": d.get("kind"), "critical_size": _f(d.get("critical_size")),
-                "outcome": None, "rel_accuracy": _f(d.get("rel_accuracy")), "error": None}
-    except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
-        return {"kind": None, "critical_size": None, "outcome": None, "rel_accuracy": None,
-                "error": f"{type(exc).__name__}: {exc}"[:2000]}
+# Sweeps: chunks are computed by rsfapp.sweepdata.compute_chunk (rsfcore.batch).
 
 
 # --- batch queries (POST /v1/classify/batch, /v1/critical/batch) -------------------------

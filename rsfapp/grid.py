@@ -20,6 +20,7 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
+
 from rsfcore.params import ParameterError
 
 from .config import Settings

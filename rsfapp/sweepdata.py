@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
 from rsfcore import batch
 from rsfcore.critical import KINDS
 from rsfcore.params import ParameterError
