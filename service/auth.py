@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import math
+import time
 from dataclasses import dataclass, field
 from typing import Annotated, Any
 
@@ -32,13 +34,15 @@ from starlette.responses import Response
 
 from rsfapp.config import Settings
 from rsfapp.db.engine import Database
-from rsfapp.store.keys import KeyStore, Quotas, Scope, hash_key
+from rsfapp.store import Stores
+from rsfapp.store.keys import KeyStore, Quotas, Scope, hash_key, utc_day
 
 from .deps import SettingsDep, StoresDep
 from .errors import ProblemError, problem
 
-__all__ = ["AuthError", "Principal", "PrincipalDep", "RESPONSES", "bearer", "current",
-           "get_key_store", "guard", "install", "needed_scope", "quotas_of", "scope_for"]
+__all__ = ["AuthError", "Principal", "PrincipalDep", "QuotaError", "RESPONSES", "admit_sweep",
+           "bearer", "check_owner", "current", "get_key_store", "guard", "install",
+           "needed_scope", "quotas_of", "scope_for", "sweep_submitted"]
 log = logging.getLogger("rsf.service")
 
 #: The security scheme shown in OpenAPI (and the Swagger UI "Authorize" button).
@@ -80,6 +84,14 @@ class Principal:
         return self.name is None
 
 
+class QuotaError(Exception):
+    """429 answered as problem+json with ``Retry-After``."""
+
+    def __init__(self, detail: str, retry_after: int) -> None:
+        super().__init__(detail)
+        self.detail, self.retry_after = detail, retry_after
+
+
 class AuthError(Exception):
     """401 or 403 answered as problem+json."""
 
@@ -97,7 +109,7 @@ _NO_KEYS_REMOTE = ("this server has no API key yet and answers requests without 
 _key_stores: dict[int, KeyStore] = {}
 
 
-def get_key_store(stores: StoresDep) -> KeyStore:
+def get_key_store(stores: Stores) -> KeyStore:
     """The key store of the configured database (one per database and process)."""
     db: Database = stores.db
     ks = _key_stores.get(id(db))
@@ -106,7 +118,11 @@ def get_key_store(stores: StoresDep) -> KeyStore:
     return ks
 
 
-KeyStoreDep = Annotated[KeyStore, Depends(get_key_store)]
+def _key_store_dep(stores: StoresDep) -> KeyStore:
+    return get_key_store(stores)
+
+
+KeyStoreDep = Annotated[KeyStore, Depends(_key_store_dep)]
 
 
 def quotas_of(settings: Settings, overrides: dict[str, Any] | None = None) -> Quotas:
@@ -216,8 +232,72 @@ def current(request: Request) -> Principal:
 PrincipalDep = Annotated[Principal, Depends(current)]
 
 
+def _keys_of(stores: Stores) -> KeyStore:
+    return get_key_store(stores)
+
+
+async def admit_sweep(who: Principal, stores: Stores, sweep_id: str, n_points: int) -> int:
+    """Check the sweep quotas of ``who`` before a submission and reserve ``n_points`` of
+    today's points; returns the points reserved (0 for anonymous requests, and for a
+    sweep that exists and is not cancelled: submitting it again starts nothing).
+
+    Raises:
+        ProblemError: 429 (+ Retry-After) when the key already has ``concurrent_sweeps``
+            sweeps queued or running, or today's ``points_per_day`` would be exceeded.
+    """
+    if who.anonymous or who.name is None:
+        return 0
+    st = await run_in_threadpool(stores.sweeps.status, sweep_id)
+    if st is not None and st.get("status") != "cancelled":
+        return 0
+    ks, q = _keys_of(stores), who.quotas
+    active = await run_in_threadpool(ks.active_sweeps, who.name)
+    if active >= q.concurrent_sweeps:
+        raise QuotaError(f"this key has {active} sweeps queued or running (quota "
+                         f"concurrent_sweeps = {q.concurrent_sweeps}); wait for one to "
+                         "finish or cancel one", retry_after=30)
+    left = await run_in_threadpool(ks.reserve_points, who.name, n_points, q.points_per_day)
+    if left < 0:
+        used = await run_in_threadpool(ks.points_used, who.name)
+        midnight = (utc_day() + 1) * 86400 - time.time()
+        raise QuotaError(f"{n_points} points would exceed this key's daily quota "
+                         f"(points_per_day = {q.points_per_day}, used today {used}); the "
+                         "count resets at 00:00 UTC", retry_after=max(1, math.ceil(midnight)))
+    return n_points
+
+
+async def sweep_submitted(who: Principal, stores: Stores, sweep_id: str, charged: bool,
+                          reserved: int) -> None:
+    """After a submission: record ``who`` as the owner of a new sweep; give the reserved
+    points back when nothing new was started (an existing sweep was returned)."""
+    if who.anonymous or who.name is None:
+        return
+    ks = _keys_of(stores)
+    await run_in_threadpool(ks.set_owner, sweep_id, who.name)
+    if not charged and reserved:
+        await run_in_threadpool(ks.refund_points, who.name, reserved)
+
+
+async def check_owner(who: Principal, stores: Stores, sweep_id: str) -> None:
+    """403 unless ``who`` may cancel or delete ``sweep_id``: admin (or anonymous, i.e.
+    auth off or loopback without keys) may touch any sweep, other keys only their own."""
+    if who.scope.allows(Scope.admin):
+        return
+    owner = await run_in_threadpool(_keys_of(stores).owner, sweep_id)
+    if owner is None and await run_in_threadpool(stores.sweeps.status, sweep_id) is None:
+        return  # unknown sweep: the route answers 404
+    if owner != who.name:
+        raise AuthError(403, "this sweep was submitted with another key; only that key or "
+                             "an admin key may cancel it")
+
+
 def install(app: FastAPI) -> None:
     """Register the 401/403 problem+json handler on ``app``."""
+
+    @app.exception_handler(QuotaError)
+    async def _quota(_req: Request, exc: QuotaError) -> Response:
+        return problem(429, "Too many requests", exc.detail,
+                       headers={"Retry-After": str(exc.retry_after)})
 
     @app.exception_handler(AuthError)
     async def _auth(_req: Request, exc: AuthError) -> Response:

@@ -42,6 +42,7 @@ from rsfapp.requests import SweepRequest
 from rsfapp.store import SweepStore
 
 from .. import images
+from ..auth import PrincipalDep, admit_sweep, check_owner, sweep_submitted
 from ..deps import QueueDep, SettingsDep, StoresDep
 from ..errors import ProblemError
 from ..images import choice, format_query, image, image_response, png_content
@@ -90,7 +91,7 @@ def _failures(sweeps: SweepStore, spec: SweepSpec | None, sweep_id: str,
 @router.post("", status_code=202, responses={**_R, 200: {"description": "Already done."}},
              summary="Submit a sweep")
 async def submit(req: SweepRequest, stores: StoresDep, queue: QueueDep,
-                 s: SettingsDep) -> Response:
+                 s: SettingsDep, who: PrincipalDep) -> Response:
     """Start a sweep: an N-D grid (``axes``: 1-5 of ba, kappa or kappa_ratio, eps, vo,
     size; each ``{name, values}`` or ``{name, start, stop, n, log}``), scattered ``points``
     (equal-length arrays per parameter) or the 2-D ``x``/``y`` form, with ``fixed`` values
@@ -107,8 +108,10 @@ async def submit(req: SweepRequest, stores: StoresDep, queue: QueueDep,
     version = numerics_version()
     sweep_id = cache_key("sweep", spec.to_json(), version)[:32]
     chunk = plan_chunks(spec, s, req.chunk_points)
+    reserved = await admit_sweep(who, stores, sweep_id, spec.n_total)  # key quotas (429)
     created = await run_in_threadpool(sweeps.create, sweep_id, spec, chunk, version,
                                       s.sweep_window)
+    await sweep_submitted(who, stores, sweep_id, created.created or created.resumed, reserved)
     todo = created.todo
     warning = await run_in_threadpool(_enqueue, queue, sweep_id, todo) if todo else None
     st = await run_in_threadpool(sweeps.status, sweep_id)
@@ -309,7 +312,7 @@ async def get_diagram(sweep_id: SweepId, stores: StoresDep,
 
 @router.delete("/{sweep_id}", responses={**_N, 204: {"description": "Deleted (purge)."}},
                summary="Cancel a sweep, or delete it with ?purge=true")
-async def cancel(sweep_id: SweepId, stores: StoresDep,
+async def cancel(sweep_id: SweepId, stores: StoresDep, who: PrincipalDep,
                  purge: Annotated[bool, Query(description="Delete the sweep and all its "
                                               "data (cancelling it first if active). "
                                               "Valid range: true or false.")] = False
@@ -319,6 +322,7 @@ async def cancel(sweep_id: SweepId, stores: StoresDep,
     sweep already cancelled or done nothing changes (``changed: false``).  Re-submitting
     a cancelled sweep resumes it.  With ``purge=true``: delete the sweep, its chunks and
     results; 204."""
+    await check_owner(who, stores, sweep_id)  # other keys' sweeps: admin only (403)
     res = await run_in_threadpool(stores.sweeps.cancel, sweep_id)
     if res is None:
         raise _unknown(sweep_id)

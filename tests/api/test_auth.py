@@ -304,3 +304,58 @@ def test_auto_mode_refuses_anonymous_requests_on_other_interfaces() -> None:
     assert _local(req(("127.0.0.1", 8000))) and _local(req(("::1", 8000)))
     assert _local(req(None))  # unix socket
     assert not _local(req(("10.1.2.3", 8000))) and not _local(req(("192.168.0.7", 80)))
+
+
+def sweep(*eps: float) -> dict[str, Any]:
+    return {"x": {"name": "eps", "values": list(eps)}, "y": {"name": "ba", "values": [2.0]}}
+
+
+def test_only_the_owner_or_an_admin_cancels_a_sweep(env: Env) -> None:
+    alice, bob = env.h(env.key(Scope.submit)), env.h(env.key(Scope.submit))
+    admin = env.h(env.key(Scope.admin))
+    ids = []
+    for body in (sweep(0.11, 0.12), sweep(0.13, 0.14)):
+        r = env.c.post("/v1/sweeps", json=body, headers=alice)
+        assert r.status_code == 202, r.text
+        ids.append(r.json()["id"])
+    p = assert_problem(env.c.delete(f"/v1/sweeps/{ids[0]}", headers=bob), 403)
+    assert "another key" in p["detail"]
+    # bob re-submitting alice's sweep gets it back, but it stays alice's
+    assert env.c.post("/v1/sweeps", json=sweep(0.11, 0.12), headers=bob).json()["id"] == ids[0]
+    assert_problem(env.c.delete(f"/v1/sweeps/{ids[0]}", headers=bob), 403)
+    assert env.c.get(f"/v1/sweeps/{ids[0]}", headers=bob).json()["status"] == "queued"
+    assert env.c.delete(f"/v1/sweeps/{ids[0]}", headers=alice).status_code == 200
+    assert env.c.delete(f"/v1/sweeps/{ids[1]}", headers=admin).status_code == 200
+    for i in ids:
+        assert env.c.get(f"/v1/sweeps/{i}", headers=bob).json()["status"] == "cancelled"
+    # an unknown sweep is still 404 (not 403) for a non-admin key
+    assert_problem(env.c.delete("/v1/sweeps/" + "f" * 32, headers=bob), 404)
+
+
+def test_concurrent_sweeps_quota(env: Env) -> None:
+    h = env.h(env.key(Scope.submit, concurrent_sweeps=1))
+    r = env.c.post("/v1/sweeps", json=sweep(0.21, 0.22), headers=h)
+    assert r.status_code == 202, r.text
+    r2 = env.c.post("/v1/sweeps", json=sweep(0.23, 0.24), headers=h)
+    p = assert_problem(r2, 429)
+    assert "concurrent_sweeps" in p["detail"] and int(r2.headers["retry-after"]) >= 1
+    assert env.c.delete(f"/v1/sweeps/{r.json()['id']}", headers=h).status_code == 200
+    assert env.c.post("/v1/sweeps", json=sweep(0.23, 0.24), headers=h).status_code == 202
+
+
+def test_points_per_day_quota(env: Env) -> None:
+    key = env.key(Scope.submit, points_per_day=5)
+    h = env.h(key)
+    assert env.c.post("/v1/sweeps", json=sweep(0.31, 0.32, 0.33, 0.34), headers=h
+                      ).status_code == 202
+    assert env.keys.points_used(env.names[key]) == 4
+    # the same sweep again costs nothing (it exists); a new 2-point sweep is refused
+    assert env.c.post("/v1/sweeps", json=sweep(0.31, 0.32, 0.33, 0.34), headers=h
+                      ).status_code == 202
+    assert env.keys.points_used(env.names[key]) == 4
+    r = env.c.post("/v1/sweeps", json=sweep(0.35, 0.36), headers=h)
+    p = assert_problem(r, 429)
+    assert "points_per_day" in p["detail"]
+    assert 1 <= int(r.headers["retry-after"]) <= 86400  # until 00:00 UTC
+    assert env.c.post("/v1/sweeps", json=sweep(0.37), headers=h).status_code == 202
+    assert env.keys.points_used(env.names[key]) == 5

@@ -185,3 +185,17 @@ def test_serve_refuses_a_non_loopback_host_without_a_key(tmp_path: Path) -> None
     assert r.returncode == 2, r.stderr
     assert "refusing to serve on 0.0.0.0" in r.stderr and "--insecure" in r.stderr
     assert "rsf keys create" in r.stderr
+
+
+def test_cancelling_another_keys_sweep_is_refused(srv: AuthServer) -> None:
+    alice, bob = srv.key("alice", "submit"), srv.key("bob", "submit")
+    admin = srv.key("root", "admin")
+    body = {"x": {"name": "eps", "values": [0.1, 0.2]}, "y": {"name": "ba", "values": [2.5]}}
+    with httpx.Client(base_url=srv.url, timeout=60) as c:
+        r = c.post("/v1/sweeps", json=body, headers=h(alice))
+        assert r.status_code == 202, r.text
+        sid = r.json()["id"]
+        problem(c.delete(f"/v1/sweeps/{sid}", headers=h(bob)), 403)
+        assert c.get(f"/v1/sweeps/{sid}", headers=h(bob)).json()["status"] == "queued"
+        assert c.delete(f"/v1/sweeps/{sid}", headers=h(admin)).status_code == 200
+        assert c.get(f"/v1/sweeps/{sid}", headers=h(bob)).json()["status"] == "cancelled"
