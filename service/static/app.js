@@ -156,10 +156,7 @@ async function runQuery(ev) {
   const form = $("#query-form"), status = $("#query-status"), errBox = $("#query-error");
   const btn = $("#query-submit");
   clearProblem(errBox, form);
-  const params = {
-    ba: num(form, "ba"), kappa: num(form, "kappa"), eps: num(form, "eps"), vo: num(form, "vo"),
-    perturbation: form.elements.perturbation.value, size: num(form, "size"),
-  };
+  const params = queryParams(form);  // lab.js: dimensionless, or SI ("physical" + factor)
   const body = { ...params, n_points: 800 };
   btn.disabled = true;
   busy(status, "integrating\u2026");
@@ -202,18 +199,19 @@ function showOutcome(r, seconds) {
     ["critical size", "<span id='critical-size'>\u2026</span>"],
     ["cache", r.cached ? "hit" : "computed"],
     ["wall time", `${seconds.toFixed(2)} s`],
+    ...siFacts(r),  // lab.js: the answer in SI when the query was in SI
   ];
   $("#outcome-facts").innerHTML = facts.map(([k, v]) =>
     `<div><dt>${esc(k)}</dt><dd>${k === "critical size" ? v : esc(v)}</dd></div>`).join("");
 }
 
 async function criticalSize(params) {
-  const { size, ...p } = params;
+  const p = criticalParams(params);  // lab.js: the query without its perturbation size
   const el = () => $("#critical-size");
   try {
     const res = await settle(await postJSON("/v1/critical", p));
     const c = res.body;
-    if (el()) el().textContent = c.kind === "finite" ? fmt(c.critical_size) : c.kind;
+    if (el()) el().textContent = criticalText(c);  // lab.js (SI: critical slip rate too)
   } catch (e) {
     if (el()) el().textContent = "n/a";
   }
