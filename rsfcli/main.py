@@ -16,6 +16,9 @@ from typing import Any, Optional, Tuple
 
 import typer
 
+from rsfcore import limits
+from rsfcore.limits import Limit
+
 app = typer.Typer(
     name="rsf",
     help="Non-linear slip-stability analysis of rate-and-state friction (spring-slider, "
@@ -44,13 +47,21 @@ class Case(str, Enum):
     E = "E"
 
 
-BA = typer.Option(2.0, "--ba", help="b/a, rate-weakening ratio, (1, 1e6].")
-KAPPA = typer.Option(2.0, "--kappa", help="k Dc/(a sigma), dimensionless stiffness, [0, 1e6] (kappa_crit = b/a - 1).")
-EPS = typer.Option(0.25, "--eps", help="Evolution-law parameter, [0, 1]: 0 slip law, 1 aging law.")
-VO = typer.Option(1.0, "--vo", help="V_o/V_*, load-point velocity; 0 = stationary load point.")
+def _opt(limit: Limit, flag: str, extra: str = "") -> Any:
+    """A typer option whose default and help (range included) come from rsfcore.limits."""
+    return typer.Option(limit.default, flag, help=f"{limit.help()}{extra}")
+
+
+BA = _opt(limits.BA, "--ba")
+KAPPA = _opt(limits.KAPPA, "--kappa")
+EPS = _opt(limits.EPS, "--eps")
+VO = _opt(limits.VO, "--vo")
 PERT = typer.Option(PerturbationKind.velocity_jump, "--perturbation", help="Kind of perturbation from steady state.")
-SIZE = typer.Option(1.0, "--size", help="Velocity jump d = ln(1 + dV/V) in [-1e4, 1e4], or load-point jump dv/v_o in (-1, ..].")
-RTOL = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator, [1e-14, 1e-3].")
+SIZE = typer.Option(limits.VELOCITY_JUMP_SIZE.default, "--size",
+                    help="Perturbation size: velocity jump d (phi and psi jump by d), valid "
+                    f"range {limits.VELOCITY_JUMP_SIZE.text}; or load-point jump dv "
+                    f"(v_o -> v_o (1 + dv)), valid range {limits.LOAD_POINT_JUMP_SIZE.text}.")
+RTOL = _opt(limits.RTOL, "--rtol")
 JSON = typer.Option(False, "--json", help="Print one JSON object.")
 
 
@@ -115,7 +126,7 @@ def trajectory(
     perturbation: PerturbationKind = PERT,
     size: float = SIZE,
     rtol: float = RTOL,
-    n_points: int = typer.Option(200, "--n-points", help="Number of output samples, [1, 100000]."),
+    n_points: int = typer.Option(limits.N_POINTS.default, "--n-points", help=limits.N_POINTS.help()),
     t_end: Optional[float] = typer.Option(None, "--t-end", help="Run to this dimensionless time T (default: to the decision)."),
     sampling: Sampling = typer.Option(Sampling.tau, "--sampling", help="Samples even in the engine's hybrid time (tau) or in T (time)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Also write the samples to .csv or .json."),
@@ -342,6 +353,9 @@ from .lab import fit_command, protocol_app, si_app  # noqa: E402  (SI, protocols
 app.add_typer(si_app, name="si")
 app.add_typer(protocol_app, name="protocol")
 app.command("fit")(fit_command)
+from .sweep import app as _sweep_app  # noqa: E402  (rsf sweep submit|status|download)
+
+app.add_typer(_sweep_app, name="sweep")
 
 
 def main() -> None:

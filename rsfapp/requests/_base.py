@@ -6,7 +6,11 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["F", "Model", "Perturbation", "RTOL", "VALID", "VALID_RTOL"]
+from rsfcore import limits
+from rsfcore.limits import Limit
+
+__all__ = ["F", "FL", "Model", "Perturbation", "RTOL", "VALID", "VALID_RTOL", "bounds",
+           "SIZE_TEXT"]
 
 #: Human-readable valid range of every field, used in 422 problem details.
 VALID: dict[str, str] = {}
@@ -27,8 +31,37 @@ class Model(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+def bounds(limit: Limit) -> dict[str, float]:
+    """pydantic bounds (ge/gt/le/lt) of an rsfcore :class:`~rsfcore.limits.Limit`."""
+    out: dict[str, float] = {}
+    if limit.lo is not None:
+        out["gt" if limit.lo_open else "ge"] = limit.lo
+    if limit.hi is not None:
+        out["lt" if limit.hi_open else "le"] = limit.hi
+    return out
+
+
+_UNSET: Any = object()
+
+
+def FL(limit: Limit, default: Any = _UNSET, *, description: str | None = None,  # noqa: N802
+       name: str | None = None, valid: str | None = None) -> Any:
+    """A Field whose range, default and text come from ``rsfcore.limits`` (the one source
+    of truth shared with rsfcore and the CLI); ``valid`` overrides the range text only
+    where a field accepts more than one limit (e.g. size for both perturbations)."""
+    text = valid or limit.text
+    unit = "" if limit.unit in ("", "-") else f" [{limit.unit}]"
+    desc = description or f"{limit.description}{unit}"
+    return F(limit.default if default is _UNSET else default, text, desc,
+             name=name or limit.name, **bounds(limit))
+
+
 Perturbation = Literal["velocity-jump", "load-point-jump"]
-RTOL = dict(ge=1e-13, le=1e-3)
-VALID_RTOL = "[1e-13, 1e-3]"
+#: Bounds and text of every rtol field (rsfcore.limits.RTOL).
+RTOL = bounds(limits.RTOL)
+VALID_RTOL = limits.RTOL.text
+#: Range text of a perturbation ``size`` valid for either kind (rsfcore checks the kind's own).
+SIZE_TEXT = (f"velocity-jump: {limits.VELOCITY_JUMP_SIZE.text}; "
+             f"load-point-jump: {limits.LOAD_POINT_JUMP_SIZE.text}")
 
 

@@ -21,7 +21,9 @@ from typing import Annotated, Literal
 from pydantic import Field, ValidationError, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from ._base import RTOL, VALID_RTOL, F, Perturbation
+from rsfcore import limits
+
+from ._base import RTOL, SIZE_TEXT, VALID_RTOL, F, FL, Perturbation
 from ._base import Model as _Model
 
 __all__ = [
@@ -41,13 +43,10 @@ class Point(_Model):
 
 
 class _Dimless(_Model):
-    ba: float = F(2.0, "(1, 1e6]", "b/a, rate-weakening ratio (-).", name="ba", gt=1.0, le=1e6)
-    kappa: float = F(1.0, "[0, 1e6]", "kappa = k Dc/(a sigma), dimensionless stiffness (-); "
-                     "the linear critical value is b/a - 1.", name="kappa", ge=0.0, le=1e6)
-    eps: float = F(0.0, "[0, 1]", "Evolution-law parameter: 0 = slip law, 1 = aging law (-).",
-                   name="eps", ge=0.0, le=1.0)
-    vo: float = F(1.0, "0 or (0, 1e300]", "v_o = V_o/V_*, load-point velocity (-).", name="vo",
-                  ge=0.0, le=1e300)
+    ba: float = FL(limits.BA)
+    kappa: float = FL(limits.KAPPA)
+    eps: float = FL(limits.EPS)
+    vo: float = FL(limits.VO)
 
 
 def field_error(model: str, field: str, message: str, value: object) -> ValidationError:
@@ -142,9 +141,10 @@ class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
 
     perturbation: Perturbation = F("velocity-jump", "'velocity-jump' or 'load-point-jump'",
                                    "Kind of perturbation from steady state.", name="perturbation")
-    size: float = F(1.0, "[-1e3, 1e3] (load-point-jump: > -1)",
+    size: float = F(limits.VELOCITY_JUMP_SIZE.default, SIZE_TEXT,
                     "Perturbation size: jump d of (phi, psi) for velocity-jump, relative "
-                    "jump dv of v_o for load-point-jump (-).", name="size", ge=-1e3, le=1e3)
+                    "jump dv of v_o for load-point-jump (-).", name="size",
+                    ge=limits.VELOCITY_JUMP_SIZE.lo, le=limits.LOAD_POINT_JUMP_SIZE.hi)
     start: Point | None = F(None, "null or a finite (phi, psi)",
                             "Explicit start point; overrides perturbation and size.", name="start")
     rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).",
@@ -184,11 +184,9 @@ class TrajectoryRequest(ClassifyRequest):
     has SI columns (t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m).
     """
 
-    n_points: int = F(200, "[2, 10000]", "Number of output samples (spacing: see "
-                      "sampling).", name="n_points", ge=2, le=10_000)
-    t_end: float | None = F(None, "null or (0, 1e12]", "Stop at this dimensionless time "
-                            "T = V_* t/Dc (default: at the certificate).", name="t_end",
-                            gt=0, le=1e12)
+    n_points: int = FL(limits.N_POINTS, description="Number of output samples (spacing: "
+                       "see sampling).")
+    t_end: float | None = FL(limits.T_END, valid=f"null or {limits.T_END.text}")
     t_end_s: float | None = F(None, "null or (0, 1e30] s", "Stop at this time t [s] "
                               "(needs physical; instead of t_end).", name="t_end_s",
                               gt=0, le=1e30)
