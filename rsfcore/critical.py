@@ -44,8 +44,8 @@ Methods, in the order they are tried:
        d s_theta/du = G(u) / (kappa expm1(s_theta - u) - kappa_crit G(u))      (B)
 
    is integrated down to u = 0 exactly; then dv = expm1(s_theta).  Both are run by a
-   compiled scalar DOP853 (Dormand-Prince 8(5,3), tableau from scipy's copy of Hairer's
-   coefficients, stepping and error control written here).  The separatrix method finds
+   compiled scalar DOP853 (Dormand-Prince 8(5,3); rsfcore.separatrix drives the shared
+   kernels of rsfcore.ode.rk, the same ones as the trajectory engine).  The separatrix method finds
    the crossing nearest to infinity; whenever its assumptions fail (u reaches 0 before
    s_theta = 0 for a velocity jump, u stops decreasing before L = 0 for a load-point
    jump, step-size underflow) it reports failure and :func:`bisect_critical` is used.
@@ -70,14 +70,14 @@ from typing import Any
 
 import numba as nb
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _coef
 
 from . import limits as lim
 from .analytic import _vjump_kcrit
 from .errors import UndecidedError
-from .laws import G, L_star
+from .laws import L_star
 from .limits import DEFAULT_RTOL, RTOL_RANGE
 from .params import ParameterError, Params
+from .separatrix import N_WORK, S_OK, S_OVERFLOW, _asym_coeffs, _separatrix
 
 __all__ = [
     "CriticalResult",
@@ -130,264 +130,6 @@ FLAG_FALLBACK = 4  # separatrix method failed: use bisection
 BOUNDARY_RTOL = 1.0e-13
 # DEFAULT_RTOL and RTOL_RANGE: rsfcore.limits (re-exported here for old import paths)
 
-# --- DOP853 tableau (facts of the method; values from scipy's copy of Hairer's DOP853) ---
-_A = np.ascontiguousarray(_coef.A[:13, :13], dtype=np.float64)
-_B = np.ascontiguousarray(_coef.B, dtype=np.float64)
-_C = np.ascontiguousarray(_coef.C[:13], dtype=np.float64)
-_E3 = np.ascontiguousarray(_coef.E3, dtype=np.float64)
-_E5 = np.ascontiguousarray(_coef.E5, dtype=np.float64)
-
-#: internal tolerance = requested rtol times this factor.  DOP853's local error estimate
-#: under-estimates the true local error of this scalar problem by up to ~100x, so the
-#: factor is calibrated instead: over 2 x 1000 random points (b/a in [1.01, 50],
-#: kappa/kappa_crit in [1.01, 6], eps up to x = 0.99) the delivered error stays below the
-#: requested rtol (tests/test_critical.py re-checks a sample)
-_TOL_FACTOR_V = 0.02
-_TOL_FACTOR_L = 0.1
-#: c z0 of the asymptotic start at rtol = 1e-10 (scaled as rtol^(1/3) for other rtol)
-_Z_TARGET = 1.0e-5
-_S0_MAX = -5.0
-#: largest step in s_theta (or u): the separatrix varies like e^(s_theta) on a unit scale
-#: and the embedded error estimate of DOP853 is unreliable on longer steps (measured:
-#: 4-step solutions with 3x the requested error and 3000x under-estimated errors)
-_H_MAX = 0.5
-#: the same for phase (B), in u (measured: 15-step phase-B solutions 100x off at h <= 0.5)
-_H_MAX_B = 0.1
-_MAX_STEPS = 200_000
-
-# separatrix status codes
-S_OK = 0
-S_U_NONPOSITIVE = 1  # velocity jump: separatrix reached L = 0 before s_theta = 0
-S_TURNING = 2  # load-point jump: L stopped decreasing before L = 0
-S_UNDERFLOW = 3  # step size underflow
-S_BUDGET = 4  # step budget exhausted
-S_OVERFLOW = 5  # s_theta - u beyond the double range
-S_NO_START = 6  # asymptotic start not usable
-
-
-@nb.njit(cache=True, nogil=True)
-def _log1p_over(eps, x):
-    """log1p(eps x)/eps with the exact limit x at eps = 0 (series for |eps x| < 1e-4)."""
-    ex = eps * x
-    if abs(ex) < 1.0e-4:
-        return x * (1.0 - ex * (0.5 - ex * (1.0 / 3.0 - ex * 0.25)))
-    return math.log1p(ex) / eps
-
-
-@nb.njit(cache=True, nogil=True)
-def _asym_coeffs(kappa, kc, eps):
-    """(L*, c1, c2) of the asymptotic expansion u = L* - c1 z - c2 z^2 + O(z^3)."""
-    Ls = L_star(kappa, kc, eps)
-    x = eps * kappa / kc
-    omx = 1.0 - x
-    lam = kc * omx
-    mu = kappa / kc
-    c1 = kappa / (lam + mu)
-    br = 1.0 + omx * c1 / mu - (omx * omx / (mu * mu) + eps * omx / (2.0 * mu)) * c1 * c1
-    c2 = kc * c1 * br / (2.0 + lam / mu)
-    return Ls, c1, c2
-
-
-@nb.njit(cache=True, nogil=True)
-def _f_theta(t, u, kappa, kc, eps):
-    """(A): du/ds_theta on the separatrix; inf where u <= 0 (G(u) >= 0: outside its domain)."""
-    g = G(u, eps)
-    if not (g < 0.0):
-        return math.inf
-    return kappa * math.expm1(t - u) / g - kc
-
-
-@nb.njit(cache=True, nogil=True)
-def _f_u(u, t, kappa, kc, eps):
-    """(B): d s_theta/du on the separatrix; inf where dL/ds <= 0 (turning point)."""
-    g = G(u, eps)
-    den = kappa * math.expm1(t - u) - kc * g
-    if not (den > 0.0):
-        return math.inf
-    return g / den
-
-
-@nb.njit(cache=True, nogil=True)
-def _jac(mode, x, y, kappa, kc, eps):
-    """d(rhs)/dy of (A) (mode 0) or (B) (mode 1), analytic; used to propagate error estimates."""
-    g = G(y if mode == 0 else x, eps)
-    if mode == 0:
-        # f = kappa expm1(t - u)/G(u) - kc, G'(u) = -e^(-eps u)
-        e = math.exp(x - y)
-        return -kappa * e / g + kappa * math.expm1(x - y) * math.exp(-eps * y) / (g * g)
-    # f = G(u)/(kappa expm1(t - u) - kc G(u)), derivative in t
-    den = kappa * math.expm1(y - x) - kc * g
-    return -g * kappa * math.exp(y - x) / (den * den)
-
-
-@nb.njit(cache=True, nogil=True)
-def _rhs(mode, x, y, kappa, kc, eps):
-    if mode == 0:
-        return _f_theta(x, y, kappa, kc, eps)
-    return _f_u(x, y, kappa, kc, eps)
-
-
-@nb.njit(cache=True, nogil=True)
-def _dop853_scalar(mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K, h_max=_H_MAX):
-    """Integrate the scalar ODE (mode 0: (A), mode 1: (B)) from (x0, y0) towards x_end.
-
-    Error scale per step: atol + rtol * min(max(|y|, |y_new|), ycap).
-    Stops exactly at x_end, or (mode 0 with switch_slope > 0) after the first accepted step
-    whose end slope |dy/dx| exceeds switch_slope.  Returns (status, x, y, err_prop, n_rhs, h).
-    err_prop is the propagated absolute error estimate: after each accepted step
-    err <- err * exp(h (J0 + J1)/2) + |local error estimate|, with J the analytic
-    d(rhs)/dy at the step ends (the separatrix attracts: J h < 0, old errors shrink).
-    """
-    x = x0
-    y = y0
-    direction = 1.0 if x_end >= x0 else -1.0
-    f = _rhs(mode, x, y, kappa, kc, eps)
-    n_rhs = 1
-    if not math.isfinite(f):
-        return S_NO_START, x, y, 0.0, n_rhs, h0
-    h = min(abs(h0), h_max)
-    err_sum = 0.0
-    J = _jac(mode, x, y, kappa, kc, eps)
-    n = 0
-    last_rejected = False
-    while n < _MAX_STEPS:
-        n += 1
-        rem = (x_end - x) * direction
-        if rem <= 0.0:
-            return S_OK, x, y, err_sum, n_rhs, h
-        final = False
-        if h >= rem or (1.3 * h >= rem and not last_rejected):
-            # land exactly on x_end (stretching the step by up to 30 % unless the last
-            # attempt was rejected; error control rejects it if that was too much)
-            h = rem
-            final = True
-        hs = h * direction
-        K[0] = f
-        ok = True
-        for s in range(1, 12):
-            acc = 0.0
-            for m in range(s):
-                acc += _A[s, m] * K[m]
-            k = _rhs(mode, x + _C[s] * hs, y + hs * acc, kappa, kc, eps)
-            if not math.isfinite(k):
-                ok = False
-                break
-            K[s] = k
-        n_rhs += 12
-        ynew = 0.0
-        fnew = 0.0
-        err = math.inf
-        if ok:
-            acc = 0.0
-            for m in range(12):
-                acc += _B[m] * K[m]
-            ynew = y + hs * acc
-            fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
-            if math.isfinite(fnew) and math.isfinite(ynew):
-                K[12] = fnew
-                a5 = 0.0
-                a3 = 0.0
-                for m in range(13):
-                    a5 += _E5[m] * K[m]
-                    a3 += _E3[m] * K[m]
-                sc = atol + min(max(abs(y), abs(ynew)), ycap) * rtol
-                e5 = (a5 / sc) ** 2
-                e3 = (a3 / sc) ** 2
-                if e5 == 0.0 and e3 == 0.0:
-                    err = 0.0
-                else:
-                    err = h * e5 / math.sqrt(e5 + 0.01 * e3)
-        if not (err <= 1.0):
-            if math.isfinite(err):
-                fac = max(0.2, 0.9 * err ** (-0.125))
-            else:
-                fac = 0.2
-            h *= fac
-            last_rejected = True
-            if h < 1e-15 * max(1.0, abs(x)):
-                return S_UNDERFLOW, x, y, err_sum, n_rhs, h
-            continue
-        Jn = _jac(mode, x + hs, ynew, kappa, kc, eps)
-        # least contractive end of the step (a trapezoid over-contracts on long steps)
-        prop = max(hs * J, hs * Jn)
-        err_sum = err_sum * math.exp(min(prop, 50.0)) + err * sc
-        J = Jn
-        x = x_end if final else x + hs
-        y = ynew
-        f = fnew
-        if final:
-            return S_OK, x, y, err_sum, n_rhs, h
-        if switch_slope > 0.0 and abs(f) > switch_slope:
-            return S_OK, x, y, err_sum, n_rhs, h
-        if err == 0.0:
-            fac = 10.0
-        else:
-            fac = min(10.0, 0.9 * err ** (-0.125))
-        if last_rejected:
-            fac = min(1.0, fac)
-        last_rejected = False
-        h = min(h * fac, h_max)
-    return S_BUDGET, x, y, err_sum, n_rhs, h
-
-
-@nb.njit(cache=True, nogil=True)
-def _separatrix(kappa, kc, eps, pert, rtol, K):
-    """Critical size by the separatrix method (kappa > kappa_crit, x < 1, v_o > 0).
-
-    pert 0: velocity jump (returns d_crit); pert 1: load-point jump (returns dv_crit).
-    Returns (status, value, abs_err, n_rhs).
-    """
-    Ls, c1, c2 = _asym_coeffs(kappa, kc, eps)
-    if not (Ls > 0.0) or not math.isfinite(Ls):
-        return S_NO_START, math.nan, math.nan, 0
-    # start far enough out that the neglected O(z^3) terms are ~1e-3 rtol: measured
-    # truncation ~1e-13 relative at c z0 = 1e-5, scaling as z0^3 (tests/test_critical.py)
-    cz = max(abs(c1), math.sqrt(abs(c2)), 1e-300)
-    zt = min(max(_Z_TARGET * (rtol / 1e-10) ** (1.0 / 3.0), 1e-7), 1e-4)
-    s0 = min(Ls + math.log(zt / cz), _S0_MAX)
-    z0 = math.exp(s0 - Ls)
-    u0 = Ls - z0 * (c1 + c2 * z0)
-    rt = rtol * (_TOL_FACTOR_V if pert == 0 else _TOL_FACTOR_L)
-    if pert == 0:
-        # (A) from s0 to s_theta = 0; atol keeps a floor for tiny d_crit
-        st, t, u, es, nr, h = _dop853_scalar(0, s0, u0, 0.0, kappa, kc, eps, rt, rt * 1e-3 * Ls, math.inf, 0.0, 1.0, K)
-        if st != S_OK:
-            if st == S_NO_START:
-                st = S_U_NONPOSITIVE
-            return st, math.nan, math.nan, nr
-        if not (u > 0.0):
-            return S_U_NONPOSITIVE, math.nan, math.nan, nr
-        return S_OK, u, es, nr
-    # load-point jump: (A) until the slope |du/ds_theta| exceeds 1, then (B) down to u = 0.
-    # The relative error of dv is the absolute error of l = ln(1 + dv) times
-    # e^l/(e^l - 1), so errors are controlled in absolute terms (scale capped at 1).
-    t_far = 709.0  # s_theta beyond any representable load-point jump (expm1(709) ~ 8e307)
-    st, t, u, es, nr, h = _dop853_scalar(0, s0, u0, t_far, kappa, kc, eps, rt, rt * 1e-3, 1.0, 1.0, 1.0, K)
-    if st != S_OK:
-        if st == S_NO_START:
-            st = S_TURNING
-        return st, math.nan, math.nan, nr
-    if t >= t_far:
-        return S_OVERFLOW, math.nan, math.nan, nr
-    if not (u > 0.0):
-        return S_TURNING, math.nan, math.nan, nr
-    st2, u2, t2, es2, nr2, h2 = _dop853_scalar(1, u, t, 0.0, kappa, kc, eps, rt, rt * 1e-3, 1.0, 0.0, 0.1 * u, K, _H_MAX_B)
-    nr += nr2
-    if st2 != S_OK:
-        if st2 == S_NO_START:
-            st2 = S_TURNING
-        return st2, math.nan, math.nan, nr
-    if t2 > t_far:
-        return S_OVERFLOW, math.nan, math.nan, nr
-    dv = math.expm1(t2)
-    if not (dv > 0.0):
-        return S_TURNING, math.nan, math.nan, nr
-    # the phase-A error in u at the switch moves the end point by (dt/du) * du there;
-    # propagate it as an error in t through phase B, then d dv = e^t dt
-    es_t = es * abs(_f_u(u, t, kappa, kc, eps))
-    return S_OK, dv, (es_t + es2) * math.exp(t2), nr
-
-
 @nb.njit(cache=True, nogil=True)
 def _critical_point(ba, kappa, eps, vo, pert, rtol, K):
     """Decision logic for one point.  Returns (kind, value, rel_acc, method, flags, n_rhs).
@@ -438,7 +180,7 @@ def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method,
 
     Points with FLAG_FALLBACK set in ``flags`` need :func:`bisect_critical`.
     """
-    K = np.empty(13)
+    K = np.empty(N_WORK)
     n_total = 0
     for i in range(ba.shape[0]):
         k, v, a, m, fl, nr = _critical_point(ba[i], kappa[i], eps[i], vo, pert, rtol, K)
@@ -460,7 +202,7 @@ def separatrix_raw(params: Params, perturbation: str = "velocity-jump", rtol: fl
     pert = _pert_code(perturbation)
     if not (params.vo > 0.0 and params.kappa >= params.kappa_crit and params.eps * params.kappa < params.kappa_crit):
         raise ParameterError("params", params.as_dict(), "kappa >= kappa_crit, eps*kappa < kappa_crit, v_o > 0")
-    st, v, e, nr = _separatrix(params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(13))
+    st, v, e, nr = _separatrix(params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(N_WORK))
     return int(st), float(v), float(e), int(nr)
 
 
@@ -530,7 +272,7 @@ def _first_decision(params: Params, perturbation: str, rtol: float) -> tuple:
     rtol = lim.RTOL.check(rtol)
     if pert == 1 and params.vo == 0.0:
         raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
-    kind, val, acc, meth, flags, nr = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(13))
+    kind, val, acc, meth, flags, nr = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(N_WORK))
     return rtol, kind, val, acc, meth, flags, nr, bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
 
 

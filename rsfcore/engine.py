@@ -5,7 +5,7 @@ where ln theta = (psi - phi)/(b/a) is the log of the dimensionless state variabl
 V_* theta/Dc, s = delta/Dc the slip and s_o = delta_o/Dc the load-point displacement,
 so that psi = phi + (b/a) ln theta and L = ln(V theta/Dc) = phi + ln theta.
 
-Formulation (nothing overflows, see ../shared/notes/numerics.md): the independent
+Formulation (nothing overflows; see References): the independent
 variable is a bounded "hybrid" time tau with
 
     d tau = D(y) (c + e^phi) dT,     c = v_o if v_o > 0 else 1,
@@ -26,9 +26,10 @@ huge excursion near eps*kappa -> kappa_crit.
 
 Integrator: the explicit Runge-Kutta pair of Dormand & Prince of order 8(5,3) (Hairer,
 Norsett & Wanner, Solving ODEs I, Sec. II.10) with its 7th-order dense output.  The
-Butcher tableau is read at import time from scipy (``scipy.integrate._ivp.
-dop853_coefficients``); the stepping, error control, dense output and event location
-below are this project's own.
+tableau is this project's copy of the published coefficients (rsfcore.ode.dop853_tableau);
+stages, error norm, step-size controller, dense output and the Illinois root finder are
+the shared kernels of rsfcore.ode.rk (also used by the separatrix integrator,
+rsfcore.separatrix); this module holds the right-hand side and the driver with its events.
 
 Events located on every accepted step with the dense output:
   * runaway certificate: L = phi + ln theta > L* (absorbing; see laws.py);
@@ -37,46 +38,100 @@ Events located on every accepted step with the dense output:
     giving the true peaks of slip rate and friction, never sampled ones;
   * optional stop at a given T;
   * blow-up: phi - ln c > phi_stop, after which the remaining time is < e^-phi_stop.
+
+References: Ciardo & Viesca (the system, `eq:psi_T`, `eq:phi_T`); E. Hairer, S. P. Norsett,
+G. Wanner, Solving Ordinary Differential Equations I, 2nd ed., Springer 1993 (DOP853,
+Sec. II.10); docs/core-api.md (hybrid time and its measured cost).
 """
+
 from __future__ import annotations
 
 import math
+from enum import IntEnum
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _coef
+from numpy.typing import NDArray
 
 from .laws import G_clipped
+from .ode import rk
 
-__all__ = ["integrate", "blowup_tail", "STATUS", "NSTATE"]
+__all__ = ["Status", "EngineResult", "run", "integrate", "blowup_tail", "STATUS", "NSTATE"]
 
 NSTATE = 5
 _I_PHI, _I_LTH, _I_T, _I_S, _I_SO = 0, 1, 2, 3, 4
+_NS = rk.N_STAGES  # stages of the step proper
+_NSE = rk.N_STAGES_EXTENDED  # stages with the dense-output extension
 
-# Tableau (facts of the method; values from scipy's copy of Hairer's DOP853).
-_A = np.ascontiguousarray(_coef.A, dtype=np.float64)  # 16 x 16 incl. dense-output stages
-_B = np.ascontiguousarray(_coef.B, dtype=np.float64)  # 12
-_C = np.ascontiguousarray(_coef.C, dtype=np.float64)  # 16
-_E3 = np.ascontiguousarray(_coef.E3, dtype=np.float64)  # 13
-_E5 = np.ascontiguousarray(_coef.E5, dtype=np.float64)  # 13
-_D = np.ascontiguousarray(_coef.D, dtype=np.float64)  # 4 x 16
-_NS = 12  # stages of the step proper
-_NSE = 16  # stages with the dense-output extension
 
-#: Outcome codes returned by :func:`integrate`.
-STATUS = {
-    0: "t_end",  # reached the requested final time T
-    1: "runaway",  # L > L*: certain finite-time instability; integrated to blow-up
-    2: "returned",  # phi fell back below ln v_o after an excursion
-    3: "peak_passed",  # v_o = 0 and phi is past its (unique) maximum
-    4: "budget",  # step budget exhausted without a certificate
-    5: "step_underflow",  # step size fell below the spacing of doubles
-    6: "converged",  # within eq_tol of the steady state (monotone approach)
-}
+class Status(IntEnum):
+    """Why :func:`integrate` stopped (the kernel returns the int; :func:`run` wraps it)."""
 
-_SAFETY = 0.9
-_MIN_FACTOR = 0.2
-_MAX_FACTOR = 10.0
+    #: reached the requested final time T
+    T_END = 0
+    #: L > L*: certain finite-time instability; integrated to blow-up
+    RUNAWAY = 1
+    #: phi fell back below ln v_o after an excursion
+    RETURNED = 2
+    #: v_o = 0 (or kappa = 0) and phi is past its (unique) maximum
+    PEAK_PASSED = 3
+    #: step budget exhausted without a certificate
+    BUDGET = 4
+    #: the step size failed down to ~0 (non-finite states)
+    STEP_UNDERFLOW = 5
+    #: within eq_tol of the steady state (monotone approach)
+    CONVERGED = 6
+
+    @property
+    def text(self) -> str:
+        """Lower-case name, as in messages ("step_underflow")."""
+        return self.name.lower()
+
+
+#: Status texts by code (for callers of the raw kernel).
+STATUS: dict[int, str] = {int(s): s.text for s in Status}
+
+# ints for the compiled kernel (numba freezes module-level ints as constants)
+_T_END = int(Status.T_END)
+_RUNAWAY = int(Status.RUNAWAY)
+_RETURNED = int(Status.RETURNED)
+_PEAK_PASSED = int(Status.PEAK_PASSED)
+_BUDGET = int(Status.BUDGET)
+_STEP_UNDERFLOW = int(Status.STEP_UNDERFLOW)
+_CONVERGED = int(Status.CONVERGED)
+
+
+class EngineResult(NamedTuple):
+    """Result of one :func:`integrate` run (dimensionless; T = V_* t/Dc).
+
+    Attributes:
+        status: why the run stopped.
+        y_end: final state (phi, ln theta, T[, s, s_o]).
+        tau_end: final hybrid time.
+        T_cert: T of the runaway certificate L > L* (nan if none).
+        T_return: T of the return certificate (nan if none).
+        peak_phi, peak_T: largest phi reached (located on the dense output) and its T.
+        peak_psi, peak_psi_T: largest psi = phi + (b/a) ln theta and its T.
+        n_steps, n_rhs, n_rejected: accepted steps, right-hand-side evaluations, rejections.
+        err_sum: sum over accepted steps of rtol times the normalised local error estimate.
+        n_filled: number of sample rows written.
+    """
+
+    status: Status
+    y_end: NDArray[np.float64]
+    tau_end: float
+    T_cert: float
+    T_return: float
+    peak_phi: float
+    peak_T: float
+    peak_psi: float
+    peak_psi_T: float
+    n_steps: int
+    n_rhs: int
+    n_rejected: int
+    err_sum: float
+    n_filled: int
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -116,13 +171,9 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
-    """Stage s of the tableau: K[s] = f(y + h sum_m A[s, m] K[m])."""
+    """Stage s of the tableau: K[s] = f(y + h sum_m A[s, m] K[m]) (K (16, n), y (n,))."""
     n = y.shape[0]
-    for j in range(n):
-        acc = 0.0
-        for m in range(s):
-            acc += _A[s, m] * K[m, j]
-        tmp[j] = y[j] + h * acc
+    rk.stage_state(K, y, h, s, tmp)
     _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
     for j in range(n):
         K[s, j] = ftmp[j]
@@ -130,35 +181,12 @@ def _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _dense_coeffs(K, y0, y1, f0, f1, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp):
-    """Fill F (7 x n) with the DOP853 dense-output polynomial of the last step."""
-    n = y0.shape[0]
+    """Fill F (7, n) with the DOP853 dense-output polynomial of the last step.
+
+    Evaluates the three extra stages 14-16 (3 right-hand sides), then rk.dense_coeffs."""
     for s in range(_NS + 1, _NSE):
         _stage(K, y0, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-    for j in range(n):
-        dy = y1[j] - y0[j]
-        F[0, j] = dy
-        F[1, j] = h * f0[j] - dy
-        F[2, j] = 2.0 * dy - h * (f1[j] + f0[j])
-        for r in range(4):
-            acc = 0.0
-            for m in range(_NSE):
-                acc += _D[r, m] * K[m, j]
-            F[3 + r, j] = h * acc
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _dense_eval(F, y0, x, out):
-    """y(t0 + x h) from the dense-output polynomial, x in [0, 1]."""
-    n = y0.shape[0]
-    for j in range(n):
-        acc = 0.0
-        for i in range(7):
-            acc += F[6 - i, j]
-            if i % 2 == 0:
-                acc *= x
-            else:
-                acc *= 1.0 - x
-        out[j] = acc + y0[j]
+    rk.dense_coeffs(K, y0, y1, f0, f1, h, F)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -168,6 +196,7 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
     idx >= 0: g(x) = y_idx(x) - target (an event on a state component);
     idx = -1: g(x) = d phi/dtau at y(x) (a local maximum of phi);
     idx = -2: g(x) = d psi/dtau at y(x) (a local maximum of psi = phi + (b/a) ln theta).
+    At most 80 trial points; stops when g = 0 or the bracket is below 1e-15.
     """
     if g0 == 0.0:
         return x0
@@ -176,10 +205,8 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
     side = 0
     xm = x0
     for _ in range(80):
-        xm = (x0 * g1 - x1 * g0) / (g1 - g0)
-        if not (xm > x0 and xm < x1):
-            xm = 0.5 * (x0 + x1)
-        _dense_eval(F, y0, xm, tmp)
+        xm = rk.illinois_point(x0, x1, g0, g1)
+        rk.dense_eval(F, y0, xm, tmp)
         if idx >= 0:
             gm = tmp[idx] - target
         else:
@@ -187,16 +214,7 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
             gm = ftmp[0] if idx == -1 else ftmp[0] + ba * ftmp[1]
         if gm == 0.0 or abs(x1 - x0) < 1e-15:
             break
-        if (gm > 0.0) == (g1 > 0.0):
-            x1, g1 = xm, gm
-            if side == -1:
-                g0 *= 0.5
-            side = -1
-        else:
-            x0, g0 = xm, gm
-            if side == 1:
-                g1 *= 0.5
-            side = 1
+        x0, x1, g0, g1, side = rk.illinois_update(x0, x1, g0, g1, side, xm, gm)
     return xm
 
 
@@ -274,34 +292,19 @@ def integrate(
     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
     n_rhs = 1
 
-    # Initial step (Hairer, Norsett & Wanner II.4 heuristic, order 8).
-    d0 = 0.0
-    d1 = 0.0
-    for j in range(3):  # same components as the error norm
-        sc = atol + abs(y[j]) * rtol
-        d0 += (y[j] / sc) ** 2
-        d1 += (f[j] / sc) ** 2
-    d0 = math.sqrt(d0 / 3.0)
-    d1 = math.sqrt(d1 / 3.0)
-    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+    # Initial step (Hairer, Norsett & Wanner II.4 heuristic, order 8), normed over the
+    # same components as the error norm (phi, ln theta, T).
+    h0, d1 = rk.initial_step_trial(y, f, rtol, atol, 3)
     for j in range(n):
         tmp[j] = y[j] + h0 * f[j]
     _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
     n_rhs += 1
-    d2 = 0.0
-    for j in range(3):
-        sc = atol + abs(y[j]) * rtol
-        d2 += ((ftmp[j] - f[j]) / sc) ** 2
-    d2 = math.sqrt(d2 / 3.0) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
-    h = min(100.0 * h0, h1)
+    h = rk.initial_step(h0, d1, y, f, ftmp, rtol, atol, 3)
 
     tau = 0.0
     tau_c = 0.0
-    status = 4
+    status = _BUDGET
+    sc = np.empty(3)  # error weights of (phi, ln theta, T)
     T_cert = math.nan
     T_return = math.nan
     peak_phi = y[0]
@@ -335,7 +338,22 @@ def integrate(
         y[2] /= c
         for i in range(n_filled):
             samples[i, 2] /= c
-        return (0, y, tau, T_cert, T_return, peak_phi, peak_T / c, peak_psi, peak_psi_T / c, 0, n_rhs, 0, 0.0, n_filled)
+        return (
+            _T_END,
+            y,
+            tau,
+            T_cert,
+            T_return,
+            peak_phi,
+            peak_T / c,
+            peak_psi,
+            peak_psi_T / c,
+            0,
+            n_rhs,
+            0,
+            0.0,
+            n_filled,
+        )
     if check_runaway and y[0] + y[1] > Lstar:
         runaway = True
         T_cert = y[2]
@@ -350,53 +368,33 @@ def integrate(
             K[0, j] = f[j]
         for s in range(1, _NS):
             _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-        for j in range(n):
-            acc = 0.0
-            for m in range(_NS):
-                acc += _B[m] * K[m, j]
-            ynew[j] = y[j] + h * acc
+        rk.step_state(K, y, h, ynew)
         _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
         for j in range(n):
             K[_NS, j] = fnew[j]
         n_rhs += _NS
 
-        e5 = 0.0
-        e3 = 0.0
         finite = True
         for j in range(n):
             if not math.isfinite(ynew[j]):
                 finite = False
         # Error norm over (phi, ln theta, T) only, so that the 3- and 5-component runs
         # take identical steps (slip and load point are quadratures of the same accuracy).
+        # phi, ln theta: mixed absolute/relative; T (a non-decreasing integral from 0):
+        # purely relative, so that short blow-up times keep their relative accuracy.
         for j in range(3):
-            # phi, ln theta: mixed absolute/relative; T, s, s_o (non-decreasing
-            # integrals from 0): purely relative, so that short blow-up times keep
-            # their relative accuracy.
-            sc = (atol if j < 2 else 1e-300) + max(abs(y[j]), abs(ynew[j])) * rtol
-            a5 = 0.0
-            a3 = 0.0
-            for m in range(_NS + 1):
-                a5 += _E5[m] * K[m, j]
-                a3 += _E3[m] * K[m, j]
-            e5 += (a5 / sc) ** 2
-            e3 += (a3 / sc) ** 2
-        if not finite:
-            err = math.inf
-        elif e5 == 0.0 and e3 == 0.0:
-            err = 0.0
-        else:
-            err = h * e5 / math.sqrt((e5 + 0.01 * e3) * 3.0)
+            sc[j] = rk.error_scale(y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf)
+        err = rk.error_norm(K, h, sc, 3) if finite else math.inf
 
         if not (err <= 1.0):
             n_rej += 1
-            fac = _MIN_FACTOR if not math.isfinite(err) else max(_MIN_FACTOR, _SAFETY * err ** (-1.0 / 8.0))
-            h *= fac
+            h *= rk.reject_factor(err)
             rejected_last = True
             # The system is autonomous, so a step far below the spacing of tau is still
             # meaningful (excursions to phi ~ 1e7 at b/a -> 1 need them); only a step that
             # keeps failing down to ~0 (non-finite states) ends the run.  Also catches NaN.
             if not (h > 1e-300):
-                status = 5
+                status = _STEP_UNDERFLOW
                 break
             continue
 
@@ -414,12 +412,29 @@ def integrate(
             _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
             n_rhs += 3
             dense_ready = True
-            x_end = _root(F, y, 2, t_end, 0.0, 1.0, y[2] - t_end, ynew[2] - t_end, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            _dense_eval(F, y, x_end, ye)
+            x_end = _root(
+                F,
+                y,
+                2,
+                t_end,
+                0.0,
+                1.0,
+                y[2] - t_end,
+                ynew[2] - t_end,
+                tmp,
+                ftmp,
+                ba,
+                kappa,
+                eps,
+                vo,
+                c,
+                lnc,
+            )
+            rk.dense_eval(F, y, x_end, ye)
             _rhs(ye, fe, ba, kappa, eps, vo, c, lnc)
             n_rhs += 1
             stop_x = x_end
-            stop_status = 0
+            stop_status = _T_END
         else:
             for j in range(n):
                 ye[j] = ynew[j]
@@ -434,7 +449,7 @@ def integrate(
                 n_rhs += 3
                 dense_ready = True
             xp = _root(F, y, -2, 0.0, 0.0, x_end, gp0, gp1, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            _dense_eval(F, y, xp, tmp)
+            rk.dense_eval(F, y, xp, tmp)
             if tmp[0] + ba * tmp[1] > peak_psi:
                 peak_psi = tmp[0] + ba * tmp[1]
                 peak_psi_T = tmp[2]
@@ -454,8 +469,10 @@ def integrate(
                     _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
                     n_rhs += 3
                     dense_ready = True
-                xm = _root(F, y, -1, 0.0, 0.0, x_end, f[0], fe[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-                _dense_eval(F, y, xm, tmp)
+                xm = _root(
+                    F, y, -1, 0.0, 0.0, x_end, f[0], fe[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc
+                )
+                rk.dense_eval(F, y, xm, tmp)
                 if tmp[0] > peak_phi:
                     peak_phi = tmp[0]
                     peak_T = tmp[2]
@@ -467,52 +484,94 @@ def integrate(
                 if not fixed_L:
                     if above and ye[0] < phi_ss:
                         if not dense_ready:
-                            _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                            _dense_coeffs(
+                                K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp
+                            )
                             n_rhs += 3
                             dense_ready = True
-                        xr = _root(F, y, 0, phi_ss, 0.0, x_end, y[0] - phi_ss, ye[0] - phi_ss, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-                        _dense_eval(F, y, xr, tmp)
+                        xr = _root(
+                            F,
+                            y,
+                            0,
+                            phi_ss,
+                            0.0,
+                            x_end,
+                            y[0] - phi_ss,
+                            ye[0] - phi_ss,
+                            tmp,
+                            ftmp,
+                            ba,
+                            kappa,
+                            eps,
+                            vo,
+                            c,
+                            lnc,
+                        )
+                        rk.dense_eval(F, y, xr, tmp)
                         T_return = tmp[2]
                         stop_x = xr
-                        stop_status = 2
+                        stop_status = _RETURNED
                     if ye[0] >= phi_ss:
                         above = True
-                    elif stop_status < 0 and abs(ye[0] - phi_ss) < eq_tol and abs(ye[0] + ye[1]) < eq_tol:
+                    elif (
+                        stop_status < 0
+                        and abs(ye[0] - phi_ss) < eq_tol
+                        and abs(ye[0] + ye[1]) < eq_tol
+                    ):
                         # within eq_tol of the (asymptotically stable) steady state
                         # (phi = ln v_o, L = 0) without crossing it: a node, not a focus.
                         stop_x = x_end
-                        stop_status = 6
+                        stop_status = _CONVERGED
                 elif fe[0] < 0.0 and stop_status < 0:
                     # v_o = 0 or kappa = 0: L decreases monotonically below L*, so once d phi/ds < 0
                     # it stays negative and the maximum is behind us.
                     stop_x = x_end
-                    stop_status = 3
+                    stop_status = _PEAK_PASSED
         elif ye[0] - lnc > phi_stop and stop_status < 0:
             stop_x = x_end
-            stop_status = 1
+            stop_status = _RUNAWAY
 
         # samples inside this step (up to the stop point)
         x_lim = min(stop_x, 1.0)
         tau_lim = tau + x_lim * h
         T_lim = ynew[2]
-        if (i_tau < n_tau and sample_tau[i_tau] <= tau_lim) or (i_T < n_T and sample_T[i_T] <= ynew[2]):
+        if (i_tau < n_tau and sample_tau[i_tau] <= tau_lim) or (
+            i_T < n_T and sample_T[i_T] <= ynew[2]
+        ):
             if not dense_ready:
                 _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
                 n_rhs += 3
                 dense_ready = True
             while i_tau < n_tau and sample_tau[i_tau] <= tau_lim:
-                _dense_eval(F, y, (sample_tau[i_tau] - tau) / h, tmp)
+                rk.dense_eval(F, y, (sample_tau[i_tau] - tau) / h, tmp)
                 for j in range(n):
                     samples[n_filled, j] = tmp[j]
                 n_filled += 1
                 i_tau += 1
             if i_T < n_T:
                 if x_lim < 1.0:
-                    _dense_eval(F, y, x_lim, ftmp)
+                    rk.dense_eval(F, y, x_lim, ftmp)
                     T_lim = ftmp[2]
                 while i_T < n_T and sample_T[i_T] <= T_lim:
-                    xs = _root(F, y, 2, sample_T[i_T], 0.0, x_lim, y[2] - sample_T[i_T], T_lim - sample_T[i_T], tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-                    _dense_eval(F, y, xs, tmp)
+                    xs = _root(
+                        F,
+                        y,
+                        2,
+                        sample_T[i_T],
+                        0.0,
+                        x_lim,
+                        y[2] - sample_T[i_T],
+                        T_lim - sample_T[i_T],
+                        tmp,
+                        ftmp,
+                        ba,
+                        kappa,
+                        eps,
+                        vo,
+                        c,
+                        lnc,
+                    )
+                    rk.dense_eval(F, y, xs, tmp)
                     for j in range(n):
                         samples[n_filled, j] = tmp[j]
                     n_filled += 1
@@ -523,10 +582,12 @@ def integrate(
             if i_T < n_T:
                 if x_lim < 1.0:
                     if not dense_ready:
-                        _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                        _dense_coeffs(
+                            K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp
+                        )
                         n_rhs += 3
                         dense_ready = True
-                    _dense_eval(F, y, x_lim, ftmp)
+                    rk.dense_eval(F, y, x_lim, ftmp)
                 else:
                     for j in range(n):
                         ftmp[j] = ynew[j]
@@ -536,7 +597,7 @@ def integrate(
                     n_filled += 1
                     i_T += 1
             if stop_x < 1.0:
-                _dense_eval(F, y, stop_x, tmp)
+                rk.dense_eval(F, y, stop_x, tmp)
                 for j in range(n):
                     y[j] = tmp[j]
                 tau, tau_c = _kahan(tau, tau_c, stop_x * h)
@@ -552,27 +613,36 @@ def integrate(
         for j in range(n):
             y[j] = ynew[j]
             f[j] = fnew[j]
-        err_c = max(err, 1e-12)
-        fac = min(_MAX_FACTOR, _SAFETY * err_c ** (-1.0 / 8.0))
-        if h_acc_prev > 0.0:
-            # Gustafsson's predictive controller (Hairer & Wanner IV.8): when the error
-            # constant changes steadily from step to step (approaching a sharp peak),
-            # extrapolate the trend instead of retrying a step that fails.
-            fac = min(fac, fac * (h / h_acc_prev) * (err_acc_prev / err_c) ** (1.0 / 8.0))
-        if rejected_last:
-            fac = min(1.0, fac)
+        # elementary controller with Gustafsson's predictive correction (Hairer & Wanner
+        # IV.8): when the error constant changes steadily from step to step (approaching
+        # a sharp peak), extrapolate the trend instead of retrying a step that fails.
+        fac, err_c = rk.accept_factor(err, h, h_acc_prev, err_acc_prev, rejected_last)
         h_acc_prev = h
         err_acc_prev = err_c
         rejected_last = False
         h *= fac
 
-    if status == 4 and runaway:
-        status = 1 if y[0] - lnc > phi_stop else 4
+    if status == _BUDGET and runaway:
+        status = _RUNAWAY if y[0] - lnc > phi_stop else _BUDGET
     y[2] /= c
     for i in range(n_filled):
         samples[i, 2] /= c
-    return (status, y, tau, T_cert / c, T_return / c, peak_phi, peak_T / c, peak_psi, peak_psi_T / c,
-            n_steps, n_rhs, n_rej, err_sum, n_filled)
+    return (
+        status,
+        y,
+        tau,
+        T_cert / c,
+        T_return / c,
+        peak_phi,
+        peak_T / c,
+        peak_psi,
+        peak_psi_T / c,
+        n_steps,
+        n_rhs,
+        n_rej,
+        err_sum,
+        n_filled,
+    )
 
 
 def blowup_tail(phi: float, L: float, ba: float, kappa: float, eps: float) -> float:
@@ -587,3 +657,65 @@ def blowup_tail(phi: float, L: float, ba: float, kappa: float, eps: float) -> fl
     if rate <= 0.0 or phi > 700.0:
         return 0.0
     return math.exp(-phi) / rate
+
+
+def run(
+    y0: NDArray[np.float64],
+    ba: float,
+    kappa: float,
+    eps: float,
+    vo: float,
+    rtol: float,
+    atol: float,
+    Lstar: float,
+    check_runaway: bool,
+    stop_on_return: bool,
+    t_end: float,
+    phi_stop: float,
+    max_steps: int,
+    eq_tol: float,
+    sample_tau: NDArray[np.float64],
+    sample_T: NDArray[np.float64],
+    samples: NDArray[np.float64],
+) -> EngineResult:
+    """:func:`integrate` with its result as an :class:`EngineResult` (status a :class:`Status`).
+
+    Same arguments as :func:`integrate` (validated by the caller: rsfcore.trajectory,
+    rsfcore.protocols).  The compiled kernel itself returns a plain tuple of ints and
+    floats; this thin wrapper names it.
+    """
+    res = integrate(
+        y0,
+        ba,
+        kappa,
+        eps,
+        vo,
+        rtol,
+        atol,
+        Lstar,
+        check_runaway,
+        stop_on_return,
+        t_end,
+        phi_stop,
+        max_steps,
+        eq_tol,
+        sample_tau,
+        sample_T,
+        samples,
+    )
+    return EngineResult(
+        Status(int(res[0])),
+        res[1],
+        float(res[2]),
+        float(res[3]),
+        float(res[4]),
+        float(res[5]),
+        float(res[6]),
+        float(res[7]),
+        float(res[8]),
+        int(res[9]),
+        int(res[10]),
+        int(res[11]),
+        float(res[12]),
+        int(res[13]),
+    )

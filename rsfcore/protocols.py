@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 
 from . import limits as lim
 from .analytic import delta_tau
-from .engine import blowup_tail, integrate
+from .engine import EngineResult, Status, blowup_tail, run
 from .errors import IntegrationBudgetError
 from .jsonsafe import finite_list, finite_or_none
 from .laws import L_star
@@ -243,14 +243,20 @@ class _Ctx:
     Ls: float
 
 
-def _run(y0: NDArray[np.float64], c: _Ctx, t_end: float, sample_T=_EMPTY, sample_tau=_EMPTY):
+def _run(
+    y0: NDArray[np.float64],
+    c: _Ctx,
+    t_end: float,
+    sample_T: NDArray[np.float64] = _EMPTY,
+    sample_tau: NDArray[np.float64] = _EMPTY,
+) -> tuple[EngineResult, NDArray[np.float64]]:
     n = sample_T.shape[0] + sample_tau.shape[0]
     samples = np.empty((n, 5)) if n else _EMPTY2
-    res = integrate(
+    res = run(
         np.ascontiguousarray(y0, dtype=np.float64), c.ba, c.kappa, c.eps, c.vo, c.rtol, c.rtol,
         c.Ls, True, False, t_end, PHI_STOP, MAX_STEPS, 0.0, sample_tau, sample_T, samples,
     )
-    return res, samples[: int(res[-1])]
+    return res, samples[: res.n_filled]
 
 
 # ---------------------------------------------------------------------------------------
@@ -354,18 +360,20 @@ def load_history(
         sT[0] = T_now
         sT[-1] = T_end
         res, samp = _run(y_start, ctx, T_end, sample_T=sT)
-        status, y_end, _, T_cert, _, peak_phi, peak_T, peak_psi, peak_psi_T, n_st, _, n_rej, err_sum, _ = res
-        y_end = np.asarray(y_end).copy()
-        sm.n_steps = int(n_st + n_rej)
-        err_total += float(err_sum)
+        status, T_cert = res.status, res.T_cert
+        peak_phi, peak_T, peak_psi, peak_psi_T = res.peak_phi, res.peak_T, res.peak_psi, res.peak_psi_T
+        y_end = np.asarray(res.y_end).copy()
+        sm.n_steps = res.n_steps + res.n_rejected
+        err_total += res.err_sum
         # (the engine takes no event from beyond t_end, so a certificate is within the segment)
         ran_away = not math.isnan(T_cert)
-        if status in (4, 5) and not ran_away:
+        unfinished = status in (Status.BUDGET, Status.STEP_UNDERFLOW)
+        if unfinished and not ran_away:
             raise IntegrationBudgetError(
-                f"segment {i} (Vo={Vo:g} m/s, {dur:g} s) did not finish: engine status {int(status)} "
+                f"segment {i} (Vo={Vo:g} m/s, {dur:g} s) did not finish: engine status {status.text} "
                 f"after {sm.n_steps} steps at t={float(y_end[2]) * ts:g} s"
             )
-        blew_up = status == 1 or (ran_away and status in (4, 5))
+        blew_up = status == Status.RUNAWAY or (ran_away and unfinished)
         if blew_up:
             # append the blow-up state so that the runaway shows in the output
             samp = np.vstack([samp, y_end[None, :]]) if samp.shape[0] == 0 or samp[-1, 2] < y_end[2] else samp

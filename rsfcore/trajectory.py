@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from . import limits as lim
 from .analytic import U_kcrit
-from .engine import blowup_tail, integrate
+from .engine import EngineResult, Status, blowup_tail, run
 from .errors import BudgetExceeded, UndecidedError
 from .jsonsafe import finite_or_none
 from .laws import L_star
@@ -241,7 +241,7 @@ def _run(
     sample_tau: NDArray[np.float64] = _EMPTY,
     sample_T: NDArray[np.float64] = _EMPTY,
     max_steps: int = MAX_STEPS,
-) -> tuple:
+) -> tuple[EngineResult, NDArray[np.float64]]:
     n_samp = sample_tau.shape[0] + sample_T.shape[0]
     lth0 = (psi0 - phi0) / p.ba
     # without samples only (phi, ln theta, T) are carried
@@ -249,7 +249,7 @@ def _run(
     Ls = float(L_star(p.kappa, p.kappa_crit, p.eps))
     samples = np.empty((n_samp, 5)) if n_samp else _EMPTY2
     sor = plan.stop_on_return if stop_on_return is None else stop_on_return
-    res = integrate(
+    res = run(
         y0, p.ba, p.kappa, p.eps, p.vo, rtol, rtol, Ls, plan.check_runaway, sor,
         t_end, PHI_STOP, max_steps, EQ_TOL, sample_tau, sample_T, samples,
     )
@@ -338,7 +338,7 @@ def simulate(
             plan = _Plan(True, True, None, None) if p_run.kappa >= p_run.kappa_crit else _Plan(True, False, None, None)
     if plan.certificate in ("at_equilibrium",) or (plan.certificate or "").endswith("_L_on_Lstar"):
         # decided in closed form; nothing to integrate
-        res = (-1, None, 0.0, math.nan, math.nan, phi0, 0.0, psi0, 0.0, 0, 0, 0, 0.0, 0)
+        res = None
     else:
         # when the closed form already decided the outcome, only the times and the peak
         # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
@@ -347,8 +347,13 @@ def simulate(
         decided = plan.outcome is not None or (p_run.kappa < p_run.kappa_crit and method == "auto")
         budget = min(DECIDED_BUDGET, max_steps) if decided else max_steps
         res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget)
-    status, y_end, tau_end, T_cert, T_ret, peak_phi, peak_T, _, _, n_steps, n_rhs, n_rej, err_sum, _ = res
-    n_steps = int(n_steps + n_rej)
+    if res is None:
+        status, y_end, tau_end, T_cert, T_ret = None, None, 0.0, math.nan, math.nan
+        peak_phi, peak_T, n_steps, n_rhs, err_sum = phi0, 0.0, 0, 0, 0.0
+    else:
+        status, y_end, tau_end, T_cert, T_ret = res.status, res.y_end, res.tau_end, res.T_cert, res.T_return
+        peak_phi, peak_T, err_sum = res.peak_phi, res.peak_T, res.err_sum
+        n_steps, n_rhs = res.n_steps + res.n_rejected, res.n_rhs
 
     runaway = not math.isnan(T_cert)
     blowup_time = return_time = None
@@ -371,18 +376,19 @@ def simulate(
         outcome = "unstable"
         cert = plan.certificate or "L_above_Lstar"
         peak_phi = math.inf
-        if status == 1:
+        if status == Status.RUNAWAY:
+            assert y_end is not None
             blowup_time = float(y_end[2] + blowup_tail(y_end[0], y_end[0] + y_end[1], p_run.ba, p_run.kappa, p_run.eps))
             peak_T = blowup_time
         else:
             peak_T = None
             complete = False
-    elif status == 2:
+    elif status == Status.RETURNED:
         outcome, cert = "stable", plan.certificate or "returned_to_steady_state"
         return_time = float(T_ret)
-    elif status == 6:
+    elif status == Status.CONVERGED:
         outcome, cert = "stable", plan.certificate or "converged_to_steady_state"
-    elif status == 3:
+    elif status == Status.PEAK_PASSED:
         outcome, cert = "stable", plan.certificate or "vo0_L_below_Lstar"
     elif plan.outcome is not None:
         # budget reached; the outcome is certain, the times and the peak are not final
@@ -394,10 +400,10 @@ def simulate(
         complete = False
     else:
         msg = (
-            f"no certificate within {max_steps} steps ({STATUS_TEXT.get(int(status), status)}); "
+            f"no certificate within {max_steps} steps ({status.text if status is not None else '-'}); "
             f"params={p_run.as_dict()}, start=({phi0}, {psi0}), rtol={rtol}"
         )
-        if status == 5:
+        if status == Status.STEP_UNDERFLOW:
             raise UndecidedError(msg, reason="step_underflow")
         raise BudgetExceeded(msg)
 
@@ -426,9 +432,6 @@ def simulate(
     )
 
 
-STATUS_TEXT = {0: "t_end", 1: "runaway", 2: "returned", 3: "peak_passed", 4: "budget", 5: "step_underflow", 6: "converged"}
-
-
 def _sample(
     p: Params,
     phi0: float,
@@ -454,7 +457,7 @@ def _sample(
     else:
         if t_end is not None or sampling == "time":
             res0, _ = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor)
-            tau_end, T_end = float(res0[2]), float(res0[1][2])
+            tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         else:
             T_end = math.nan
         if sampling == "time":
@@ -463,7 +466,7 @@ def _sample(
         else:
             sTau = np.linspace(0.0, tau_end, n_points)
             res, samples = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_tau=sTau)
-    n = int(res[-1])
+    n = res.n_filled
     s = samples[:n]
     phi, lth = s[:, 0], s[:, 1]
     tr = Trajectory(T=s[:, 2].copy(), phi=phi.copy(), psi=phi + p.ba * lth, ln_theta=lth.copy(), slip=s[:, 3].copy(), load_point=s[:, 4].copy())

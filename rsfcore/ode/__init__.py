@@ -1,0 +1,14 @@
+"""Shared ODE machinery of rsfcore: the DOP853 tableau and its compiled building blocks.
+
+* :mod:`rsfcore.ode.dop853_tableau`: the published Dormand-Prince 8(5,3) coefficients.
+* :mod:`rsfcore.ode.rk`: stage, solution, error norm, step-size controller, starting
+  step, dense output, Illinois root finder and stiffness indicator as numba kernels,
+  used by the spring-slider engine (rsfcore.engine) and the separatrix integrator
+  (rsfcore.separatrix).
+"""
+
+from __future__ import annotations
+
+from . import dop853_tableau, rk
+
+__all__ = ["dop853_tableau", "rk"]
