@@ -13,7 +13,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import typer
 
@@ -26,7 +26,7 @@ DATA_DIR = typer.Option(None, "--data-dir", help="Data directory of the deployme
                         "RSF_DATA_DIR, else ./rsf-data); RSF_CACHE_URL selects another database.")
 
 
-def _store(data_dir: Optional[Path]) -> Any:
+def _store(data_dir: Path | None) -> Any:
     if data_dir is not None:
         os.environ["RSF_DATA_DIR"] = str(Path(data_dir).expanduser().resolve())
     from rsfapp.config import get_settings
@@ -51,11 +51,11 @@ def create(
     quota: list[str] = typer.Option([], "--quota", help="Per-key quota NAME=VALUE, repeatable: "
                                     "concurrent_sweeps, points_per_day, fresh_per_s, "
                                     "concurrent_requests, trajectory_points."),
-    from_env: Optional[str] = typer.Option(None, "--from-env", help="Store the key held in "
+    from_env: str | None = typer.Option(None, "--from-env", help="Store the key held in "
                                            "this environment variable instead of a random "
                                            "one (replaces the key of that name; for "
                                            "containers)."),
-    data_dir: Optional[Path] = DATA_DIR,
+    data_dir: Path | None = DATA_DIR,
 ) -> None:
     """Create an API key and print it (once: only its hash is stored)."""
     from rsfapp.store.keys import KeyStoreError, Scope, validate_quota
@@ -94,7 +94,7 @@ def create(
 @app.command("list")
 def list_keys(
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
-    data_dir: Optional[Path] = DATA_DIR,
+    data_dir: Path | None = DATA_DIR,
 ) -> None:
     """List the keys: name, scope, created, revoked, quota overrides (never the keys)."""
     keys = _store(data_dir).list_keys()
@@ -120,7 +120,7 @@ def list_keys(
 @app.command()
 def revoke(
     name: str = typer.Argument(..., help="Name of the key to revoke."),
-    data_dir: Optional[Path] = DATA_DIR,
+    data_dir: Path | None = DATA_DIR,
 ) -> None:
     """Revoke a key: refused from the next request on."""
     from rsfapp.store.keys import KeyStoreError
@@ -148,7 +148,9 @@ def check_bind(host: str, what: str = "rsf serve") -> None:
     from rsfapp.config import get_settings
 
     s = get_settings()
-    say = (lambda m: print(f"[{what}] {m}", file=sys.stderr))
+
+    def say(m: str) -> None:
+        print(f"[{what}] {m}", file=sys.stderr)
     if s.auth == "off":
         say("RSF_AUTH=off (--insecure): no API keys; anyone who can reach this port may "
             "submit and cancel sweeps and read every result")

@@ -39,7 +39,7 @@ KEY_PREFIX = "rsf_"
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
 
 
-class Scope(str, enum.Enum):
+class Scope(enum.StrEnum):
     """What a key may do; each scope includes the ones below it."""
 
     read = "read"

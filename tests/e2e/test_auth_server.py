@@ -167,8 +167,10 @@ def test_keys_never_in_logs_or_responses(srv: AuthServer) -> None:
     k = srv.key("secretive")
     bodies = []
     with httpx.Client(base_url=srv.url, timeout=60, headers=h(k)) as c:
-        for method, path, body in (("GET", "/health", None), ("POST", "/v1/classify", {"no": 1}),
-                                   ("GET", "/v1/sweeps", None), ("GET", "/v1/results/" + "1" * 64, None)):
+        for method, path, body in (("GET", "/health", None),
+                                   ("POST", "/v1/classify", {"no": 1}),
+                                   ("GET", "/v1/sweeps", None),
+                                   ("GET", "/v1/results/" + "1" * 64, None)):
             r = c.request(method, path, json=body)
             bodies.append(r.text + json.dumps(dict(r.headers)))
     logs = srv.tail(10**7) + "".join(bodies)
