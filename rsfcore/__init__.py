@@ -2,30 +2,142 @@
 
 Implements Ciardo & Viesca, "Non-linear stability analysis of slip in a single-degree-
 of-freedom elastic system with frictional evolution laws spanning aging to slip".
-Pure numerical core (numpy/scipy/numba); no web or I/O code.  See docs/core-api.md.
+Pure numerical core (numpy/scipy/numba); no web or I/O code.  The public surface below
+is the one documented in docs/core-api.md; tests/core/test_public_api.py pins it.
+
+Layout: ``params`` / ``limits`` / ``errors`` (inputs, valid ranges, exceptions),
+``trajectory`` (classify, simulate), ``critical`` and ``separatrix`` (critical
+perturbation sizes), ``diagram``, ``boundaries``, ``analytic``, ``protocols``,
+``stiffness``, ``laws``, ``engine`` with the shared ODE kernels in ``ode``, and
+``_version`` (NUMERICS_VERSION).
 """
+
 from __future__ import annotations
 
-from ._version import NUMERICS_VERSION
-from .params import ParameterError, Params, PhysicalParams
-from .trajectory import (
-    Trajectory,
-    TrajectoryResult,
-    UndecidedError,
-    classify,
-    simulate,
-    start_point,
+from . import (
+    analytic,
+    boundaries,
+    critical,
+    diagram,
+    engine,
+    errors,
+    laws,
+    limits,
+    ode,
+    params,
+    protocols,
+    separatrix,
+    stiffness,
+    trajectory,
 )
+from ._version import NUMERICS_VERSION
+from .analytic import U_kcrit, U_vo0
+from .boundaries import (
+    ab_crit,
+    acceleration_line,
+    acceleration_possible,
+    boundaries_summary,
+    eps_crit,
+    kappa_crit,
+    max_unstable_kappa,
+)
+from .critical import KINDS, PERTURBATIONS, CriticalResult, bisect_critical, critical_perturbation
+from .diagram import AXIS_NAMES, DiagramResult, stability_diagram
+from .engine import EngineResult
+from .errors import BudgetExceeded, IntegrationBudgetError, ParameterError, UndecidedError
+from .limits import DEFAULT_RTOL, RTOL_RANGE, Limit
+from .params import Params, PhysicalParams
+from .protocols import (
+    ProtocolResult,
+    SlideHoldSlideResult,
+    VelocityStepResult,
+    load_history,
+    slide_hold_slide,
+    steady_state_friction,
+    velocity_step,
+)
+from .stiffness import (
+    critical_dimension,
+    eigen_mode,
+    eigen_stiffness,
+    kappa_of_fault,
+    stiffness_of_fault,
+    stiffness_summary,
+)
+from .trajectory import Perturbation, Trajectory, TrajectoryResult, classify, simulate, start_point
 
 __all__ = [
+    # version
     "NUMERICS_VERSION",
+    # errors
+    "BudgetExceeded",
+    "IntegrationBudgetError",
     "ParameterError",
+    "UndecidedError",
+    # parameters and their valid ranges
+    "DEFAULT_RTOL",
+    "Limit",
     "Params",
     "PhysicalParams",
+    "RTOL_RANGE",
+    # trajectories and classification
+    "Perturbation",
     "Trajectory",
     "TrajectoryResult",
-    "UndecidedError",
     "classify",
     "simulate",
     "start_point",
+    # critical perturbations
+    "CriticalResult",
+    "KINDS",
+    "PERTURBATIONS",
+    "bisect_critical",
+    "critical_perturbation",
+    # stability diagrams
+    "AXIS_NAMES",
+    "DiagramResult",
+    "stability_diagram",
+    # boundaries
+    "ab_crit",
+    "acceleration_line",
+    "acceleration_possible",
+    "boundaries_summary",
+    "eps_crit",
+    "kappa_crit",
+    "max_unstable_kappa",
+    # analytic Lyapunov functions
+    "U_kcrit",
+    "U_vo0",
+    # lab protocols
+    "ProtocolResult",
+    "SlideHoldSlideResult",
+    "VelocityStepResult",
+    "load_history",
+    "slide_hold_slide",
+    "steady_state_friction",
+    "velocity_step",
+    # continuum stiffness
+    "critical_dimension",
+    "eigen_mode",
+    "eigen_stiffness",
+    "kappa_of_fault",
+    "stiffness_of_fault",
+    "stiffness_summary",
+    # engine result (the kernel itself: rsfcore.engine)
+    "EngineResult",
+    # modules
+    "analytic",
+    "boundaries",
+    "critical",
+    "diagram",
+    "engine",
+    "errors",
+    "laws",
+    "limits",
+    "ode",
+    "params",
+    "protocols",
+    "separatrix",
+    "stiffness",
+    "trajectory",
 ]
