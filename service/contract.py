@@ -56,7 +56,8 @@ _DEFERRED_SCHEMA: dict[str, Any] = {
 _REF_PROBLEM = {"$ref": "#/components/schemas/Problem"}
 _HDR = {"schema": {"type": "string"}}
 _STANDARD: dict[str, str] = {
-    "400": "Unparsable body (not JSON, or not UTF-8) (problem+json).",
+    "400": "Unparsable body (not JSON, or not UTF-8) (problem+json), or a request the HTTP "
+           "layer cannot parse at all, e.g. a URL too long (text/plain).",
     "401": "No API key, or an unknown, malformed or revoked one (problem+json; header "
            "`WWW-Authenticate: Bearer`).",
     "403": "The key's scope does not allow this request, or the sweep belongs to another "
@@ -86,9 +87,9 @@ def refine(schema: dict[str, Any]) -> dict[str, Any]:
             if not isinstance(op, dict) or "responses" not in op:
                 continue
             resp: dict[str, Any] = op["responses"]
-            codes = ["401", "403", "431"]
+            codes = ["400", "401", "403", "431"]
             if "requestBody" in op:
-                codes += ["400", "413"]
+                codes += ["413"]
             if is_computing(path) or (path == "/v1/sweeps" and method == "post"):
                 codes.append("429")
             for c in codes:
@@ -110,6 +111,8 @@ def refine(schema: dict[str, Any]) -> dict[str, Any]:
             for code, r in resp.items():
                 if str(code)[0] in "45":
                     r["content"] = _problem_content()
+                    if str(code) == "400":
+                        r["content"]["text/plain"] = {"schema": {"type": "string"}}
                 elif str(code).startswith("2") and not r.get("content"):
                     r["content"] = {"application/json": {"schema": {"type": "object"}}}
             extra = op.get("x-required-scope")

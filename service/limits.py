@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 import time
 from collections import OrderedDict
 from collections.abc import Callable
@@ -187,9 +188,9 @@ class Limits:
                                        f"(fresh_per_s = {b.rate:g})",
                                        {"Retry-After": str(max(1, math.ceil(wait)))})
                     return
-            await self._tracked(kid, scope, receive, send)
+            await self._tracked(kid, scope, receive, _allow_fixed(scope, send))
             return
-        await self.app(scope, receive, send)
+        await self.app(scope, receive, _allow_fixed(scope, send))
 
     async def _tracked(self, kid: str, scope: Scope, receive: Receive, send: Send) -> None:
         seen: dict[str, Any] = {"status": 0, "fresh": False}
@@ -226,6 +227,45 @@ class Limits:
             self.buckets.popitem(last=False)
         if fresh:
             b.charge(1.0)
+
+
+_allow_cache: dict[int, list[tuple[re.Pattern[str], set[str]]]] = {}
+
+
+def _methods_by_path(app: Any) -> list[tuple[re.Pattern[str], set[str]]]:
+    """(path regex, methods) of every path of ``app``'s OpenAPI schema (built once)."""
+    table = _allow_cache.get(id(app))
+    if table is None:
+        table = []
+        for path, item in app.openapi().get("paths", {}).items():
+            rx = re.compile("^" + re.sub(r"\\\{[^}]+\\\}", "[^/]+", re.escape(path)) + "$")
+            methods = {m.upper() for m in item if m in _HTTP_METHODS}
+            table.append((rx, methods))
+        _allow_cache[id(app)] = table
+    return table
+
+
+_HTTP_METHODS = ("get", "put", "post", "delete", "patch", "head", "options")
+
+
+def _allow_fixed(scope: Scope, send: Send) -> Send:
+    """``send`` that lists, in the ``Allow`` of a 405, every method of the path in the
+    OpenAPI schema (Starlette lists only those of the first route matching the path)."""
+
+    async def wrapped(msg: Message) -> None:
+        if msg["type"] == "http.response.start" and msg["status"] == 405:
+            app, path = scope.get("app"), scope.get("path", "")
+            methods: set[str] = set()
+            if hasattr(app, "openapi"):
+                for rx, ms in _methods_by_path(app):
+                    if rx.match(path):
+                        methods |= ms
+            if methods:
+                hdrs = [(k, v) for k, v in msg.get("headers", ()) if k.lower() != b"allow"]
+                hdrs.append((b"allow", ", ".join(sorted(methods)).encode()))
+                msg = {**msg, "headers": hdrs}
+        await send(msg)
+    return wrapped
 
 
 def _counting(receive: Receive, limit: int) -> Receive:
