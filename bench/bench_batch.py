@@ -31,7 +31,7 @@ def items(n: int, seed: int = 1) -> list[dict[str, Any]]:
     hi = np.where(eps > 0, kc / np.maximum(eps, 1e-300), 10 * kc)
     kappa = kc * (1.05 + (np.minimum(hi / kc, 10.0) - 1.1) * rng.uniform(0, 1, n))
     return [{"ba": float(b), "kappa": float(k), "eps": float(e)}
-            for b, k, e in zip(ba, kappa, eps)]
+            for b, k, e in zip(ba, kappa, eps, strict=True)]
 
 
 def main() -> None:
@@ -84,7 +84,8 @@ def main() -> None:
           f"(validation + compiled loop + dicts) {t_all:.3f} s, JSON {t_json:.3f} s")
     print(f"{n_single} single requests   : {t_single:.3f} s  = "
           f"{1e6 * t_single / n_single:.1f} us/request"
-          + ("" if n_single == n else f"  (x{n / n_single:.0f} -> {t_single * n / n_single:.1f} s)"))
+          + ("" if n_single == n else
+             f"  (x{n / n_single:.0f} -> {t_single * n / n_single:.1f} s)"))
     print(f"speed-up of the batch    : {t_single * n / n_single / t_batch:.0f}x")
     print(f"target < 0.2 s for 10^4  : {'met' if t_batch * 1e4 / n < 0.2 else 'NOT met'}")
 

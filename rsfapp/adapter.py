@@ -16,16 +16,33 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from rsfcore import NUMERICS_VERSION, analytic, critical as _critical, trajectory as _traj
-from rsfcore import boundaries as _bounds, protocols as _protocols, stiffness as _stiff
+from rsfcore import NUMERICS_VERSION, analytic
+from rsfcore import boundaries as _bounds
+from rsfcore import critical as _critical
+from rsfcore import protocols as _protocols
+from rsfcore import stiffness as _stiff
+from rsfcore import trajectory as _traj
 from rsfcore.jsonsafe import jsonsafe
 from rsfcore.params import ParameterError, Params, PhysicalParams
-from rsfcore.units import (PhysicalInputs, load_point_jump_si, load_point_jump_size,
-                           velocity_jump_si, velocity_jump_size)
+from rsfcore.units import (
+    PhysicalInputs,
+    load_point_jump_si,
+    load_point_jump_size,
+    velocity_jump_si,
+    velocity_jump_size,
+)
 
-from .requests import (SI_PERTURBATION_FIELDS, VALID, AnalyticRequest, BoundariesRequest,
-                       ClassifyRequest, CriticalRequest, PhysicalSI, StiffnessRequest,
-                       TrajectoryRequest)
+from .requests import (
+    SI_PERTURBATION_FIELDS,
+    VALID,
+    AnalyticRequest,
+    BoundariesRequest,
+    ClassifyRequest,
+    CriticalRequest,
+    PhysicalSI,
+    StiffnessRequest,
+    TrajectoryRequest,
+)
 from .requests.fits import FIT_LAWS, FitRequest
 from .requests.protocols import LoadHistoryRequest, SlideHoldSlideRequest, VelocityStepRequest
 
@@ -71,8 +88,16 @@ def guard(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         raise ComputeError(f"{type(exc).__name__}: {exc}") from exc
 
 
+def _json(obj: Any) -> dict[str, Any]:
+    """rsfcore.jsonsafe of a dict answer, typed as one."""
+    out = jsonsafe(obj)
+    assert isinstance(out, dict)
+    return out
+
+
 def _params(req: Any) -> Params:
-    return guard(Params, ba=req.ba, kappa=req.kappa, eps=req.eps, vo=req.vo)
+    p: Params = guard(Params, ba=req.ba, kappa=req.kappa, eps=req.eps, vo=req.vo)
+    return p
 
 
 # --- single queries: dimensionless or SI (conversions: rsfcore.units only) ---------------
@@ -82,7 +107,8 @@ def si_inputs(req: Any) -> PhysicalInputs | None:
     phys = getattr(req, "physical", None)
     if phys is None or not isinstance(phys, PhysicalSI):
         return None
-    return guard(PhysicalInputs.from_dict, phys.model_dump(exclude_none=True))
+    inputs: PhysicalInputs = guard(PhysicalInputs.from_dict, phys.model_dump(exclude_none=True))
+    return inputs
 
 
 def resolve_params(req: Any) -> tuple[Params, PhysicalInputs | None]:
@@ -91,7 +117,8 @@ def resolve_params(req: Any) -> tuple[Params, PhysicalInputs | None]:
     phys = si_inputs(req)
     if phys is None:
         return _params(req), None
-    return guard(phys.to_params, req.eps), phys
+    p: Params = guard(phys.to_params, req.eps)
+    return p, phys
 
 
 def resolve_size(req: Any, phys: PhysicalInputs | None) -> float:
@@ -176,7 +203,7 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
     kw = {} if max_steps is None else {"max_steps": max_steps}
     res = guard(_traj.classify, p, req.perturbation, size, start=start,
                 rtol=req.rtol, **kw)
-    out = jsonsafe(res.to_dict())
+    out = _json(res.to_dict())
     if phys is not None:
         out["si"] = jsonsafe(_outcome_si(phys, out))
     return out
@@ -212,7 +239,7 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
     res = guard(_traj.simulate, p, req.perturbation, size, start=start, rtol=req.rtol,
                 t_end=t_end, n_points=req.n_points, physical=physical,
                 sampling="tau" if req.sampling == "tau" else "time", **kw)
-    out = jsonsafe(res.to_dict())
+    out = _json(res.to_dict())
     out["sampling"] = {"kind": req.sampling, "n_points": req.n_points,
                        "description": SAMPLING_NOTE[req.sampling]}
     if phys is not None:
@@ -226,7 +253,7 @@ def critical(req: CriticalRequest) -> dict[str, Any]:
     of a velocity jump, critical load-point velocity [m/s])."""
     p, phys = resolve_params(req)
     res = guard(_critical.critical_perturbation, p, req.perturbation, rtol=req.rtol)
-    out = jsonsafe(res.to_dict())
+    out = _json(res.to_dict())
     if phys is not None:
         out["si"] = jsonsafe(_critical_si(phys, out))
     return out
@@ -245,6 +272,7 @@ def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
         out: dict[str, Any] = {"phi": phi, "psi": psi}
     else:
         g = req.grid
+        assert g is not None  # AnalyticRequest: exactly one of points or grid
         phi1 = np.linspace(g.phi_min, g.phi_max, g.n_phi)
         psi1 = np.linspace(g.psi_min, g.psi_max, g.n_psi)
         phi, psi = np.meshgrid(phi1, psi1, indexing="ij")
@@ -255,7 +283,7 @@ def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
         else:
             u = guard(analytic.U_vo0, phi, psi, req.ba, req.kappa, req.eps)
     out.update(function=req.function, U=np.asarray(u, dtype=float))
-    return jsonsafe(out)
+    return _json(out)
 
 
 def boundaries(req: BoundariesRequest) -> dict[str, Any]:
@@ -282,7 +310,7 @@ def boundaries(req: BoundariesRequest) -> dict[str, Any]:
         except ComputeError as exc:
             line.append({"phi": phi, "psi": None, "error": str(exc)})
     out["acceleration_line"] = line
-    return jsonsafe(out)
+    return _json(out)
 
 
 def stiffness(req: StiffnessRequest) -> dict[str, Any]:
@@ -290,7 +318,7 @@ def stiffness(req: StiffnessRequest) -> dict[str, Any]:
     phys = {} if req.physical is None else req.physical.model_dump()
     if phys and phys.get("h") is None:
         phys.pop("h")
-    return jsonsafe(guard(_stiff.stiffness_summary, req.case, req.mode, **phys))
+    return _json(guard(_stiff.stiffness_summary, req.case, req.mode, **phys))
 
 
 # Sweeps: chunks are computed by rsfapp.sweepdata.compute_chunk (rsfcore.batch).
@@ -334,7 +362,7 @@ def validate_items(model: type[BaseModel], items: list[dict[str, Any]]
             errs[loc[0]] = item_error(loc[0], _loc_field(loc[1:]), str(e.get("msg")), valid)
     ok = [i for i in range(len(items)) if i not in errs]
     models: list[Any] = [None] * len(items)
-    for i, m in zip(ok, ta.validate_python([items[i] for i in ok])):
+    for i, m in zip(ok, ta.validate_python([items[i] for i in ok]), strict=True):
         models[i] = m
     return models, errs
 
@@ -392,11 +420,11 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
         kind_l, value_l, acc_l = kind.tolist(), value.tolist(), acc.tolist()
         meth_l, flags_l = meth.tolist(), flags.tolist()
         for j, i in enumerate(idx):
-            pd = pds[j]
-            assert pd is not None
+            pdj = pds[j]
+            assert pdj is not None
             if flags_l[j] & _critical.FLAG_FALLBACK:
                 try:
-                    r = guard(_critical.critical_perturbation, guard(Params, **pd), name,
+                    r = guard(_critical.critical_perturbation, guard(Params, **pdj), name,
                               rtol=rtol)
                 except ParameterError as exc:
                     results[i] = _param_error(i, exc)
@@ -404,7 +432,7 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                 except ComputeError as exc:
                     results[i] = item_error(i, None, str(exc))
                     continue
-                out = jsonsafe(r.to_dict())
+                out = _json(r.to_dict())
             else:
                 # the layout of rsfcore.critical.CriticalResult.to_dict (tested equal to
                 # the single endpoint's answer item by item)
@@ -413,7 +441,7 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                        "critical_size": None if k == _critical.KIND_INFINITE else
                        (0.0 if k == _critical.KIND_ZERO else value_l[j]),
                        "rel_accuracy": acc_l[j], "method": methods[meth_l[j]],
-                       "perturbation": name, "params": pd,
+                       "perturbation": name, "params": pdj,
                        "on_boundary": bool(flags_l[j] & flag_boundary)}
             ph = physs[i]
             if ph is not None:
@@ -462,7 +490,8 @@ def _machine(req: Any) -> PhysicalParams:
     """The protocol's machine as rsfcore PhysicalParams (via rsfcore.units)."""
     phys = si_inputs(req)
     assert phys is not None  # ``physical`` is required by the protocol models
-    return guard(phys.to_physical_params, req.eps, req.f_star)
+    machine: PhysicalParams = guard(phys.to_physical_params, req.eps, req.f_star)
+    return machine
 
 
 def _segment_changes(res: Any, phys: PhysicalParams) -> list[dict[str, Any]]:
@@ -503,7 +532,7 @@ def protocol_velocity_step(req: VelocityStepRequest) -> dict[str, Any]:
     res = guard(_protocols.velocity_step, ph, req.V1_m_s, req.V2_m_s,
                 slip_after_m=req.slip_after_m, slip_total_m=req.slip_total_m,
                 n_points=req.n_points, rtol=req.rtol)
-    out = jsonsafe(res.to_dict())
+    out = _json(res.to_dict())
     f1 = _protocols.steady_state_friction(ph, req.V1_m_s)
     f2 = _protocols.steady_state_friction(ph, req.V2_m_s)
     seg = res.protocol.segments[0]
@@ -526,7 +555,7 @@ def protocol_slide_hold_slide(req: SlideHoldSlideRequest) -> dict[str, Any]:
     res = guard(_protocols.slide_hold_slide, ph, req.V_m_s, req.hold_s,
                 slide_before_s=req.slide_before_s, slide_after_s=req.slide_after_s,
                 n_points_per_segment=req.n_points_per_segment, rtol=req.rtol)
-    out = jsonsafe(res.to_dict())
+    out = _json(res.to_dict())
     heal, relax = res.healing_delta_f, res.relaxation_delta_f
     out["friction_changes"] = jsonsafe({
         "healing_delta_f": heal, "healing_delta_tau_Pa": None if heal is None
@@ -546,7 +575,7 @@ def protocol_load_history(req: LoadHistoryRequest) -> dict[str, Any]:
     res = guard(_protocols.load_history, ph,
                 [(s.duration_s, s.V_load_m_s) for s in req.segments],
                 n_points_per_segment=req.n_points_per_segment, rtol=req.rtol, start=start)
-    out = jsonsafe(res.to_dict())
+    out = _json(res.to_dict())
     out["friction_changes"] = jsonsafe({"segments": _segment_changes(res, ph)})
     out["kind"] = "load-history"
     return out
@@ -616,7 +645,7 @@ def fit(req: FitRequest) -> dict[str, Any]:
     out = res.to_dict(series=True)
     out["law_comparison"] = jsonsafe(comparison)
     out["options"] = req.options()
-    return jsonsafe(out)
+    return _json(out)
 
 
 #: Columns of a fit's CSV (data, model, residuals).

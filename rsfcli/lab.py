@@ -14,9 +14,10 @@ from __future__ import annotations
 import csv
 import io
 import json
+from collections.abc import Callable
 from enum import Enum
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any
 
 import typer
 
@@ -30,18 +31,18 @@ protocol_app = typer.Typer(name="protocol", no_args_is_help=True, help="Lab prot
                            "peaks, steady-state and peak friction changes; JSON, CSV, PNG).")
 
 
-class Pert(str, Enum):
+class Pert(str, Enum):  # noqa: UP042 (typer choices)
     velocity_jump = "velocity-jump"
     load_point_jump = "load-point-jump"
 
 
-class Sampling(str, Enum):
+class Sampling(str, Enum):  # noqa: UP042
     tau = "tau"
     T = "T"
     seconds = "seconds"
 
 
-class FitLaw(str, Enum):
+class FitLaw(str, Enum):  # noqa: UP042
     aging = "aging"
     slip = "slip"
     nagata = "nagata"
@@ -92,12 +93,12 @@ def _run(model: Any, body: dict[str, Any], fn: Callable[[Any], dict[str, Any]]) 
         _fail(str(exc))
     except ComputeError as exc:
         typer.echo(f"error: could not be computed: {exc}", err=True)
-        raise typer.Exit(code=1)
+        raise typer.Exit(code=1) from None
     raise AssertionError("unreachable")
 
 
 def _physical(a: float, b: float, dc: float, sigma: float, k: float, vs: float,
-              vl: Optional[float]) -> dict[str, Any]:
+              vl: float | None) -> dict[str, Any]:
     d: dict[str, Any] = {"a": a, "b": b, "Dc_m": dc, "sigma_Pa": sigma, "k_Pa_per_m": k,
                          "V_star_m_s": vs}
     if vl is not None:
@@ -117,12 +118,13 @@ def _csv(columns: dict[str, list[Any]]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(keys)
-    for row in zip(*(columns[k] for k in keys)):
+    for row in zip(*(columns[k] for k in keys), strict=True):
         w.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in row])
     return buf.getvalue()
 
 
-def _write(out: Optional[Path], result: dict[str, Any], table: Callable[[dict[str, Any]], dict[str, list[Any]]],
+def _write(out: Path | None, result: dict[str, Any],
+           table: Callable[[dict[str, Any]], dict[str, list[Any]]],
            plot: Callable[[dict[str, Any]], bytes]) -> None:
     if out is None:
         return
@@ -142,13 +144,13 @@ def _g(x: Any) -> str:
 
 # --------------------------------------------------------------------------- rsf si
 def _si_body(a: float, b: float, dc: float, sigma: float, k: float, vs: float,
-             vl: Optional[float], eps: float, rtol: float, pert: Pert) -> dict[str, Any]:
+             vl: float | None, eps: float, rtol: float, pert: Pert) -> dict[str, Any]:
     return {"physical": _physical(a, b, dc, sigma, k, vs, vl), "eps": eps, "rtol": rtol,
             "perturbation": pert.value}
 
 
-def _perturbation(body: dict[str, Any], size: Optional[float], factor: Optional[float],
-                  new_v: Optional[float], new_vlp: Optional[float]) -> dict[str, Any]:
+def _perturbation(body: dict[str, Any], size: float | None, factor: float | None,
+                  new_v: float | None, new_vlp: float | None) -> dict[str, Any]:
     for name, v in (("size", size), ("factor", factor), ("new_slip_rate_m_s", new_v),
                     ("new_load_point_velocity_m_s", new_vlp)):
         if v is not None:
@@ -169,10 +171,10 @@ PERT = typer.Option(Pert.velocity_jump, "--perturbation", help="Kind of perturba
 @si_app.command("classify")
 def si_classify(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
                 k_pa_per_m: float = K, v_star_m_s: float = VSTAR,
-                v_load_m_s: Optional[float] = VLOAD, eps: float = EPS,
-                perturbation: Pert = PERT, size: Optional[float] = SIZE,
-                factor: Optional[float] = FACTOR, new_slip_rate_m_s: Optional[float] = NEWV,
-                new_load_point_velocity_m_s: Optional[float] = NEWVLP, rtol: float = RTOL,
+                v_load_m_s: float | None = VLOAD, eps: float = EPS,
+                perturbation: Pert = PERT, size: float | None = SIZE,
+                factor: float | None = FACTOR, new_slip_rate_m_s: float | None = NEWV,
+                new_load_point_velocity_m_s: float | None = NEWVLP, rtol: float = RTOL,
                 as_json: bool = JSON_OUT) -> None:
     """Stable or unstable, for a perturbation stated in SI; times in s, peak in m/s."""
     from rsfapp import adapter
@@ -195,7 +197,7 @@ def si_classify(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = 
 @si_app.command("critical")
 def si_critical(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
                 k_pa_per_m: float = K, v_star_m_s: float = VSTAR,
-                v_load_m_s: Optional[float] = VLOAD, eps: float = EPS,
+                v_load_m_s: float | None = VLOAD, eps: float = EPS,
                 perturbation: Pert = PERT, rtol: float = RTOL,
                 as_json: bool = JSON_OUT) -> None:
     """Critical perturbation in SI: the slip rate [m/s] (and stress jump [Pa]) of the
@@ -218,16 +220,16 @@ def si_critical(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = 
 @si_app.command("trajectory")
 def si_trajectory(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
                   k_pa_per_m: float = K, v_star_m_s: float = VSTAR,
-                  v_load_m_s: Optional[float] = VLOAD, eps: float = EPS,
-                  perturbation: Pert = PERT, size: Optional[float] = SIZE,
-                  factor: Optional[float] = FACTOR, new_slip_rate_m_s: Optional[float] = NEWV,
-                  new_load_point_velocity_m_s: Optional[float] = NEWVLP, rtol: float = RTOL,
+                  v_load_m_s: float | None = VLOAD, eps: float = EPS,
+                  perturbation: Pert = PERT, size: float | None = SIZE,
+                  factor: float | None = FACTOR, new_slip_rate_m_s: float | None = NEWV,
+                  new_load_point_velocity_m_s: float | None = NEWVLP, rtol: float = RTOL,
                   n_points: int = typer.Option(200, "--n-points", help="Samples, [2, 10000]."),
                   sampling: Sampling = typer.Option(Sampling.seconds, "--sampling",
                                                     help="Evenly in tau, T or seconds."),
-                  t_end_s: Optional[float] = typer.Option(None, "--t-end-s", help="Run to this "
+                  t_end_s: float | None = typer.Option(None, "--t-end-s", help="Run to this "
                                                           "time [s]."),
-                  out: Optional[Path] = OUT, as_json: bool = JSON_OUT) -> None:
+                  out: Path | None = OUT, as_json: bool = JSON_OUT) -> None:
     """A trajectory with SI columns (t_s, V_m_s, tau_change_Pa, friction, ...)."""
     from rsfapp import adapter
     from rsfapp.requests import TrajectoryRequest
@@ -249,7 +251,7 @@ def si_trajectory(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float 
     lines = [f"outcome {d['outcome']}; sampling: {d['sampling']['description']}",
              "t_s V_m_s tau_change_Pa"]
     lines += [f"{t:.10g} {_g(v)} {_g(s)}" for t, v, s in zip(tr["t_s"], tr["V_m_s"],
-                                                             tr["tau_change_Pa"])]
+                                                             tr["tau_change_Pa"], strict=True)]
     _emit(d, as_json, lines)
 
 
@@ -263,7 +265,7 @@ def _machine(a: float, b: float, dc: float, sigma: float, k: float, vs: float, e
 FSTAR = typer.Option(0.6, "--f-star", help="Reference friction f_* at V_*, [-10, 10].")
 
 
-def _protocol_out(d: dict[str, Any], out: Optional[Path], as_json: bool) -> None:
+def _protocol_out(d: dict[str, Any], out: Path | None, as_json: bool) -> None:
     from rsfapp import adapter
 
     def plot(r: dict[str, Any]) -> bytes:
@@ -288,11 +290,12 @@ def protocol_velocity_step(a: float = A, b: float = B, dc_m: float = DC,
                            v_star_m_s: float = VSTAR, eps: float = EPS, f_star: float = FSTAR,
                            v1: float = typer.Option(..., "--v1-m-s", help="Velocity before [m/s]."),
                            v2: float = typer.Option(..., "--v2-m-s", help="Velocity after [m/s]."),
-                           slip_total_m: Optional[float] = typer.Option(
+                           slip_total_m: float | None = typer.Option(
                                None, "--slip-total-m", help="Displacement after the step [m] "
                                "(default 10 Dc)."),
-                           n_points: int = typer.Option(400, "--n-points", help="Samples, [2, 10000]."),
-                           rtol: float = RTOL, out: Optional[Path] = OUT,
+                           n_points: int = typer.Option(400, "--n-points",
+                                                        help="Samples, [2, 10000]."),
+                           rtol: float = RTOL, out: Path | None = OUT,
                            as_json: bool = JSON_OUT) -> None:
     """Load-point velocity step V1 -> V2 from steady state: true peak, steady-state and
     peak friction changes (also in Pa), deviation from `eq: delta tau`."""
@@ -316,7 +319,7 @@ def protocol_shs(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float =
                  after_s: float = typer.Option(..., "--slide-after-s", help="Reslide [s]."),
                  n_points: int = typer.Option(200, "--n-points-per-segment",
                                               help="Samples per segment, [2, 100000]."),
-                 rtol: float = RTOL, out: Optional[Path] = OUT,
+                 rtol: float = RTOL, out: Path | None = OUT,
                  as_json: bool = JSON_OUT) -> None:
     """Slide, hold, reslide: healing (true peak on reslide minus f_ss) and relaxation."""
     from rsfapp import adapter
@@ -338,7 +341,7 @@ def protocol_history(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: flo
                                                        "(V 0 = hold)."),
                      n_points: int = typer.Option(200, "--n-points-per-segment",
                                                   help="Samples per segment, [2, 100000]."),
-                     rtol: float = RTOL, out: Optional[Path] = OUT,
+                     rtol: float = RTOL, out: Path | None = OUT,
                      as_json: bool = JSON_OUT) -> None:
     """Any piecewise-constant load-point history (e.g. several velocity steps)."""
     from rsfapp import adapter
@@ -361,9 +364,9 @@ def protocol_history(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: flo
 def fit_command(
     file: Path = typer.Argument(..., help="Lab record: CSV with header t_s (or x_lp_m), "
                                 "v_lp_m_s, mu; or JSON columns."),
-    law: Optional[FitLaw] = typer.Option(None, "--law", help="Evolution law of the reported "
+    law: FitLaw | None = typer.Option(None, "--law", help="Evolution law of the reported "
                                          "fit (default: the best of the comparison)."),
-    stiffness: Optional[float] = typer.Option(None, "--stiffness", help="Machine stiffness "
+    stiffness: float | None = typer.Option(None, "--stiffness", help="Machine stiffness "
                                               "K_PER_M in friction per metre of load-point "
                                               "displacement [1/m] (default: infinitely stiff)."),
     fit_stiffness: bool = typer.Option(False, "--fit-stiffness", help="Fit the machine "
@@ -374,7 +377,7 @@ def fit_command(
                                 "the stability uncertainty, [0, 100000]."),
     series: bool = typer.Option(False, "--series", help="Include the data/model/residual "
                                 "series in --json output."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Also write .json (all), .csv "
+    out: Path | None = typer.Option(None, "--out", help="Also write .json (all), .csv "
                                        "(series) or .png (data, fit, residuals)."),
     as_json: bool = JSON_OUT,
 ) -> None:

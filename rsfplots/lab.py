@@ -87,6 +87,7 @@ def plot_fit(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -> byt
     ax2.set_xlabel("t (s)")
     p = result.get("params", {})
     txt = ", ".join(f"{k}={v:.4g}" for k, v in p.items()
-                    if k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m") and isinstance(v, (int, float)))
+                    if k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m")
+                    and isinstance(v, (int, float)))
     fig.suptitle(f"{result.get('law', '')} law ({result.get('status', '')}): {txt}", fontsize=9)
     return figure_bytes(fig, fmt, dpi)

@@ -7,9 +7,20 @@ v_o = V_o/V_*, T = V_* t/Dc.  Ranges here are the first gate; rsfcore re-validat
 and its ParameterError is reported the same way (422 problem+json naming the field).
 """
 from ._base import VALID, Perturbation
-from .single import (SI_PERTURBATION_FIELDS, AnalyticRequest, BoundariesRequest,
-                     ClassifyRequest, CriticalRequest, GridSpec, PhysicalScales, PhysicalSI,
-                     Point, StiffnessPhysical, StiffnessRequest, TrajectoryRequest)
+from .single import (
+                     SI_PERTURBATION_FIELDS,
+                     AnalyticRequest,
+                     BoundariesRequest,
+                     ClassifyRequest,
+                     CriticalRequest,
+                     GridSpec,
+                     PhysicalScales,
+                     PhysicalSI,
+                     Point,
+                     StiffnessPhysical,
+                     StiffnessRequest,
+                     TrajectoryRequest,
+)
 from .sweeps import AXIS_RANGES, AxisName, SweepAxis, SweepFixed, SweepRequest
 
 __all__ = [

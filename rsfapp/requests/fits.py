@@ -55,7 +55,7 @@ class FitRequest(_Model):
                   lt=2**31)
 
     @model_validator(mode="after")
-    def _law_needed(self) -> "FitRequest":
+    def _law_needed(self) -> FitRequest:
         if not self.compare and self.law is None:
             raise field_error(type(self).__name__, "law", "give a law when compare is false",
                               None)

@@ -98,7 +98,7 @@ class LoadHistoryRequest(_Machine):
         "segment's velocity (V_* if it is 0), or at an explicit state.", name="start_state")
 
     @model_validator(mode="after")
-    def _total(self) -> "LoadHistoryRequest":
+    def _total(self) -> LoadHistoryRequest:
         n = len(self.segments) * self.n_points_per_segment
         if n > MAX_PROTOCOL_SAMPLES:
             raise field_error(type(self).__name__, "n_points_per_segment",

@@ -23,7 +23,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from rsfcore import limits
 
-from ._base import RTOL, SIZE_TEXT, VALID_RTOL, F, FL, Perturbation
+from ._base import FL, RTOL, SIZE_TEXT, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
 
 __all__ = [
@@ -108,7 +108,7 @@ def _check_si(m: _Model, name: str, with_size: bool) -> None:
                           f"not both '{si[0]}' and '{si[1]}'", getattr(m, si[1]))
     if "size" in given:
         raise field_error(name, "size", f"give either 'size' or '{si[0]}', never both",
-                          getattr(m, "size"))
+                          getattr(m, "size", None))  # noqa: B009
     if getattr(m, "start", None) is not None:
         raise field_error(name, "start", f"'start' overrides the perturbation; do not give "
                           f"'{si[0]}' with it", None)
@@ -151,7 +151,7 @@ class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
                     name="rtol", **RTOL)
 
     @model_validator(mode="after")
-    def _si_rules(self) -> "ClassifyRequest":
+    def _si_rules(self) -> ClassifyRequest:
         _check_si(self, type(self).__name__, with_size=True)
         return self
 
@@ -211,7 +211,7 @@ class TrajectoryRequest(ClassifyRequest):
         return data
 
     @model_validator(mode="after")
-    def _trajectory_rules(self) -> "TrajectoryRequest":
+    def _trajectory_rules(self) -> TrajectoryRequest:
         name = type(self).__name__
         if self.physical is not None and self.scales is not None:
             raise field_error(name, "scales", "give either 'physical' (SI inputs) or "
@@ -239,7 +239,7 @@ class CriticalRequest(_SIInput, _Dimless):
                     name="rtol", **RTOL)
 
     @model_validator(mode="after")
-    def _si_rules(self) -> "CriticalRequest":
+    def _si_rules(self) -> CriticalRequest:
         _check_si(self, type(self).__name__, with_size=False)
         return self
 
@@ -276,7 +276,7 @@ class AnalyticRequest(_Model):
                               name="grid")
 
     @model_validator(mode="after")
-    def _one_of(self) -> "AnalyticRequest":
+    def _one_of(self) -> AnalyticRequest:
         if (self.points is None) == (self.grid is None):
             raise ValueError("give exactly one of 'points' or 'grid'")
         if self.points is not None and not self.points:

@@ -31,7 +31,7 @@ from .compute import CtxDep
 __all__ = ["router"]
 
 router = APIRouter(prefix="/v1", tags=["batch"])
-_R = {422: {"description": "Too many items, or a body that is not {\"items\": [objects]}; "
+_R: dict[int | str, dict[str, Any]] = {422: {"description": "Too many items, or a body that is not {\"items\": [objects]}; "
                            "invalid items are reported in their own result entries."}}
 
 

@@ -6,12 +6,10 @@ and U grids can also be fetched as PNG plots (``?format=png``; JSON is the defau
 from __future__ import annotations
 
 import json
-from typing import Annotated
-
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query
 from pydantic import BaseModel
@@ -20,9 +18,15 @@ from starlette.responses import Response
 from rsfapp import adapter
 from rsfapp.config import Settings
 from rsfapp.queue import Queue
+from rsfapp.requests import (
+    AnalyticRequest,
+    BoundariesRequest,
+    ClassifyRequest,
+    CriticalRequest,
+    StiffnessRequest,
+    TrajectoryRequest,
+)
 from rsfapp.store import Stores
-from rsfapp.requests import (AnalyticRequest, BoundariesRequest, ClassifyRequest,
-                             CriticalRequest, StiffnessRequest, TrajectoryRequest)
 
 from .. import images
 from ..answer import answer
@@ -56,7 +60,7 @@ def _ctx(stores: StoresDep, queue: QueueDep, inflight: InflightDep,
 
 
 CtxDep = Annotated[Ctx, Depends(_ctx)]
-_R = {422: {"description": "Invalid input (problem+json naming the field and its range) "
+_R: dict[int | str, dict[str, Any]] = {422: {"description": "Invalid input (problem+json naming the field and its range) "
                            "or a computation that could not be completed."}}
 
 
@@ -70,7 +74,7 @@ async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
 
 
 _JSON_OR_PNG = ("json", "png")
-_DEFERRED = {202: {"description": "Still computing (JSON with `Location: /v1/results/{key}`, "
+_DEFERRED: dict[int | str, dict[str, Any]] = {202: {"description": "Still computing (JSON with `Location: /v1/results/{key}`, "
                                   "also for format=png): poll it, then repeat the request."}}
 
 

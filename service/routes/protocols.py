@@ -22,8 +22,7 @@ from pydantic import BaseModel
 from starlette.responses import Response
 
 from rsfapp import adapter
-from rsfapp.requests.protocols import (LoadHistoryRequest, SlideHoldSlideRequest,
-                                       VelocityStepRequest)
+from rsfapp.requests.protocols import LoadHistoryRequest, SlideHoldSlideRequest, VelocityStepRequest
 
 from .. import images
 from ..images import choice, format_query, image, image_response
@@ -33,7 +32,7 @@ __all__ = ["router", "csv_table"]
 
 router = APIRouter(prefix="/v1/protocols", tags=["protocols"])
 _FORMATS = ("json", "csv", "png")
-_R = {422: {"description": "Invalid input (problem+json naming the field and its range) "
+_R: dict[int | str, dict[str, Any]] = {422: {"description": "Invalid input (problem+json naming the field and its range) "
                            "or a computation that could not be completed."},
       202: {"description": "Still computing: poll the Location, then repeat the request."},
       200: {"description": "JSON (default), CSV of the sampled history, or a PNG plot.",
@@ -48,7 +47,7 @@ def csv_table(columns: dict[str, list[Any]]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(keys)
-    for row in zip(*(columns[k] for k in keys)):
+    for row in zip(*(columns[k] for k in keys), strict=True):
         w.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in row])
     return buf.getvalue()
 

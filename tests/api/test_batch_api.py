@@ -43,7 +43,7 @@ def test_critical_batch_equals_single(c: TestClient) -> None:
     res = body["results"]
     assert len(res) == len(CRITICAL_ITEMS) and body["n_failed"] == len(BAD)
     assert body["n_ok"] == len(CRITICAL_ITEMS) - len(BAD)
-    for i, (item, got) in enumerate(zip(CRITICAL_ITEMS, res)):
+    for i, (item, got) in enumerate(zip(CRITICAL_ITEMS, res, strict=True)):
         assert got["index"] == i
         single = c.post("/v1/critical", json=item)
         if i in BAD:

@@ -38,7 +38,7 @@ def close(x: Any, y: Any, path: str = "") -> None:
             close(x[k], y[k], f"{path}.{k}")
     elif isinstance(x, list):
         assert len(x) == len(y), path
-        for i, (a, b) in enumerate(zip(x, y)):
+        for i, (a, b) in enumerate(zip(x, y, strict=True)):
             close(a, b, f"{path}[{i}]")
     elif isinstance(x, float) and isinstance(y, float):
         assert math.isclose(x, y, rel_tol=TOL, abs_tol=TOL), (path, x, y)
@@ -113,16 +113,18 @@ def test_trajectory_si_sampling_and_csv(c: TestClient) -> None:
     assert res["sampling"]["kind"] == "seconds"
     t = res["trajectory"]["t_s"]
     T = res["trajectory"]["T"]
-    dt = [b - a for a, b in zip(t, t[1:])]
+    dt = [b - a for a, b in zip(t, t[1:], strict=False)]
     # evenly spaced: differences agree to rounding of t (~1e-16 relative of t_end)
     assert max(dt) - min(dt) <= 1e-12 * t[-1]
-    assert all(math.isclose(ts, Ti * DC / VS, rel_tol=1e-14) for ts, Ti in zip(t, T))
+    assert all(math.isclose(ts, Ti * DC / VS, rel_tol=1e-14)
+               for ts, Ti in zip(t, T, strict=True))
     dl = c.post("/v1/trajectory", json={**DIMLESS, "eps": 0.5, "size": math.log(3.0),
                                         "n_points": 41, "sampling": "T"}).json()
     close({k: v for k, v in res["trajectory"].items() if k in dl["trajectory"]},
           dl["trajectory"])
     tau = c.post("/v1/trajectory", json={**body, "sampling": "tau"}).json()
-    dT = [b - a for a, b in zip(tau["trajectory"]["T"], tau["trajectory"]["T"][1:])]
+    Tt = tau["trajectory"]["T"]
+    dT = [b - a for a, b in zip(Tt, Tt[1:], strict=False)]
     assert max(dT) > 2 * min(dT) and tau["sampling"]["kind"] == "tau"
     csvr = c.post("/v1/trajectory?format=csv", json=body)
     assert csvr.status_code == 200 and csvr.headers["x-sampling"] == "seconds"

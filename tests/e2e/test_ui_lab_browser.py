@@ -38,12 +38,12 @@ def upload(csv_text: str) -> str:
     return """(() => {
   const f = document.querySelector('#fit-form');
   const dt = new DataTransfer();
-  dt.items.add(new File([%s], 'record.csv', {type: 'text/csv'}));
+  dt.items.add(new File([RECORD], 'record.csv', {type: 'text/csv'}));
   f.elements.record.files = dt.files;
   f.elements.stiffness_per_m.value = '2000';
   document.querySelector('#fit-submit').click();
   return true;
-})()""" % json.dumps(csv_text)
+})()""".replace("RECORD", json.dumps(csv_text))
 
 
 def test_si_query_and_fit_page(chromium_exe: str, tmp_path: Path, procs: list) -> None:  # noqa: F811
