@@ -1,36 +1,36 @@
-"""Access to the independently verified reference values in ../shared/reference/values.json."""
+"""The independently verified reference values vendored in tests/data/reference.json.
+
+Provenance (how each value was obtained, its digits and ``trusted_rel_tol``):
+tests/data/README.md.  The file is part of the repository, so nothing here skips.
+"""
+
 from __future__ import annotations
 
 import json
-import os
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-_CANDIDATES = [
-    Path(__file__).resolve().parents[2] / "shared" / "reference" / "values.json",
-    Path(__file__).resolve().parents[1] / "shared" / "reference" / "values.json",
-]
+__all__ = ["REFERENCE_PATH", "perturbation_of", "reference_case", "reference_cases", "reference_by_id"]
+
+REFERENCE_PATH = Path(__file__).resolve().parents[1] / "data" / "reference.json"
 
 
-def reference_path() -> Path | None:
-    env = os.environ.get("RSF_REFERENCE")
-    if env:
-        p = Path(env)
-        return p / "values.json" if p.is_dir() else p
-    for p in _CANDIDATES:
-        if p.exists():
-            return p
-    return None
+@cache
+def _load() -> tuple[dict[str, Any], ...]:
+    return tuple(json.loads(REFERENCE_PATH.read_text())["cases"])
 
 
 def reference_cases() -> list[dict[str, Any]]:
-    """All reference cases; skips the calling test when the file is not reachable."""
-    p = reference_path()
-    if p is None or not p.exists():
-        pytest.skip("reference values not found (set RSF_REFERENCE to shared/reference/values.json)")
-    return json.loads(p.read_text())["cases"]
+    """All reference cases (fresh dicts: callers may modify them)."""
+    return [json.loads(json.dumps(c)) for c in _load()]
+
+
+def reference_by_id() -> dict[str, dict[str, Any]]:
+    """All reference cases keyed by id."""
+    return {c["id"]: c for c in reference_cases()}
 
 
 def reference_case(case_id: str) -> dict[str, Any]:
@@ -38,7 +38,7 @@ def reference_case(case_id: str) -> dict[str, Any]:
     for c in reference_cases():
         if c["id"] == case_id:
             return c
-    pytest.fail(f"reference case {case_id} missing")
+    pytest.fail(f"reference case {case_id} missing from {REFERENCE_PATH}")
 
 
 def perturbation_of(case: dict[str, Any]) -> str:

@@ -7,7 +7,6 @@ above the computed critical size.
 """
 from __future__ import annotations
 
-import inspect
 import json
 import math
 
@@ -29,7 +28,6 @@ from rsfcore.separatrix import N_WORK, _asym_coeffs, _dop853_scalar
 from .reference import reference_cases
 
 VJ, LJ = "velocity-jump", "load-point-jump"
-HAS_INTEGRATE = "method" in inspect.signature(classify).parameters
 
 
 def _reference_cases() -> list[dict]:
@@ -144,8 +142,6 @@ def test_classification_around_separatrix_result(pert):
 
 
 def _integrate_outcome(p: Params, pert: str, size: float) -> str:
-    if not HAS_INTEGRATE:
-        pytest.skip("classify(method='integrate') not available")
     return classify(p, pert, size, method="integrate").outcome
 
 
@@ -175,7 +171,8 @@ def test_compiled_closed_form_matches_analytic_and_mpmath():
     """The compiled kappa = kappa_crit velocity-jump form against analytic.py (ba <= 100,
     where both are well conditioned) and against a 60-digit mpmath root of the same
     equation (`eq: limiting trajectory 1` with psi = phi) up to b/a = 1e6."""
-    mpmath = pytest.importorskip("mpmath")
+    import mpmath  # a test dependency (pyproject [test])
+
     mpmath.mp.dps = 60
     for ba in (1 + 1e-6, 1.25, 2.0, 10.0, 100.0, 1e4, 1e6):
         for eps in (0.0, 1e-300, 1e-9, 0.1, 0.5, 0.9, 0.999):
