@@ -23,6 +23,7 @@ thread ("one core").
 
     python bench/bench_fit.py
 """
+
 from __future__ import annotations
 
 import os
@@ -34,7 +35,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import math  # noqa: E402
 import time  # noqa: E402
-from typing import Callable  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
@@ -84,8 +85,16 @@ class ScipyModel:
             te = t[i0:i1]
             if te[-1] != t_end:
                 te = np.append(te, t_end)
-            sol = solve_ivp(rhs, (t[i0], t_end), y, method="DOP853", t_eval=te, rtol=self.rtol, atol=atol,
-                            args=(float(self.v[i0]),))
+            sol = solve_ivp(
+                rhs,
+                (t[i0], t_end),
+                y,
+                method="DOP853",
+                t_eval=te,
+                rtol=self.rtol,
+                atol=atol,
+                args=(float(self.v[i0]),),
+            )
             if not sol.success:
                 return out
             out[i0:i1] = sol.y[0, : i1 - i0]
@@ -93,12 +102,24 @@ class ScipyModel:
         return out
 
 
-def drive(friction: Callable[[dict[str, float]], NDArray[np.float64]], rec: Record, x0: NDArray[np.float64],
-          lb: NDArray[np.float64], ub: NDArray[np.float64]) -> tuple[NDArray[np.float64], int]:
+def drive(
+    friction: Callable[[dict[str, float]], NDArray[np.float64]],
+    rec: Record,
+    x0: NDArray[np.float64],
+    lb: NDArray[np.float64],
+    ub: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], int]:
     """Same least-squares set-up as rsfcore.fit (coordinates, steps, tolerances)."""
 
     def unpack(x: NDArray[np.float64]) -> dict[str, float]:
-        return {"mu0": x[0], "a": x[1], "b": x[2], "Dc_m": math.exp(x[3]), "eps": 1.0, "k_per_m": TRUE["k_per_m"]}
+        return {
+            "mu0": x[0],
+            "a": x[1],
+            "b": x[2],
+            "Dc_m": math.exp(x[3]),
+            "eps": 1.0,
+            "k_per_m": TRUE["k_per_m"],
+        }
 
     def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
         r = friction(unpack(x)) - rec.mu
@@ -115,8 +136,18 @@ def drive(friction: Callable[[dict[str, float]], NDArray[np.float64]], rec: Reco
             J[:, j] = (resid(xp) - r0) / h[j]
         return J
 
-    sol = least_squares(resid, x0, jac=jac, bounds=(lb, ub), method="trf", x_scale="jac",
-                        ftol=1e-14, xtol=1e-14, gtol=1e-14, max_nfev=200)
+    sol = least_squares(
+        resid,
+        x0,
+        jac=jac,
+        bounds=(lb, ub),
+        method="trf",
+        x_scale="jac",
+        ftol=1e-14,
+        xtol=1e-14,
+        gtol=1e-14,
+        max_nfev=200,
+    )
     return sol.x, int(sol.nfev)
 
 
@@ -129,7 +160,10 @@ def main() -> None:
     t, v = design()
     spec = ModelSpec(Law.AGING, False, TRUE["k_per_m"], rtol=1e-10)
     ref = synthetic_record(t, v, **TRUE, rtol=1e-13)
-    print(f"record: {N} samples, 2 velocity steps, aging law, k = {TRUE['k_per_m']:g} /m; 4-parameter fit (mu0, a, b, Dc)")
+    print(
+        f"record: {N} samples, 2 velocity steps, aging law, k = {TRUE['k_per_m']:g} /m; "
+        "4-parameter fit (mu0, a, b, Dc)"
+    )
     # forward-model accuracy against the rtol 1e-13 reference
     mu_r, _ = ForwardModel(ref, spec).friction(TRUE)
     sm = ScipyModel(ref, TRUE["k_per_m"])
@@ -140,16 +174,32 @@ def main() -> None:
     for _ in range(10):
         ForwardModel(ref, spec).friction(TRUE)
     t_one_rsf = (time.perf_counter() - t0) / 10
-    print(f"one forward run: rsfcore {t_one_rsf * 1e3:.2f} ms, scipy {t_one_scipy * 1e3:.1f} ms "
-          f"(x{t_one_scipy / t_one_rsf:.0f}); max |friction error| vs rtol 1e-13: "
-          f"rsfcore {np.max(np.abs(mu_r - ref.mu)):.1e}, scipy {np.max(np.abs(mu_s - ref.mu)):.1e}")
+    print(
+        f"one forward run: rsfcore {t_one_rsf * 1e3:.2f} ms, scipy {t_one_scipy * 1e3:.1f} ms "
+        f"(x{t_one_scipy / t_one_rsf:.0f}); max |friction error| vs rtol 1e-13: "
+        f"rsfcore {np.max(np.abs(mu_r - ref.mu)):.1e}, scipy {np.max(np.abs(mu_s - ref.mu)):.1e}"
+    )
 
     for label, noise in (("noise-free", 0.0), ("noise 1e-4", 1e-4)):
         rec = synthetic_record(t, v, **TRUE, noise=noise, seed=1, rtol=1e-13)
         p0 = _initial_guess(rec, spec, DEFAULT_BOUNDS)
         x0 = np.array([p0["mu0"], p0["a"], p0["b"], math.log(p0["Dc_m"])])
-        lb = np.array([DEFAULT_BOUNDS["mu0"][0], DEFAULT_BOUNDS["a"][0], DEFAULT_BOUNDS["b"][0], math.log(DEFAULT_BOUNDS["Dc_m"][0])])
-        ub = np.array([DEFAULT_BOUNDS["mu0"][1], DEFAULT_BOUNDS["a"][1], DEFAULT_BOUNDS["b"][1], math.log(DEFAULT_BOUNDS["Dc_m"][1])])
+        lb = np.array(
+            [
+                DEFAULT_BOUNDS["mu0"][0],
+                DEFAULT_BOUNDS["a"][0],
+                DEFAULT_BOUNDS["b"][0],
+                math.log(DEFAULT_BOUNDS["Dc_m"][0]),
+            ]
+        )
+        ub = np.array(
+            [
+                DEFAULT_BOUNDS["mu0"][1],
+                DEFAULT_BOUNDS["a"][1],
+                DEFAULT_BOUNDS["b"][1],
+                math.log(DEFAULT_BOUNDS["Dc_m"][1]),
+            ]
+        )
         model = ForwardModel(rec, spec)
 
         def rsf(p: dict[str, float], m: ForwardModel = model) -> NDArray[np.float64]:
@@ -168,16 +218,28 @@ def main() -> None:
         x_s, nfev_s = drive(smod.friction, rec, x0, lb, ub)
         t_s = time.perf_counter() - t0
         print(f"\n[{label}] same least-squares driver:")
-        print(f"  rsfcore forward model: {best:7.3f} s  ({runs_r} forward runs, {nfev_r} iterations' evaluations)  errors: {errors(x_r)}")
-        print(f"  scipy solve_ivp      : {t_s:7.3f} s  ({smod.n_evals} forward runs, {nfev_s} evaluations)  errors: {errors(x_s)}")
+        print(
+            f"  rsfcore forward model: {best:7.3f} s  ({runs_r} forward runs, "
+            f"{nfev_r} evaluations)  errors: {errors(x_r)}"
+        )
+        print(
+            f"  scipy solve_ivp      : {t_s:7.3f} s  ({smod.n_evals} forward runs, "
+            f"{nfev_s} evaluations)  errors: {errors(x_s)}"
+        )
         print(f"  ratio scipy/rsfcore  : {t_s / best:.0f}x")
         fit_record(rec, "aging", stiffness=TRUE["k_per_m"])  # warm-up of the stability path
         t0 = time.perf_counter()
         res = fit_record(rec, "aging", stiffness=TRUE["k_per_m"])
         t_full = time.perf_counter() - t0
-        rel = "  ".join(f"{n} {res.params[n] / TRUE[n] - 1:+.1e} (se {res.stderr[n] / TRUE[n]:.1e})" for n in NAMES)
-        print(f"  rsfcore.fit.fit_record (fit + covariance + identifiability + linearity + stability, "
-              f"{res.n_model_evals} forward runs): {t_full:.3f} s, status {res.status.value}")
+        rel = "  ".join(
+            f"{n} {res.params[n] / TRUE[n] - 1:+.1e} (se {res.stderr[n] / TRUE[n]:.1e})"
+            for n in NAMES
+        )
+        print(
+            "  rsfcore.fit.fit_record (fit + covariance + identifiability + linearity + "
+            "stability, "
+            f"{res.n_model_evals} forward runs): {t_full:.3f} s, status {res.status.value}"
+        )
         print(f"    relative errors (and relative standard errors): {rel}")
 
 

@@ -27,11 +27,13 @@ Invalid input raises :class:`rsfcore.params.ParameterError` whose ``field`` is t
 dotted name of the input (``"physical.b"``, ``"perturbation.new_slip_rate_m_s"``) and
 whose ``valid`` states the range.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Literal, Mapping
+from typing import Any, Literal
 
 from .params import BA_MAX, KAPPA_MAX, VO_MAX, ParameterError, Params, PhysicalParams, check_range
 
@@ -54,7 +56,15 @@ __all__ = [
 ]
 
 #: Field names of the SI parameter set, in the documented order (lab scripts rely on them).
-PHYSICAL_FIELDS: tuple[str, ...] = ("a", "b", "Dc_m", "sigma_Pa", "k_Pa_per_m", "V_star_m_s", "V_load_m_s")
+PHYSICAL_FIELDS: tuple[str, ...] = (
+    "a",
+    "b",
+    "Dc_m",
+    "sigma_Pa",
+    "k_Pa_per_m",
+    "V_star_m_s",
+    "V_load_m_s",
+)
 
 #: Largest |d| accepted for a velocity jump (same bound as rsfcore.trajectory.SIZE_MAX).
 _D_MAX = 1.0e4
@@ -112,26 +122,46 @@ class PhysicalInputs:
         b_raw = self.b
         b = check_range("physical.b", b_raw, 0.0, None, lo_open=True)
         if not (b > a and b <= a * BA_MAX):
-            raise ParameterError("physical.b", b_raw, f"(a, {BA_MAX:g} a] = ({a!r}, {a * BA_MAX!r}] (b > a: rate weakening)")
+            raise ParameterError(
+                "physical.b",
+                b_raw,
+                f"(a, {BA_MAX:g} a] = ({a!r}, {a * BA_MAX!r}] (b > a: rate weakening)",
+            )
         Dc = check_range("physical.Dc_m", self.Dc_m, 0.0, None, lo_open=True)
         sigma = check_range("physical.sigma_Pa", self.sigma_Pa, 0.0, None, lo_open=True)
         k = check_range("physical.k_Pa_per_m", self.k_Pa_per_m, 0.0, None)
         Vs = check_range("physical.V_star_m_s", self.V_star_m_s, 0.0, None, lo_open=True)
-        Vl = Vs if self.V_load_m_s is None else check_range("physical.V_load_m_s", self.V_load_m_s, 0.0, None)
+        Vl = (
+            Vs
+            if self.V_load_m_s is None
+            else check_range("physical.V_load_m_s", self.V_load_m_s, 0.0, None)
+        )
         kappa = k * Dc / (a * sigma)
         if not kappa <= KAPPA_MAX:
             raise ParameterError(
-                "physical.k_Pa_per_m", self.k_Pa_per_m,
-                f"[0, {KAPPA_MAX:g} a sigma/Dc] = [0, {KAPPA_MAX * a * sigma / Dc:g}] Pa/m (kappa = k Dc/(a sigma) <= {KAPPA_MAX:g})",
+                "physical.k_Pa_per_m",
+                self.k_Pa_per_m,
+                f"[0, {KAPPA_MAX:g} a sigma/Dc] = [0, {KAPPA_MAX * a * sigma / Dc:g}] Pa/m "
+                f"(kappa = k Dc/(a sigma) <= {KAPPA_MAX:g})",
             )
         if not Vl / Vs <= VO_MAX:
-            raise ParameterError("physical.V_load_m_s", self.V_load_m_s, f"[0, {VO_MAX:g} V_star_m_s]")
-        for name, v in (("a", a), ("b", b), ("Dc_m", Dc), ("sigma_Pa", sigma), ("k_Pa_per_m", k), ("V_star_m_s", Vs), ("V_load_m_s", Vl)):
+            raise ParameterError(
+                "physical.V_load_m_s", self.V_load_m_s, f"[0, {VO_MAX:g} V_star_m_s]"
+            )
+        for name, v in (
+            ("a", a),
+            ("b", b),
+            ("Dc_m", Dc),
+            ("sigma_Pa", sigma),
+            ("k_Pa_per_m", k),
+            ("V_star_m_s", Vs),
+            ("V_load_m_s", Vl),
+        ):
             object.__setattr__(self, name, v)
 
     # -- construction ----------------------------------------------------------------
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any], *, prefix: str = "physical") -> "PhysicalInputs":
+    def from_dict(cls, d: Mapping[str, Any], *, prefix: str = "physical") -> PhysicalInputs:
         """Build from a mapping with exactly the names of PHYSICAL_FIELDS (V_load_m_s optional).
 
         Unknown or missing names raise ParameterError naming ``"<prefix>.<name>"`` and
@@ -141,19 +171,33 @@ class PhysicalInputs:
             raise ParameterError(prefix, d, "an object with fields " + ", ".join(PHYSICAL_FIELDS))
         for key in d:
             if key not in PHYSICAL_FIELDS:
-                raise ParameterError(f"{prefix}.{key}", d[key], "not a field; valid fields are " + ", ".join(PHYSICAL_FIELDS))
+                raise ParameterError(
+                    f"{prefix}.{key}",
+                    d[key],
+                    "not a field; valid fields are " + ", ".join(PHYSICAL_FIELDS),
+                )
         for key in PHYSICAL_FIELDS[:-1]:
             if key not in d:
-                raise ParameterError(f"{prefix}.{key}", None, "required (" + ", ".join(PHYSICAL_FIELDS[:-1]) + " are required; V_load_m_s defaults to V_star_m_s)")
+                raise ParameterError(
+                    f"{prefix}.{key}",
+                    None,
+                    "required ("
+                    + ", ".join(PHYSICAL_FIELDS[:-1])
+                    + " are required; V_load_m_s defaults to V_star_m_s)",
+                )
         try:
             return cls(**{k: d[k] for k in PHYSICAL_FIELDS if k in d})
         except ParameterError as e:
             if prefix != "physical" and e.field.startswith("physical."):
-                raise ParameterError(prefix + e.field[len("physical"):], e.value, e.valid) from None
+                raise ParameterError(
+                    prefix + e.field[len("physical") :], e.value, e.valid
+                ) from None
             raise
 
     @classmethod
-    def from_params(cls, p: Params, *, a: float, Dc_m: float, sigma_Pa: float, V_star_m_s: float) -> "PhysicalInputs":
+    def from_params(
+        cls, p: Params, *, a: float, Dc_m: float, sigma_Pa: float, V_star_m_s: float
+    ) -> PhysicalInputs:
         """Invert :meth:`to_params` given the scales a, Dc [m], sigma [Pa] and V_* [m/s].
 
         b = (b/a) a, k = kappa a sigma/Dc, V_load = v_o V_*.
@@ -164,13 +208,28 @@ class PhysicalInputs:
         Dc = check_range("physical.Dc_m", Dc_m, 0.0, None, lo_open=True)
         sigma = check_range("physical.sigma_Pa", sigma_Pa, 0.0, None, lo_open=True)
         Vs = check_range("physical.V_star_m_s", V_star_m_s, 0.0, None, lo_open=True)
-        return cls(a=a, b=p.ba * a, Dc_m=Dc, sigma_Pa=sigma, k_Pa_per_m=p.kappa * a * sigma / Dc,
-                   V_star_m_s=Vs, V_load_m_s=p.vo * Vs)
+        return cls(
+            a=a,
+            b=p.ba * a,
+            Dc_m=Dc,
+            sigma_Pa=sigma,
+            k_Pa_per_m=p.kappa * a * sigma / Dc,
+            V_star_m_s=Vs,
+            V_load_m_s=p.vo * Vs,
+        )
 
     @classmethod
-    def from_physical_params(cls, ph: PhysicalParams) -> "PhysicalInputs":
+    def from_physical_params(cls, ph: PhysicalParams) -> PhysicalInputs:
         """From an rsfcore.params.PhysicalParams (eps and f_star are not part of this set)."""
-        return cls(a=ph.a, b=ph.b, Dc_m=ph.Dc, sigma_Pa=ph.sigma, k_Pa_per_m=ph.k, V_star_m_s=ph.V_star, V_load_m_s=ph.Vo)
+        return cls(
+            a=ph.a,
+            b=ph.b,
+            Dc_m=ph.Dc,
+            sigma_Pa=ph.sigma,
+            k_Pa_per_m=ph.k,
+            V_star_m_s=ph.V_star,
+            V_load_m_s=ph.Vo,
+        )
 
     # -- dimensionless groups (`eq: characteristic scales`) ---------------------------
     @property
@@ -230,13 +289,29 @@ class PhysicalInputs:
 
     def to_physical_params(self, eps: float, f_star: float = 0.6) -> PhysicalParams:
         """The same machine as an rsfcore.params.PhysicalParams (for rsfcore.protocols)."""
-        return PhysicalParams(a=self.a, b=self.b, Dc=self.Dc_m, sigma=self.sigma_Pa, k=self.k_Pa_per_m,
-                              V_star=self.V_star_m_s, Vo=self.V_load, eps=eps, f_star=f_star)
+        return PhysicalParams(
+            a=self.a,
+            b=self.b,
+            Dc=self.Dc_m,
+            sigma=self.sigma_Pa,
+            k=self.k_Pa_per_m,
+            V_star=self.V_star_m_s,
+            Vo=self.V_load,
+            eps=eps,
+            f_star=f_star,
+        )
 
     def to_dict(self) -> dict[str, float]:
         """The seven SI fields (V_load_m_s with its default applied)."""
-        return {"a": self.a, "b": self.b, "Dc_m": self.Dc_m, "sigma_Pa": self.sigma_Pa,
-                "k_Pa_per_m": self.k_Pa_per_m, "V_star_m_s": self.V_star_m_s, "V_load_m_s": self.V_load}
+        return {
+            "a": self.a,
+            "b": self.b,
+            "Dc_m": self.Dc_m,
+            "sigma_Pa": self.sigma_Pa,
+            "k_Pa_per_m": self.k_Pa_per_m,
+            "V_star_m_s": self.V_star_m_s,
+            "V_load_m_s": self.V_load,
+        }
 
     # -- variables: dimensionless -> SI and back --------------------------------------
     def time_s(self, T: float) -> float:
@@ -298,7 +373,9 @@ def lab_stiffness_to_Pa_per_m(k_per_m: float, sigma_Pa: float) -> float:
 # ---------------------------------------------------------------------------------------
 # Perturbations stated in SI
 # ---------------------------------------------------------------------------------------
-def velocity_jump_size(phys: PhysicalInputs, *, factor: float | None = None, new_slip_rate_m_s: float | None = None) -> float:
+def velocity_jump_size(
+    phys: PhysicalInputs, *, factor: float | None = None, new_slip_rate_m_s: float | None = None
+) -> float:
     """Size d of a velocity jump stated in SI: d = ln(factor) = ln(V_new/V_before).
 
     Exactly one of ``factor`` (V_new/V_before > 0) or ``new_slip_rate_m_s`` (V_new > 0 [m/s])
@@ -306,36 +383,59 @@ def velocity_jump_size(phys: PhysicalInputs, *, factor: float | None = None, new
     ``phys.slip_rate_before_m_s`` (V_load, or V_* when V_load = 0).  |d| <= 1e4.
     """
     if (factor is None) == (new_slip_rate_m_s is None):
-        raise ParameterError("perturbation", {"factor": factor, "new_slip_rate_m_s": new_slip_rate_m_s},
-                             "exactly one of factor (V_new/V_before) or new_slip_rate_m_s")
+        raise ParameterError(
+            "perturbation",
+            {"factor": factor, "new_slip_rate_m_s": new_slip_rate_m_s},
+            "exactly one of factor (V_new/V_before) or new_slip_rate_m_s",
+        )
     if factor is not None:
         f = check_range("perturbation.factor", factor, 0.0, None, lo_open=True)
         d = math.log(f)
         name, val = "perturbation.factor", factor
     else:
-        V = check_range("perturbation.new_slip_rate_m_s", new_slip_rate_m_s, 0.0, None, lo_open=True)
+        V = check_range(
+            "perturbation.new_slip_rate_m_s", new_slip_rate_m_s, 0.0, None, lo_open=True
+        )
         d = math.log(V / phys.slip_rate_before_m_s)
-        name, val = "perturbation.new_slip_rate_m_s", new_slip_rate_m_s
+        name, val = "perturbation.new_slip_rate_m_s", V
     if not abs(d) <= _D_MAX:
         raise ParameterError(name, val, f"a jump with |ln(V_new/V_before)| <= {_D_MAX:g}")
     return d
 
 
-def load_point_jump_size(phys: PhysicalInputs, *, new_load_point_velocity_m_s: float | None = None, factor: float | None = None) -> float:
+def load_point_jump_size(
+    phys: PhysicalInputs,
+    *,
+    new_load_point_velocity_m_s: float | None = None,
+    factor: float | None = None,
+) -> float:
     """Size dv of a load-point jump stated in SI: dv = V_new/V_load - 1 (or factor - 1).
 
     Needs V_load > 0.  V_new > 0 [m/s] with V_new/V_* <= 1e300 (factor > 0 likewise).
     """
     if phys.V_load == 0.0:
-        raise ParameterError("physical.V_load_m_s", phys.V_load_m_s, "> 0 for a load-point jump (relative jump of a moving load point)")
+        raise ParameterError(
+            "physical.V_load_m_s",
+            phys.V_load_m_s,
+            "> 0 for a load-point jump (relative jump of a moving load point)",
+        )
     if (factor is None) == (new_load_point_velocity_m_s is None):
-        raise ParameterError("perturbation", {"factor": factor, "new_load_point_velocity_m_s": new_load_point_velocity_m_s},
-                             "exactly one of new_load_point_velocity_m_s or factor (V_new/V_load)")
+        raise ParameterError(
+            "perturbation",
+            {"factor": factor, "new_load_point_velocity_m_s": new_load_point_velocity_m_s},
+            "exactly one of new_load_point_velocity_m_s or factor (V_new/V_load)",
+        )
     vmax = VO_MAX * phys.V_star_m_s
     if factor is not None:
         f = check_range("perturbation.factor", factor, 0.0, VO_MAX / phys.vo, lo_open=True)
         return f - 1.0
-    V = check_range("perturbation.new_load_point_velocity_m_s", new_load_point_velocity_m_s, 0.0, vmax, lo_open=True)
+    V = check_range(
+        "perturbation.new_load_point_velocity_m_s",
+        new_load_point_velocity_m_s,
+        0.0,
+        vmax,
+        lo_open=True,
+    )
     return V / phys.V_load - 1.0
 
 
@@ -359,8 +459,13 @@ class VelocityJumpSI:
     new_slip_rate_m_s: float | None
 
     def to_dict(self) -> dict[str, float | None]:
-        return {"d": self.d, "factor": self.factor, "log10_factor": self.d / math.log(10.0),
-                "slip_rate_before_m_s": self.slip_rate_before_m_s, "new_slip_rate_m_s": self.new_slip_rate_m_s}
+        return {
+            "d": self.d,
+            "factor": self.factor,
+            "log10_factor": self.d / math.log(10.0),
+            "slip_rate_before_m_s": self.slip_rate_before_m_s,
+            "new_slip_rate_m_s": self.new_slip_rate_m_s,
+        }
 
 
 @dataclass(frozen=True)
@@ -380,9 +485,12 @@ class LoadPointJumpSI:
     new_load_point_velocity_m_s: float | None
 
     def to_dict(self) -> dict[str, float | None]:
-        return {"dv": _finite_or_none(self.dv), "factor": self.factor,
-                "load_point_velocity_before_m_s": self.load_point_velocity_before_m_s,
-                "new_load_point_velocity_m_s": self.new_load_point_velocity_m_s}
+        return {
+            "dv": _finite_or_none(self.dv),
+            "factor": self.factor,
+            "load_point_velocity_before_m_s": self.load_point_velocity_before_m_s,
+            "new_load_point_velocity_m_s": self.new_load_point_velocity_m_s,
+        }
 
 
 def velocity_jump_si(phys: PhysicalInputs, d: float) -> VelocityJumpSI:
@@ -399,7 +507,9 @@ def load_point_jump_si(phys: PhysicalInputs, dv: float) -> LoadPointJumpSI:
     dv = check_range("dv", dv, -1.0, None, lo_open=True)
     f = _finite_or_none(1.0 + dv)
     Vn = None if f is None else _finite_or_none(phys.V_load * f)
-    return LoadPointJumpSI(dv=dv, factor=f, load_point_velocity_before_m_s=phys.V_load, new_load_point_velocity_m_s=Vn)
+    return LoadPointJumpSI(
+        dv=dv, factor=f, load_point_velocity_before_m_s=phys.V_load, new_load_point_velocity_m_s=Vn
+    )
 
 
 @dataclass(frozen=True)
@@ -438,7 +548,9 @@ class CriticalSI:
             "method": self.method,
             "on_boundary": self.on_boundary,
             "velocity_jump": None if self.velocity_jump is None else self.velocity_jump.to_dict(),
-            "load_point_jump": None if self.load_point_jump is None else self.load_point_jump.to_dict(),
+            "load_point_jump": None
+            if self.load_point_jump is None
+            else self.load_point_jump.to_dict(),
         }
 
 
@@ -466,9 +578,16 @@ def critical_si(
             vj = velocity_jump_si(phys, r.critical_size)
         else:
             lj = load_point_jump_si(phys, r.critical_size)
-    return CriticalSI(perturbation=r.perturbation, kind=r.kind, critical_size=r.critical_size,
-                      rel_accuracy=float(r.rel_accuracy), method=r.method, on_boundary=bool(r.on_boundary),
-                      velocity_jump=vj, load_point_jump=lj)
+    return CriticalSI(
+        perturbation=r.perturbation,
+        kind=r.kind,
+        critical_size=r.critical_size,
+        rel_accuracy=float(r.rel_accuracy),
+        method=r.method,
+        on_boundary=bool(r.on_boundary),
+        velocity_jump=vj,
+        load_point_jump=lj,
+    )
 
 
 @dataclass(frozen=True)
@@ -496,10 +615,16 @@ class ClassifySI:
     result: Any
 
     def to_dict(self) -> dict[str, Any]:
-        return {"outcome": self.outcome, "certificate": self.certificate, "size": self.size,
-                "blowup_time_s": self.blowup_time_s, "return_time_s": self.return_time_s,
-                "peak_time_s": self.peak_time_s, "peak_slip_rate_m_s": self.peak_slip_rate_m_s,
-                "rel_accuracy": float(self.rel_accuracy)}
+        return {
+            "outcome": self.outcome,
+            "certificate": self.certificate,
+            "size": self.size,
+            "blowup_time_s": self.blowup_time_s,
+            "return_time_s": self.return_time_s,
+            "peak_time_s": self.peak_time_s,
+            "peak_slip_rate_m_s": self.peak_slip_rate_m_s,
+            "rel_accuracy": float(self.rel_accuracy),
+        }
 
 
 def classify_si(
@@ -523,12 +648,20 @@ def classify_si(
 
     if perturbation == "velocity-jump":
         if new_load_point_velocity_m_s is not None:
-            raise ParameterError("perturbation.new_load_point_velocity_m_s", new_load_point_velocity_m_s, "not used by a velocity jump")
+            raise ParameterError(
+                "perturbation.new_load_point_velocity_m_s",
+                new_load_point_velocity_m_s,
+                "not used by a velocity jump",
+            )
         size = velocity_jump_size(phys, factor=factor, new_slip_rate_m_s=new_slip_rate_m_s)
     elif perturbation == "load-point-jump":
         if new_slip_rate_m_s is not None:
-            raise ParameterError("perturbation.new_slip_rate_m_s", new_slip_rate_m_s, "not used by a load-point jump")
-        size = load_point_jump_size(phys, new_load_point_velocity_m_s=new_load_point_velocity_m_s, factor=factor)
+            raise ParameterError(
+                "perturbation.new_slip_rate_m_s", new_slip_rate_m_s, "not used by a load-point jump"
+            )
+        size = load_point_jump_size(
+            phys, new_load_point_velocity_m_s=new_load_point_velocity_m_s, factor=factor
+        )
     else:
         raise ParameterError("perturbation", perturbation, "one of velocity-jump, load-point-jump")
     r = classify(phys.to_params(eps), perturbation, size, rtol=rtol)
@@ -537,6 +670,14 @@ def classify_si(
         return None if T is None or not math.isfinite(T) else phys.time_s(T)
 
     peak = phys.slip_rate_m_s(r.peak_phi) if math.isfinite(r.peak_phi) else None
-    return ClassifySI(outcome=r.outcome, certificate=r.certificate, size=size, blowup_time_s=ts(r.blowup_time),
-                      return_time_s=ts(r.return_time), peak_time_s=ts(r.peak_time), peak_slip_rate_m_s=peak,
-                      rel_accuracy=float(r.rel_accuracy), result=r)
+    return ClassifySI(
+        outcome=r.outcome,
+        certificate=r.certificate,
+        size=size,
+        blowup_time_s=ts(r.blowup_time),
+        return_time_s=ts(r.return_time),
+        peak_time_s=ts(r.peak_time),
+        peak_slip_rate_m_s=peak,
+        rel_accuracy=float(r.rel_accuracy),
+        result=r,
+    )

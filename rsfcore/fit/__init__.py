@@ -8,6 +8,7 @@ Public API (docs/fitting.md):
     compare_laws(record, laws=(...), **options) -> LawComparison
     sample_posterior(result, ...) -> Posterior                 (needs the ``fit`` extra: emcee)
 """
+
 from __future__ import annotations
 
 from .core import (
@@ -20,7 +21,16 @@ from .core import (
     compare_laws,
     fit_record,
 )
-from .model import LAWS, PARAM_NAMES, ForwardModel, Law, ModelSpec, Simulation, nagata_eps, synthetic_record
+from .model import (
+    LAWS,
+    PARAM_NAMES,
+    ForwardModel,
+    Law,
+    ModelSpec,
+    Simulation,
+    nagata_eps,
+    synthetic_record,
+)
 from .posterior import Posterior, sample_posterior
 from .record import MAX_SEGMENTS, RECORD_COLUMNS, Record, read_record
 from .stability import REGIMES, CriticalAnswer, Spread, StabilityAnswer, stability_answer

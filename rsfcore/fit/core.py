@@ -34,14 +34,16 @@ per law, with RSS floored at n * misfit_floor^2 (misfit_floor = 1e-9 in friction
 default, ~30 times the forward model's error at the default rtol): misfit differences
 below what the model resolves do not count, and then the simpler law wins.
 """
+
 from __future__ import annotations
 
 import contextlib
 import math
 import time
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from enum import Enum
-from typing import Any, Iterable, Mapping
+from enum import StrEnum
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,7 +52,7 @@ from scipy.optimize import least_squares
 from ..jsonsafe import jsonsafe
 from ..laws import intermediate_to_nagata
 from ..params import ParameterError, check_range
-from .model import PARAM_NAMES, ForwardModel, Law, ModelSpec, describe, nagata_eps
+from .model import PARAM_NAMES, ForwardModel, Law, ModelSpec, describe
 from .record import Record, read_record
 from .stability import StabilityAnswer, stability_answer
 
@@ -81,7 +83,7 @@ _FD_STEP = 1e-6
 _LOG = ("Dc_m", "k_per_m")
 
 
-class FitStatus(str, Enum):
+class FitStatus(StrEnum):
     """Outcome of a fit.
 
     OK: converged and every fitted parameter is determined by the record.
@@ -165,7 +167,9 @@ class FitResult:
     record: Record = field(repr=False)
     spec: ModelSpec = field(repr=False)
     x_internal: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.empty(0))
-    bounds_internal: tuple[NDArray[np.float64], NDArray[np.float64]] = field(repr=False, default=(np.empty(0), np.empty(0)))
+    bounds_internal: tuple[NDArray[np.float64], NDArray[np.float64]] = field(
+        repr=False, default=(np.empty(0), np.empty(0))
+    )
 
     @property
     def ok(self) -> bool:
@@ -193,8 +197,15 @@ class FitResult:
             "condition_number": self.condition_number,
             "linearity": None if self.linearity is None else list(self.linearity),
             "misfit": {
-                "rss": self.rss, "rms": self.rms, "sigma": self.sigma, "model_accuracy": self.model_accuracy,
-                "n": self.n, "n_params": self.n_params, "aic": self.aic, "bic": self.bic, "misfit_floor": self.misfit_floor,
+                "rss": self.rss,
+                "rms": self.rms,
+                "sigma": self.sigma,
+                "model_accuracy": self.model_accuracy,
+                "n": self.n,
+                "n_params": self.n_params,
+                "aic": self.aic,
+                "bic": self.bic,
+                "misfit_floor": self.misfit_floor,
             },
             "converged": self.converged,
             "optimizer_message": self.optimizer_message,
@@ -204,12 +215,20 @@ class FitResult:
             "v_ref_m_s": self.v_ref_m_s,
             "elapsed_s": self.elapsed_s,
             "spec": describe(self.spec),
-            "record": {"name": self.record.name, "digest": self.record.digest(), "n": self.record.n, "n_steps": self.record.n_steps},
+            "record": {
+                "name": self.record.name,
+                "digest": self.record.digest(),
+                "n": self.record.n,
+                "n_steps": self.record.n_steps,
+            },
         }
         if series:
             d["series"] = {
-                "t_s": self.record.t_s, "v_lp_m_s": self.record.v_lp_m_s, "mu": self.record.mu,
-                "model": self.model, "residuals": self.residuals,
+                "t_s": self.record.t_s,
+                "v_lp_m_s": self.record.v_lp_m_s,
+                "mu": self.record.mu,
+                "model": self.model,
+                "residuals": self.residuals,
             }
         out = jsonsafe(d)
         assert isinstance(out, dict)
@@ -224,10 +243,14 @@ def _to_x(names: tuple[str, ...], p: Mapping[str, float]) -> NDArray[np.float64]
 
 
 def _from_x(names: tuple[str, ...], x: NDArray[np.float64]) -> dict[str, float]:
-    return {n: (math.exp(float(v)) if n in _LOG else float(v)) for n, v in zip(names, x)}
+    return {
+        n: (math.exp(float(v)) if n in _LOG else float(v)) for n, v in zip(names, x, strict=True)
+    }
 
 
-def _fd_steps(names: tuple[str, ...], x: NDArray[np.float64], lb: NDArray[np.float64], ub: NDArray[np.float64]) -> NDArray[np.float64]:
+def _fd_steps(
+    names: tuple[str, ...], x: NDArray[np.float64], lb: NDArray[np.float64], ub: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Forward-difference steps: 1e-6 (relative for a, b), pointing away from a near bound."""
     h = np.empty(len(names))
     a = x[names.index("a")]
@@ -247,7 +270,9 @@ def _fd_steps(names: tuple[str, ...], x: NDArray[np.float64], lb: NDArray[np.flo
 # ---------------------------------------------------------------------------------------
 # Start values
 # ---------------------------------------------------------------------------------------
-def _stiff_columns(rec: Record, Dc: float, eps: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+def _stiff_columns(
+    rec: Record, Dc: float, eps: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """phi = ln(V/V0), ln(V0 theta/Dc) on an infinitely stiff machine; holds: theta grows by
     dt (aging, eps = 1) or stays (eps < 1: the state rate vanishes with V).  Returns the
     columns and the mask of moving samples."""
@@ -268,7 +293,9 @@ def _stiff_columns(rec: Record, Dc: float, eps: float) -> tuple[NDArray[np.float
             if eps >= 1.0:
                 dth = (t[i0:i1] - t[i0]) * V0 / Dc
                 lth[i0:i1] = np.logaddexp(lth_now, np.log(np.maximum(dth, 1e-300)))
-                lth_now = float(np.logaddexp(lth_now, math.log(max((t_end - t[i0]) * V0 / Dc, 1e-300))))
+                lth_now = float(
+                    np.logaddexp(lth_now, math.log(max((t_end - t[i0]) * V0 / Dc, 1e-300)))
+                )
             else:
                 lth[i0:i1] = lth_now
             continue
@@ -289,8 +316,11 @@ def _stiff_columns(rec: Record, Dc: float, eps: float) -> tuple[NDArray[np.float
     return phi, lth, moving
 
 
-def _initial_guess(rec: Record, spec: ModelSpec, bounds: Mapping[str, tuple[float, float]]) -> dict[str, float]:
-    """Variable projection on the stiff closed form over a (Dc, eps) grid; k from the loading slope."""
+def _initial_guess(
+    rec: Record, spec: ModelSpec, bounds: Mapping[str, tuple[float, float]]
+) -> dict[str, float]:
+    """Start values: variable projection on the stiff closed form over a (Dc, eps) grid;
+    k from the loading slope."""
     xlp = rec.load_point_m
     total = float(xlp[-1]) if xlp[-1] > 0 else float(rec.v_ref_m_s * (rec.t_s[-1] - rec.t_s[0]))
     dx = np.diff(xlp)
@@ -315,11 +345,24 @@ def _initial_guess(rec: Record, spec: ModelSpec, bounds: Mapping[str, tuple[floa
             r = A @ coef - mu[m]
             rss = float(r @ r)
             if best is None or rss < best[0]:
-                best = (rss, {"mu0": float(coef[0]), "a": float(coef[1]), "b": float(coef[2]), "Dc_m": float(Dc), "eps": eps})
+                best = (
+                    rss,
+                    {
+                        "mu0": float(coef[0]),
+                        "a": float(coef[1]),
+                        "b": float(coef[2]),
+                        "Dc_m": float(Dc),
+                        "eps": eps,
+                    },
+                )
     assert best is not None
     p = best[1]
     if not (p["a"] > 0.0):
-        p["a"] = 0.01 if bounds["a"][0] < 0.01 < bounds["a"][1] else math.sqrt(bounds["a"][0] * bounds["a"][1])
+        p["a"] = (
+            0.01
+            if bounds["a"][0] < 0.01 < bounds["a"][1]
+            else math.sqrt(bounds["a"][0] * bounds["a"][1])
+        )
     if spec.law is Law.NAGATA and not p["b"] > 0.0:
         p["b"] = p["a"]
     if spec.fit_stiffness:
@@ -338,7 +381,7 @@ def _stiffness_guess(rec: Record, p: Mapping[str, float]) -> float:
     j1 = min(rec.n - 1, i + 3)
     if j1 <= i - 1 or dv == 0.0:
         return fallback
-    slopes = np.diff(rec.mu[i - 1:j1 + 1]) / np.diff(rec.t_s[i - 1:j1 + 1]) / dv
+    slopes = np.diff(rec.mu[i - 1 : j1 + 1]) / np.diff(rec.t_s[i - 1 : j1 + 1]) / dv
     slopes = slopes[np.isfinite(slopes) & (slopes > 0)]
     if slopes.size == 0:
         return fallback
@@ -356,7 +399,7 @@ def _one_blas_thread() -> contextlib.AbstractContextManager[Any]:
     and a fit is serial anyway.
     """
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
     except ImportError:  # pragma: no cover - optional dependency (``fit`` extra)
         return contextlib.nullcontext()
     return threadpool_limits(limits=1, user_api="blas")
@@ -421,10 +464,22 @@ def fit_record(
     """
     with _one_blas_thread():
         return _fit_record(
-            record, law, stiffness=stiffness, fit_stiffness=fit_stiffness, nagata_c=nagata_c, initial=initial,
-            bounds=bounds, rtol=rtol, max_rel_stderr=max_rel_stderr, max_condition=max_condition,
-            max_nonlinearity=max_nonlinearity, misfit_floor=misfit_floor, uncertainty_samples=uncertainty_samples,
-            seed=seed, max_nfev=max_nfev, stability=stability,
+            record,
+            law,
+            stiffness=stiffness,
+            fit_stiffness=fit_stiffness,
+            nagata_c=nagata_c,
+            initial=initial,
+            bounds=bounds,
+            rtol=rtol,
+            max_rel_stderr=max_rel_stderr,
+            max_condition=max_condition,
+            max_nonlinearity=max_nonlinearity,
+            misfit_floor=misfit_floor,
+            uncertainty_samples=uncertainty_samples,
+            seed=seed,
+            max_nfev=max_nfev,
+            stability=stability,
         )
 
 
@@ -458,7 +513,9 @@ def _fit_record(
     misfit_floor = check_range("misfit_floor", misfit_floor, 0.0, None)
     uncertainty_samples = int(check_range("uncertainty_samples", uncertainty_samples, 0, 100_000))
     max_nfev = int(check_range("max_nfev", max_nfev, 1, 100_000))
-    if stiffness is None or (isinstance(stiffness, (int, float)) and math.isinf(stiffness) and stiffness > 0):
+    if stiffness is None or (
+        isinstance(stiffness, (int, float)) and math.isinf(stiffness) and stiffness > 0
+    ):
         k_fixed = math.inf
     else:
         k_fixed = check_range("stiffness", stiffness, 0.0, None, lo_open=True)
@@ -474,9 +531,19 @@ def _fit_record(
             except (TypeError, ValueError):
                 raise ParameterError(f"bounds.{key}", val, "a (lower, upper) pair") from None
             if not lo < hi or (key in _LOG and not lo > 0.0):
-                raise ParameterError(f"bounds.{key}", val, "lower < upper" + (" and lower > 0" if key in _LOG else ""))
+                raise ParameterError(
+                    f"bounds.{key}",
+                    val,
+                    "lower < upper" + (" and lower > 0" if key in _LOG else ""),
+                )
             bnd[key] = (lo, hi)
-    spec = ModelSpec(law=lw, fit_stiffness=bool(fit_stiffness), stiffness_per_m=k_fixed, nagata_c=nagata_c, rtol=rtol)
+    spec = ModelSpec(
+        law=lw,
+        fit_stiffness=bool(fit_stiffness),
+        stiffness_per_m=k_fixed,
+        nagata_c=nagata_c,
+        rtol=rtol,
+    )
     model = ForwardModel(rec, spec)
     names = spec.fitted
 
@@ -485,10 +552,10 @@ def _fit_record(
     if spec.fit_stiffness and math.isfinite(k_fixed):
         p0["k_per_m"] = k_fixed
     if initial:
-        for key, val in initial.items():
+        for key, v0 in initial.items():
             if key not in PARAM_NAMES:
-                raise ParameterError(f"initial.{key}", val, "a key of " + ", ".join(PARAM_NAMES))
-            p0[key] = check_range(f"initial.{key}", val, None, None)
+                raise ParameterError(f"initial.{key}", v0, "a key of " + ", ".join(PARAM_NAMES))
+            p0[key] = check_range(f"initial.{key}", v0, None, None)
     lb = _to_x(names, {n: bnd[n][0] for n in names})
     ub = _to_x(names, {n: bnd[n][1] for n in names})
     x0 = _to_x(names, {n: min(max(p0[n], bnd[n][0]), bnd[n][1]) for n in names})
@@ -525,8 +592,18 @@ def _fit_record(
             J[:, j] = (resid(xp) - r0) / h[j]
         return J
 
-    sol = least_squares(resid, x0, jac=jac, bounds=(lb, ub), method="trf", x_scale="jac",
-                        ftol=1e-14, xtol=1e-14, gtol=1e-14, max_nfev=max_nfev)
+    sol = least_squares(
+        resid,
+        x0,
+        jac=jac,
+        bounds=(lb, ub),
+        method="trf",
+        x_scale="jac",
+        ftol=1e-14,
+        xtol=1e-14,
+        gtol=1e-14,
+        max_nfev=max_nfev,
+    )
     x = sol.x
     p_hat = model.full(_from_x(names, x))
     mu_model, n_ok = model.friction(p_hat)
@@ -539,9 +616,18 @@ def _fit_record(
     if math.isinf(p_hat["k_per_m"]):
         model_acc = 1e-15 * float(np.max(np.abs(mu_data)))
     else:
-        tight = ForwardModel(rec, ModelSpec(lw, spec.fit_stiffness, spec.stiffness_per_m, spec.nagata_c, max(1e-14, rtol * 1e-2)))
+        tight = ForwardModel(
+            rec,
+            ModelSpec(
+                lw, spec.fit_stiffness, spec.stiffness_per_m, spec.nagata_c, max(1e-14, rtol * 1e-2)
+            ),
+        )
         mu_t, n_t = tight.friction(p_hat)
-        model_acc = float(np.max(np.abs(mu_t[:min(n_t, n_ok)] - mu_model[:min(n_t, n_ok)]))) if min(n_t, n_ok) else math.inf
+        model_acc = (
+            float(np.max(np.abs(mu_t[: min(n_t, n_ok)] - mu_model[: min(n_t, n_ok)])))
+            if min(n_t, n_ok)
+            else math.inf
+        )
 
     # -- statistics --------------------------------------------------------------------
     n, p = rec.n, len(names)
@@ -567,7 +653,10 @@ def _fit_record(
         dead = [names[j] for j in range(p) if not norms[j] > 1e-300]
         if dead:
             cond = None
-            problems.append(f"{', '.join(dead)} {'has' if len(dead) == 1 else 'have'} no effect on the model for this record")
+            problems.append(
+                f"{', '.join(dead)} {'has' if len(dead) == 1 else 'have'} no effect on the "
+                "model for this record"
+            )
         else:
             Jn = J / norms
             _, S, Vt = np.linalg.svd(Jn, full_matrices=False)
@@ -600,13 +689,17 @@ def _fit_record(
                 if not rel <= max_rel_stderr:
                     ok = False
                     what = "standard error" if nm == "eps" else "relative standard error"
-                    problems.append(f"{nm} is not constrained ({what} {rel:.3g} > {max_rel_stderr:.3g})")
+                    problems.append(
+                        f"{nm} is not constrained ({what} {rel:.3g} > {max_rel_stderr:.3g})"
+                    )
             if nm in ("a", "b", "Dc_m", "k_per_m"):
                 tol = 1e-6 * (ub[j] - lb[j])
                 if x[j] <= lb[j] + tol or x[j] >= ub[j] - tol:
                     ok = False
                     side = "lower" if x[j] <= lb[j] + tol else "upper"
-                    problems.append(f"{nm} ended on its {side} bound {bnd[nm][0 if side == 'lower' else 1]:g}")
+                    problems.append(
+                        f"{nm} ended on its {side} bound {bnd[nm][0 if side == 'lower' else 1]:g}"
+                    )
             identified[nm] = ok
         # Is the misfit quadratic out to 2 standard errors?  Along each principal axis of
         # the covariance the increase of RSS at +-2 sd must be 4 sigma^2 for a linear
@@ -616,9 +709,11 @@ def _fit_record(
             linearity = (ratio_lo, ratio_hi)
             if ratio_lo < 1.0 / max_nonlinearity or ratio_hi > max_nonlinearity:
                 problems.append(
-                    f"{', '.join(culprits)} {'is' if len(culprits) == 1 else 'are'} not determined within the linear "
-                    f"approximation (the misfit rises {ratio_lo:.3g} to {ratio_hi:.3g} times the quadratic prediction "
-                    f"2 standard errors away; allowed 1/{max_nonlinearity:g} to {max_nonlinearity:g})"
+                    f"{', '.join(culprits)} {'is' if len(culprits) == 1 else 'are'} not "
+                    "determined within the linear approximation (the misfit rises "
+                    f"{ratio_lo:.3g} to {ratio_hi:.3g} times the quadratic prediction "
+                    "2 standard errors away; allowed "
+                    f"1/{max_nonlinearity:g} to {max_nonlinearity:g})"
                 )
                 for nm in culprits:
                     identified[nm] = False
@@ -626,15 +721,24 @@ def _fit_record(
     converged = bool(sol.status > 0)
     if not complete:
         status = FitStatus.FAILED
-        message = ("The forward model could not reproduce the record at the best parameters found "
-                   "(trial slip ran away or exceeded the step budget); the record may show stick-slip.")
+        message = (
+            "The forward model could not reproduce the record at the best parameters found "
+            "(trial slip ran away or exceeded the step budget); the record may show stick-slip."
+        )
     elif problems:
         status = FitStatus.ILL_CONDITIONED
-        message = ("The record does not determine all parameters: " + "; ".join(problems) + ". "
-                   + _advice(rec, names, problems))
+        message = (
+            "The record does not determine all parameters: "
+            + "; ".join(problems)
+            + ". "
+            + _advice(rec, names, problems)
+        )
     elif not converged:
         status = FitStatus.NOT_CONVERGED
-        message = f"The optimiser stopped after {sol.nfev} evaluations without converging ({sol.message})."
+        message = (
+            f"The optimiser stopped after {sol.nfev} evaluations without converging "
+            f"({sol.message})."
+        )
     else:
         status = FitStatus.OK
         message = f"Converged: rms misfit {rms:.3g} over {n} samples with {p} fitted parameters."
@@ -646,13 +750,39 @@ def _fit_record(
         params.update({"aN": nag["aN"], "bN": nag["bN"], "DcN_m": nag["DcN"], "cN": nag["cN"]})
 
     res = FitResult(
-        status=status, message=message, law=lw.value, params=params, fitted=names, stderr=stderr,
-        correlation=corr, covariance=cov, identified=identified, condition_number=cond, linearity=linearity,
-        residuals=r, model=mu_model, rss=rss, rms=rms, sigma=sigma_eff, model_accuracy=model_acc,
-        n=n, n_params=p, aic=aic, bic=bic, misfit_floor=misfit_floor, converged=converged,
-        optimizer_message=str(sol.message), n_fev=int(sol.nfev), n_model_evals=model.n_evals, stability=None,
-        v_ref_m_s=rec.v_ref_m_s, elapsed_s=time.perf_counter() - t_start, record=rec, spec=spec,
-        x_internal=x, bounds_internal=(lb, ub),
+        status=status,
+        message=message,
+        law=lw.value,
+        params=params,
+        fitted=names,
+        stderr=stderr,
+        correlation=corr,
+        covariance=cov,
+        identified=identified,
+        condition_number=cond,
+        linearity=linearity,
+        residuals=r,
+        model=mu_model,
+        rss=rss,
+        rms=rms,
+        sigma=sigma_eff,
+        model_accuracy=model_acc,
+        n=n,
+        n_params=p,
+        aic=aic,
+        bic=bic,
+        misfit_floor=misfit_floor,
+        converged=converged,
+        optimizer_message=str(sol.message),
+        n_fev=int(sol.nfev),
+        n_model_evals=model.n_evals,
+        stability=None,
+        v_ref_m_s=rec.v_ref_m_s,
+        elapsed_s=time.perf_counter() - t_start,
+        record=rec,
+        spec=spec,
+        x_internal=x,
+        bounds_internal=(lb, ub),
     )
     if status is FitStatus.OK and stability:
         attach_stability(res, uncertainty_samples=uncertainty_samples, seed=seed)
@@ -660,7 +790,9 @@ def _fit_record(
     return res
 
 
-def attach_stability(res: FitResult, *, uncertainty_samples: int = 400, seed: int = 0) -> StabilityAnswer | None:
+def attach_stability(
+    res: FitResult, *, uncertainty_samples: int = 400, seed: int = 0
+) -> StabilityAnswer | None:
     """Compute (or recompute) ``res.stability`` from the fit's parameters and covariance.
 
     Only for FitStatus.OK (an ill-conditioned fit gets no stability answer: None).
@@ -671,12 +803,19 @@ def attach_stability(res: FitResult, *, uncertainty_samples: int = 400, seed: in
     model = ForwardModel(res.record, res.spec)
     samples = _draw(res.fitted, res.x_internal, res.covariance, model, uncertainty_samples, seed)
     full = {k: res.params[k] for k in PARAM_NAMES}
-    res.stability = stability_answer(full, samples, v_ref_m_s=res.v_ref_m_s, stiffness_fitted=res.spec.fit_stiffness)
+    res.stability = stability_answer(
+        full, samples, v_ref_m_s=res.v_ref_m_s, stiffness_fitted=res.spec.fit_stiffness
+    )
     return res.stability
 
 
-def _central_jacobian(resid: Any, x: NDArray[np.float64], names: tuple[str, ...],
-                      lb: NDArray[np.float64], ub: NDArray[np.float64]) -> NDArray[np.float64]:
+def _central_jacobian(
+    resid: Any,
+    x: NDArray[np.float64],
+    names: tuple[str, ...],
+    lb: NDArray[np.float64],
+    ub: NDArray[np.float64],
+) -> NDArray[np.float64]:
     """Central differences (one-sided at a bound) with the steps of _fd_steps."""
     h = np.abs(_fd_steps(names, x, lb, ub))
     r0 = resid(x)
@@ -698,8 +837,16 @@ def _central_jacobian(resid: Any, x: NDArray[np.float64], names: tuple[str, ...]
     return J
 
 
-def _linearity(resid: Any, names: tuple[str, ...], x: NDArray[np.float64], cov: NDArray[np.float64], rss: float,
-               sigma: float, lb: NDArray[np.float64], ub: NDArray[np.float64]) -> tuple[float, float, list[str]]:
+def _linearity(
+    resid: Any,
+    names: tuple[str, ...],
+    x: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    rss: float,
+    sigma: float,
+    lb: NDArray[np.float64],
+    ub: NDArray[np.float64],
+) -> tuple[float, float, list[str]]:
     """(min, max) over principal axes and both signs of [RSS(x +- 2 sd axis) - RSS]/(4 sigma^2),
     and the names of the parameters the worst axis moves by more than one standard error.
     Moves that would leave the bounds are skipped."""
@@ -726,8 +873,14 @@ def _linearity(resid: Any, names: tuple[str, ...], x: NDArray[np.float64], cov: 
     return lo, hi, culprits
 
 
-def _draw(names: tuple[str, ...], x: NDArray[np.float64], cov: NDArray[np.float64], model: ForwardModel,
-          n: int, seed: int) -> list[dict[str, float]]:
+def _draw(
+    names: tuple[str, ...],
+    x: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    model: ForwardModel,
+    n: int,
+    seed: int,
+) -> list[dict[str, float]]:
     """n parameter sets from N(x, cov) in the fitted coordinates; eps clipped to [0, 1]."""
     if n <= 0 or not np.all(np.isfinite(cov)):
         return []
@@ -752,10 +905,16 @@ def _draw(names: tuple[str, ...], x: NDArray[np.float64], cov: NDArray[np.float6
 def _advice(rec: Record, names: tuple[str, ...], problems: list[str]) -> str:
     txt = " ".join(problems)
     if rec.n_steps == 0:
-        return "The record has no velocity step: a, b and Dc need at least one step in load-point velocity."
+        return (
+            "The record has no velocity step: a, b and Dc need at least one step in "
+            "load-point velocity."
+        )
     if "Dc_m" in txt:
-        return ("Dc needs the friction transient after a velocity step to be resolved: a step followed by "
-                "load-point displacement of several Dc, sampled densely during the evolution.")
+        return (
+            "Dc needs the friction transient after a velocity step to be resolved: a step "
+            "followed by "
+            "load-point displacement of several Dc, sampled densely during the evolution."
+        )
     return "Add steps or longer records, or fix some parameters (law, stiffness)."
 
 
@@ -821,10 +980,15 @@ def compare_laws(
     rec = read_record(record)
     lws = [_law(x) for x in laws]
     if not lws:
-        raise ParameterError("laws", list(laws), "a non-empty list of " + ", ".join(m.value for m in Law))
+        raise ParameterError(
+            "laws", list(laws), "a non-empty list of " + ", ".join(m.value for m in Law)
+        )
     want_stab = options.pop("stability", True)
     fits = {lw.value: fit_record(rec, lw, stability=False, **options) for lw in lws}
-    floor = max([options.get("misfit_floor", 1e-9)] + [10.0 * f.model_accuracy for f in fits.values() if math.isfinite(f.model_accuracy)])
+    floor = max(
+        [options.get("misfit_floor", 1e-9)]
+        + [10.0 * f.model_accuracy for f in fits.values() if math.isfinite(f.model_accuracy)]
+    )
     rows = []
     for name, f in fits.items():
         if math.isfinite(f.rss):
@@ -835,7 +999,13 @@ def compare_laws(
         else:
             aic = bic = math.inf
         rows.append((name, f, aic, bic))
-    usable = [r for r in rows if r[1].status in (FitStatus.OK, FitStatus.ILL_CONDITIONED) and r[1].converged and math.isfinite(r[2])]
+    usable = [
+        r
+        for r in rows
+        if r[1].status in (FitStatus.OK, FitStatus.ILL_CONDITIONED)
+        and r[1].converged
+        and math.isfinite(r[2])
+    ]
     best = min(usable, key=lambda r: (r[2], r[1].n_params))[0] if usable else None
     amin = min((r[2] for r in usable), default=math.inf)
     bmin = min((r[3] for r in usable), default=math.inf)
@@ -843,11 +1013,23 @@ def compare_laws(
     scores = []
     for name, f, aic, bic in rows:
         use = any(r[0] == name for r in usable)
-        scores.append(LawScore(
-            law=name, status=f.status.value, rms=f.rms, n_params=f.n_params, aic=aic, bic=bic,
-            delta_aic=aic - amin if use else math.inf, delta_bic=bic - bmin if use else math.inf,
-            akaike_weight=math.exp(-0.5 * (aic - amin)) / wsum if use and wsum > 0 else 0.0,
-        ))
+        scores.append(
+            LawScore(
+                law=name,
+                status=f.status.value,
+                rms=f.rms,
+                n_params=f.n_params,
+                aic=aic,
+                bic=bic,
+                delta_aic=aic - amin if use else math.inf,
+                delta_bic=bic - bmin if use else math.inf,
+                akaike_weight=math.exp(-0.5 * (aic - amin)) / wsum if use and wsum > 0 else 0.0,
+            )
+        )
     if best is not None and want_stab and fits[best].ok:
-        attach_stability(fits[best], uncertainty_samples=options.get("uncertainty_samples", 400), seed=options.get("seed", 0))
+        attach_stability(
+            fits[best],
+            uncertainty_samples=options.get("uncertainty_samples", 400),
+            seed=options.get("seed", 0),
+        )
     return LawComparison(best=best, scores=scores, fits=fits, misfit_floor=floor)

@@ -26,11 +26,12 @@ is the intermediate law with eps = b/(b + c a) (a, b, Dc the intermediate-law va
 Accuracy (tests/core/test_fit.py, bench/bench_fit.py): at the default rtol = 1e-10 the
 friction is within 3e-11 of an rtol = 1e-13 run for a velocity step with a = 0.01.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -40,10 +41,20 @@ from ..engine import integrate
 from ..params import ParameterError
 from .record import Record
 
-__all__ = ["Law", "LAWS", "PARAM_NAMES", "ModelSpec", "ForwardModel", "Simulation", "nagata_eps", "synthetic_record", "describe"]
+__all__ = [
+    "Law",
+    "LAWS",
+    "PARAM_NAMES",
+    "ModelSpec",
+    "ForwardModel",
+    "Simulation",
+    "nagata_eps",
+    "synthetic_record",
+    "describe",
+]
 
 
-class Law(str, Enum):
+class Law(StrEnum):
     """Evolution law of a fit: aging (eps = 1), slip (eps = 0), Nagata (fixed c), or eps free."""
 
     AGING = "aging"
@@ -136,8 +147,11 @@ class ForwardModel:
         self.v_seg = [float(record.v_lp_m_s[i]) for i in self.starts]
         if not spec.fit_stiffness and math.isinf(spec.stiffness_per_m) and min(self.v_seg) <= 0.0:
             i = int(np.flatnonzero(record.v_lp_m_s <= 0.0)[0])
-            raise ParameterError(f"record.v_lp_m_s[{i}]", 0.0,
-                                 "> 0 with an infinitely stiff machine (a hold needs a finite stiffness)")
+            raise ParameterError(
+                f"record.v_lp_m_s[{i}]",
+                0.0,
+                "> 0 with an infinitely stiff machine (a hold needs a finite stiffness)",
+            )
         self.n_evals = 0
 
     # -- parameters -----------------------------------------------------------------
@@ -191,7 +205,7 @@ class ForwardModel:
         lth = np.empty(n)
         L0 = 0.0
         t = self.t
-        for j, (i0, i1) in enumerate(zip(self.starts, self.ends)):
+        for j, (i0, i1) in enumerate(zip(self.starts, self.ends, strict=True)):
             v = self.v_seg[j]
             ph = math.log(v / self.V0)
             if j > 0:
@@ -211,7 +225,9 @@ class ForwardModel:
             L0 = L_end
         return phi, lth
 
-    def _engine(self, p: dict[str, float]) -> tuple[NDArray[np.float64], NDArray[np.float64], int, int]:
+    def _engine(
+        self, p: dict[str, float]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], int, int]:
         """Segment by segment with rsfcore.engine.integrate (3-component state phi, ln theta, T)."""
         a, b, Dc, eps, k = p["a"], p["b"], p["Dc_m"], p["eps"], p["k_per_m"]
         ba = b / a
@@ -223,17 +239,34 @@ class ForwardModel:
         y = np.array([0.0, 0.0, 0.0])
         rtol = self.spec.rtol
         steps = 0
-        for j, (i0, i1) in enumerate(zip(self.starts, self.ends)):
+        for j, (i0, i1) in enumerate(zip(self.starts, self.ends, strict=True)):
             sT = self.t[i0:i1] * scale
             T_end = (self.t[i1] if i1 < n else self.t[-1]) * scale
             out = np.empty((i1 - i0, 5))
-            res = integrate(y, ba, kappa, eps, self.v_seg[j] / self.V0, rtol, rtol, math.inf, False, False,
-                            T_end, _PHI_STOP, _MAX_STEPS, 0.0, _EMPTY, sT, out)
+            res = integrate(
+                y,
+                ba,
+                kappa,
+                eps,
+                self.v_seg[j] / self.V0,
+                rtol,
+                rtol,
+                math.inf,
+                False,
+                False,
+                T_end,
+                _PHI_STOP,
+                _MAX_STEPS,
+                0.0,
+                _EMPTY,
+                sT,
+                out,
+            )
             status = int(res[0])
             nf = int(res[-1])
             steps += int(res[9]) + int(res[11])
-            phi[i0:i0 + nf] = out[:nf, 0]
-            lth[i0:i0 + nf] = out[:nf, 1]
+            phi[i0 : i0 + nf] = out[:nf, 0]
+            lth[i0 : i0 + nf] = out[:nf, 1]
             if status != 0 or nf != i1 - i0:
                 return phi, lth, i0 + nf, steps
             y = np.asarray(res[1]).copy()
@@ -272,10 +305,16 @@ def synthetic_record(
     before the record's end (no record of unstable slip is produced).
     """
     proto = Record(t_s=t_s, v_lp_m_s=v_lp_m_s, mu=np.zeros(len(t_s)), name=name)
-    model = ForwardModel(proto, ModelSpec(law=Law.EPS, fit_stiffness=False, stiffness_per_m=k_per_m, rtol=rtol))
-    mu, n_ok = model.friction({"mu0": mu0, "a": a, "b": b, "Dc_m": Dc_m, "eps": eps, "k_per_m": k_per_m})
+    model = ForwardModel(
+        proto, ModelSpec(law=Law.EPS, fit_stiffness=False, stiffness_per_m=k_per_m, rtol=rtol)
+    )
+    mu, n_ok = model.friction(
+        {"mu0": mu0, "a": a, "b": b, "Dc_m": Dc_m, "eps": eps, "k_per_m": k_per_m}
+    )
     if n_ok < proto.n:
-        raise RuntimeError(f"the parameters run away at t = {proto.t_s[n_ok]:g} s: no stable record")
+        raise RuntimeError(
+            f"the parameters run away at t = {proto.t_s[n_ok]:g} s: no stable record"
+        )
     if noise > 0.0:
         mu = mu + np.random.default_rng(seed).normal(0.0, noise, mu.shape[0])
     return Record(t_s=proto.t_s, v_lp_m_s=proto.v_lp_m_s, mu=mu, name=name)

@@ -1,4 +1,4 @@
-"""Posterior sampling of a fit with emcee (optional: the ``fit`` extra, ``pip install rsf-stability[fit]``).
+"""Posterior sampling of a fit with emcee (the ``fit`` extra: ``pip install rsf-stability[fit]``).
 
 Model: Gaussian residuals with the fit's residual standard deviation sigma (fixed), i.e.
 log L = -RSS/(2 sigma^2); priors uniform in the fitted coordinates (mu0, a, b, ln Dc,
@@ -11,6 +11,7 @@ The posterior is the honest uncertainty when the misfit is not quadratic (see
 FitResult.linearity); for a well-determined fit its standard deviations agree with the
 linearised standard errors (tests/core/test_fit.py).
 """
+
 from __future__ import annotations
 
 import math
@@ -23,7 +24,7 @@ from numpy.typing import NDArray
 from ..jsonsafe import jsonsafe
 from ..params import ParameterError, check_range
 from .core import FitResult, _from_x
-from .model import Law, ForwardModel, PARAM_NAMES
+from .model import PARAM_NAMES, ForwardModel, Law
 from .stability import Spread, StabilityAnswer, stability_answer
 
 __all__ = ["Posterior", "sample_posterior"]
@@ -117,7 +118,9 @@ def sample_posterior(
     burn = int(check_range("burn", burn, 0, n_steps - 1))
     thin = int(check_range("thin", thin, 1, n_steps))
     if not math.isfinite(result.rss) or not np.all(np.isfinite(result.covariance)):
-        raise ParameterError("result", result.status.value, "a fit with finite residuals and covariance")
+        raise ParameterError(
+            "result", result.status.value, "a fit with finite residuals and covariance"
+        )
     model = ForwardModel(result.record, result.spec)
     lb, ub = result.bounds_internal
     mu_data = result.record.mu
@@ -144,13 +147,27 @@ def sample_posterior(
     sampler.random_state = np.random.RandomState(seed).get_state()  # emcee's own generator
     sampler.run_mcmc(x0, n_steps, progress=False)
     chain = sampler.get_chain(discard=burn, thin=thin, flat=True)
-    phys = np.array([[math.exp(v) if nm in ("Dc_m", "k_per_m") else v for nm, v in zip(names, row)] for row in chain])
+    phys = np.array(
+        [
+            [
+                math.exp(v) if nm in ("Dc_m", "k_per_m") else v
+                for nm, v in zip(names, row, strict=True)
+            ]
+            for row in chain
+        ]
+    )
     try:
         tau = sampler.get_autocorr_time(discard=burn, quiet=True)
-        autocorr = {nm: (float(t) if math.isfinite(t) else None) for nm, t in zip(names, tau)}
+        autocorr = {
+            nm: (float(t) if math.isfinite(t) else None) for nm, t in zip(names, tau, strict=True)
+        }
     except Exception:  # noqa: BLE001 - emcee raises its own AutocorrError on short chains
         autocorr = {nm: None for nm in names}
-    spread = {nm: s for nm, s in ((nm, Spread.of(phys[:, j])) for j, nm in enumerate(names)) if s is not None}
+    spread = {
+        nm: s
+        for nm, s in ((nm, Spread.of(phys[:, j])) for j, nm in enumerate(names))
+        if s is not None
+    }
     stab = None
     if stability and result.ok:
         idx = rng.choice(chain.shape[0], size=min(stability_samples, chain.shape[0]), replace=False)
@@ -159,7 +176,9 @@ def sample_posterior(
             q = _from_x(names, row)
             draws.append(model.full(q))
         full = {k: result.params[k] for k in PARAM_NAMES}
-        stab = stability_answer(full, draws, v_ref_m_s=result.v_ref_m_s, stiffness_fitted=result.spec.fit_stiffness)
+        stab = stability_answer(
+            full, draws, v_ref_m_s=result.v_ref_m_s, stiffness_fitted=result.spec.fit_stiffness
+        )
     return Posterior(
         names=names,
         samples=phys,
@@ -175,4 +194,3 @@ def sample_posterior(
         sigma=sigma,
         stability=stab,
     )
-

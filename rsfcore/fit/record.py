@@ -21,6 +21,7 @@ comments.  JSON: an object with the same column names as arrays,
 Validation errors are rsfcore.params.ParameterError naming the column and row, e.g.
 ``record.mu[17]``.
 """
+
 from __future__ import annotations
 
 import csv
@@ -28,9 +29,10 @@ import hashlib
 import io
 import json
 import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,9 +53,13 @@ def _as_array(name: str, values: Any) -> NDArray[np.float64]:
     try:
         arr = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ParameterError(f"record.{name}", "<non-numeric>", "a list of finite numbers") from None
+        raise ParameterError(
+            f"record.{name}", "<non-numeric>", "a list of finite numbers"
+        ) from None
     if arr.ndim != 1:
-        raise ParameterError(f"record.{name}", f"<array of shape {arr.shape}>", "a one-dimensional list of numbers")
+        raise ParameterError(
+            f"record.{name}", f"<array of shape {arr.shape}>", "a one-dimensional list of numbers"
+        )
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
         i = int(bad[0])
@@ -86,27 +92,43 @@ class Record:
         mu = _as_array("mu", self.mu)
         n = t.shape[0]
         if v.shape[0] != n or mu.shape[0] != n:
-            raise ParameterError("record", {"t_s": n, "v_lp_m_s": v.shape[0], "mu": mu.shape[0]}, "columns of equal length")
+            raise ParameterError(
+                "record",
+                {"t_s": n, "v_lp_m_s": v.shape[0], "mu": mu.shape[0]},
+                "columns of equal length",
+            )
         if n < MIN_SAMPLES:
             raise ParameterError("record", f"{n} samples", f">= {MIN_SAMPLES} samples")
         dt = np.diff(t)
         bad = np.flatnonzero(~(dt > 0.0))
         if bad.size:
             i = int(bad[0]) + 1
-            raise ParameterError(f"record.t_s[{i}]", float(t[i]), f"> t_s[{i - 1}] = {t[i - 1]!r} (strictly increasing time)")
+            raise ParameterError(
+                f"record.t_s[{i}]",
+                float(t[i]),
+                f"> t_s[{i - 1}] = {t[i - 1]!r} (strictly increasing time)",
+            )
         neg = np.flatnonzero(v < 0.0)
         if neg.size:
             i = int(neg[0])
-            raise ParameterError(f"record.v_lp_m_s[{i}]", float(v[i]), ">= 0 (imposed load-point velocity)")
+            raise ParameterError(
+                f"record.v_lp_m_s[{i}]", float(v[i]), ">= 0 (imposed load-point velocity)"
+            )
         if not v[0] > 0.0:
-            raise ParameterError("record.v_lp_m_s[0]", float(v[0]), "> 0 (the record starts in steady sliding)")
+            raise ParameterError(
+                "record.v_lp_m_s[0]", float(v[0]), "> 0 (the record starts in steady sliding)"
+            )
         if np.max(v) / v[0] > 1e300 or np.min(v[v > 0]) / v[0] < 1e-300:
-            raise ParameterError("record.v_lp_m_s", float(np.max(v)), "within a factor 1e300 of v_lp_m_s[0]")
+            raise ParameterError(
+                "record.v_lp_m_s", float(np.max(v)), "within a factor 1e300 of v_lp_m_s[0]"
+            )
         starts = np.concatenate(([0], np.flatnonzero(v[1:] != v[:-1]) + 1)).astype(np.int64)
         if starts.shape[0] > MAX_SEGMENTS:
             raise ParameterError(
-                "record.v_lp_m_s", f"{starts.shape[0]} constant segments",
-                f"piecewise constant with <= {MAX_SEGMENTS} segments: give the commanded velocity, not a measured one",
+                "record.v_lp_m_s",
+                f"{starts.shape[0]} constant segments",
+                f"piecewise constant with <= {MAX_SEGMENTS} segments: give the commanded "
+                "velocity, not a measured one",
             )
         object.__setattr__(self, "t_s", t)
         object.__setattr__(self, "v_lp_m_s", v)
@@ -117,7 +139,9 @@ class Record:
 
     # -- constructors -----------------------------------------------------------------
     @classmethod
-    def from_displacement(cls, x_lp_m: Sequence[float], v_lp_m_s: Sequence[float], mu: Sequence[float], name: str = "") -> "Record":
+    def from_displacement(
+        cls, x_lp_m: Sequence[float], v_lp_m_s: Sequence[float], mu: Sequence[float], name: str = ""
+    ) -> Record:
         """Record given against load-point displacement x [m] (strictly increasing, all v > 0).
 
         t_0 = 0, t_i = t_{i-1} + (x_i - x_{i-1})/v_{i-1} (v_{i-1} is the velocity on the interval).
@@ -125,31 +149,53 @@ class Record:
         x = _as_array("x_lp_m", x_lp_m)
         v = _as_array("v_lp_m_s", v_lp_m_s)
         if v.shape[0] != x.shape[0]:
-            raise ParameterError("record", {"x_lp_m": x.shape[0], "v_lp_m_s": v.shape[0]}, "columns of equal length")
+            raise ParameterError(
+                "record", {"x_lp_m": x.shape[0], "v_lp_m_s": v.shape[0]}, "columns of equal length"
+            )
         nz = np.flatnonzero(~(v > 0.0))
         if nz.size:
             i = int(nz[0])
-            raise ParameterError(f"record.v_lp_m_s[{i}]", float(v[i]), "> 0 when the record is given against displacement x_lp_m (a hold has no displacement axis)")
+            raise ParameterError(
+                f"record.v_lp_m_s[{i}]",
+                float(v[i]),
+                "> 0 when the record is given against displacement x_lp_m "
+                "(a hold has no displacement axis)",
+            )
         dx = np.diff(x)
         bad = np.flatnonzero(~(dx > 0.0))
         if bad.size:
             i = int(bad[0]) + 1
-            raise ParameterError(f"record.x_lp_m[{i}]", float(x[i]), f"> x_lp_m[{i - 1}] = {x[i - 1]!r} (strictly increasing displacement)")
+            raise ParameterError(
+                f"record.x_lp_m[{i}]",
+                float(x[i]),
+                f"> x_lp_m[{i - 1}] = {x[i - 1]!r} (strictly increasing displacement)",
+            )
         t = np.concatenate(([0.0], np.cumsum(dx / v[:-1])))
-        return cls(t_s=t, v_lp_m_s=v, mu=mu, x_lp_m=x, name=name)
+        return cls(t_s=t, v_lp_m_s=v, mu=_as_array("mu", mu), x_lp_m=x, name=name)
 
     @classmethod
-    def from_columns(cls, cols: Mapping[str, Any], name: str = "") -> "Record":
+    def from_columns(cls, cols: Mapping[str, Any], name: str = "") -> Record:
         """From a mapping of column name -> values (t_s or x_lp_m, v_lp_m_s, mu)."""
         for need in ("v_lp_m_s", "mu"):
             if need not in cols:
-                raise ParameterError(f"record.{need}", None, "a required column (" + ", ".join(RECORD_COLUMNS) + "; t_s or x_lp_m)")
+                raise ParameterError(
+                    f"record.{need}",
+                    None,
+                    "a required column (" + ", ".join(RECORD_COLUMNS) + "; t_s or x_lp_m)",
+                )
         if "t_s" in cols:
-            return cls(t_s=cols["t_s"], v_lp_m_s=cols["v_lp_m_s"], mu=cols["mu"],
-                       x_lp_m=cols.get("x_lp_m"), name=name)
+            return cls(
+                t_s=cols["t_s"],
+                v_lp_m_s=cols["v_lp_m_s"],
+                mu=cols["mu"],
+                x_lp_m=cols.get("x_lp_m"),
+                name=name,
+            )
         if "x_lp_m" in cols:
             return cls.from_displacement(cols["x_lp_m"], cols["v_lp_m_s"], cols["mu"], name=name)
-        raise ParameterError("record.t_s", None, "a required column (or x_lp_m, load-point displacement [m])")
+        raise ParameterError(
+            "record.t_s", None, "a required column (or x_lp_m, load-point displacement [m])"
+        )
 
     # -- derived ------------------------------------------------------------------------
     @property
@@ -182,7 +228,12 @@ class Record:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe columns (the JSON record format)."""
-        d: dict[str, Any] = {"name": self.name, "t_s": self.t_s.tolist(), "v_lp_m_s": self.v_lp_m_s.tolist(), "mu": self.mu.tolist()}
+        d: dict[str, Any] = {
+            "name": self.name,
+            "t_s": self.t_s.tolist(),
+            "v_lp_m_s": self.v_lp_m_s.tolist(),
+            "mu": self.mu.tolist(),
+        }
         if self.x_lp_m is not None:
             d["x_lp_m"] = self.x_lp_m.tolist()
         return d
@@ -190,9 +241,11 @@ class Record:
     def to_csv(self) -> str:
         """The record in the documented CSV format."""
         cols = ["t_s", "v_lp_m_s", "mu"] + (["x_lp_m"] if self.x_lp_m is not None else [])
-        arrs = [self.t_s, self.v_lp_m_s, self.mu] + ([self.x_lp_m] if self.x_lp_m is not None else [])
+        arrs = [self.t_s, self.v_lp_m_s, self.mu] + (
+            [self.x_lp_m] if self.x_lp_m is not None else []
+        )
         lines = [",".join(cols)]
-        for row in zip(*(a.tolist() for a in arrs)):
+        for row in zip(*(a.tolist() for a in arrs), strict=True):
             lines.append(",".join(repr(float(x)) for x in row))
         return "\n".join(lines) + "\n"
 
@@ -200,7 +253,9 @@ class Record:
 def _parse_csv(text: str, name: str) -> Record:
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        raise ParameterError("record", name or "<text>", "a CSV header line and rows, or a JSON object")
+        raise ParameterError(
+            "record", name or "<text>", "a CSV header line and rows, or a JSON object"
+        )
     head = lines[0]
     if "," in head:
         delim = ","
@@ -213,7 +268,10 @@ def _parse_csv(text: str, name: str) -> Record:
     if delim == " ":
         rows = [ln.split() for ln in lines]
     else:
-        rows = [[c.strip() for c in r] for r in csv.reader(io.StringIO("\n".join(lines)), delimiter=delim)]
+        rows = [
+            [c.strip() for c in r]
+            for r in csv.reader(io.StringIO("\n".join(lines)), delimiter=delim)
+        ]
     header = [h.strip().strip('"') for h in rows[0]]
     idx: dict[str, int] = {}
     for j, h in enumerate(header):
@@ -222,15 +280,20 @@ def _parse_csv(text: str, name: str) -> Record:
                 raise ParameterError(f"record.{h}", "duplicate column", "each column once")
             idx[h] = j
     if "mu" not in idx or "v_lp_m_s" not in idx or not ("t_s" in idx or "x_lp_m" in idx):
-        raise ParameterError("record.header", ",".join(header),
-                             "a header naming t_s (or x_lp_m), v_lp_m_s and mu (extra columns are ignored)")
+        raise ParameterError(
+            "record.header",
+            ",".join(header),
+            "a header naming t_s (or x_lp_m), v_lp_m_s and mu (extra columns are ignored)",
+        )
     cols: dict[str, list[float]] = {k: [] for k in idx}
     for r, row in enumerate(rows[1:]):
         for k, j in idx.items():
             try:
                 val = float(row[j])
             except (IndexError, ValueError):
-                raise ParameterError(f"record.{k}[{r}]", row[j] if j < len(row) else None, "a finite number") from None
+                raise ParameterError(
+                    f"record.{k}[{r}]", row[j] if j < len(row) else None, "a finite number"
+                ) from None
             cols[k].append(val)
     return Record.from_columns(cols, name=name)
 
@@ -239,9 +302,13 @@ def _parse_json(text: str, name: str) -> Record:
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as e:
-        raise ParameterError("record", f"invalid JSON ({e.msg} at line {e.lineno})", "a JSON object of columns") from None
+        raise ParameterError(
+            "record", f"invalid JSON ({e.msg} at line {e.lineno})", "a JSON object of columns"
+        ) from None
     if not isinstance(obj, dict):
-        raise ParameterError("record", type(obj).__name__, "a JSON object with arrays t_s (or x_lp_m), v_lp_m_s, mu")
+        raise ParameterError(
+            "record", type(obj).__name__, "a JSON object with arrays t_s (or x_lp_m), v_lp_m_s, mu"
+        )
     return Record.from_columns(obj, name=str(obj.get("name", name)))
 
 
@@ -257,16 +324,22 @@ def read_record(source: str | os.PathLike[str] | Mapping[str, Any] | Record) -> 
     if isinstance(source, Mapping):
         return Record.from_columns(source, name=str(source.get("name", "")))
     name = ""
-    if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source and not source.lstrip().startswith("{")):
+    if isinstance(source, os.PathLike) or (
+        isinstance(source, str) and "\n" not in source and not source.lstrip().startswith("{")
+    ):
         path = Path(source)
         if not path.is_file():
-            raise ParameterError("record", str(source), "an existing file, CSV/JSON text, or a mapping of columns")
+            raise ParameterError(
+                "record", str(source), "an existing file, CSV/JSON text, or a mapping of columns"
+            )
         text = path.read_text(encoding="utf-8-sig")
         name = path.name
     elif isinstance(source, str):
         text = source
     else:
-        raise ParameterError("record", type(source).__name__, "a path, CSV/JSON text, or a mapping of columns")
+        raise ParameterError(
+            "record", type(source).__name__, "a path, CSV/JSON text, or a mapping of columns"
+        )
     if text.lstrip().startswith("{"):
         return _parse_json(text, name)
     return _parse_csv(text, name)

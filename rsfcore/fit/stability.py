@@ -20,6 +20,7 @@ perturbation), "rigid-machine" (k = inf: V follows the load point, no instabilit
 perturbation of either kind runs away: eps kappa >= kappa_crit), "outside-range" (b/a or
 kappa beyond the core's validated range).
 """
+
 from __future__ import annotations
 
 import math
@@ -36,8 +37,12 @@ from ..units import CriticalSI, PhysicalInputs, critical_si, kappa_from_lab_stif
 __all__ = ["Spread", "CriticalAnswer", "StabilityAnswer", "stability_answer", "REGIMES"]
 
 REGIMES: tuple[str, ...] = (
-    "velocity-strengthening", "rigid-machine", "linearly-unstable", "finite-critical",
-    "unconditionally-stable", "outside-range",
+    "velocity-strengthening",
+    "rigid-machine",
+    "linearly-unstable",
+    "finite-critical",
+    "unconditionally-stable",
+    "outside-range",
 )
 _PERTS = ("velocity-jump", "load-point-jump")
 _SAMPLE_RTOL = 1e-6
@@ -62,15 +67,22 @@ class Spread:
     n: int
 
     @classmethod
-    def of(cls, x: NDArray[np.float64]) -> "Spread | None":
+    def of(cls, x: NDArray[np.float64]) -> Spread | None:
         x = np.asarray(x, dtype=np.float64)
         if x.size == 0:
             return None
-        q = np.percentile(x, [50.0, 2.5, 16.0, 84.0, 97.5])
-        return cls(*(_f(v) for v in q), n=int(x.size))
+        q = [_f(v) for v in np.percentile(x, [50.0, 2.5, 16.0, 84.0, 97.5])]
+        return cls(median=q[0], p2_5=q[1], p16=q[2], p84=q[3], p97_5=q[4], n=int(x.size))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"median": self.median, "p2_5": self.p2_5, "p16": self.p16, "p84": self.p84, "p97_5": self.p97_5, "n": self.n}
+        return {
+            "median": self.median,
+            "p2_5": self.p2_5,
+            "p16": self.p16,
+            "p84": self.p84,
+            "p97_5": self.p97_5,
+            "n": self.n,
+        }
 
 
 @dataclass(frozen=True)
@@ -150,8 +162,12 @@ class StabilityAnswer:
             "kappa": _f(self.kappa),
             "kappa_crit": _f(self.kappa_crit),
             "kappa_ratio": _f(self.kappa_ratio),
-            "kappa_ratio_spread": None if self.kappa_ratio_spread is None else self.kappa_ratio_spread.to_dict(),
-            "critical_stiffness_spread": None if self.critical_stiffness_spread is None else self.critical_stiffness_spread.to_dict(),
+            "kappa_ratio_spread": None
+            if self.kappa_ratio_spread is None
+            else self.kappa_ratio_spread.to_dict(),
+            "critical_stiffness_spread": None
+            if self.critical_stiffness_spread is None
+            else self.critical_stiffness_spread.to_dict(),
             "prob_linearly_unstable": self.prob_linearly_unstable,
             "velocity_jump": self.velocity_jump.to_dict(),
             "load_point_jump": self.load_point_jump.to_dict(),
@@ -182,13 +198,17 @@ def _kind_no_core(a: float, b: float, Dc: float, eps: float, k: float) -> tuple[
     return None, "outside-range"
 
 
-def _point(p: dict[str, float], pert: str, v_ref: float, rtol: float) -> tuple[str | None, float | None, CriticalSI | None]:
+def _point(
+    p: dict[str, float], pert: str, v_ref: float, rtol: float
+) -> tuple[str | None, float | None, CriticalSI | None]:
     a, b, Dc, eps, k = p["a"], p["b"], p["Dc_m"], p["eps"], p["k_per_m"]
     kind, _ = _kind_no_core(a, b, Dc, eps, k)
     if kind != "":
         size = 0.0 if kind == "zero" else None
         return kind, size, None
-    phys = PhysicalInputs(a=a, b=b, Dc_m=Dc, sigma_Pa=1.0, k_Pa_per_m=k, V_star_m_s=v_ref, V_load_m_s=v_ref)
+    phys = PhysicalInputs(
+        a=a, b=b, Dc_m=Dc, sigma_Pa=1.0, k_Pa_per_m=k, V_star_m_s=v_ref, V_load_m_s=v_ref
+    )
     c = critical_si(phys, eps, pert, rtol=rtol)  # type: ignore[arg-type]
     return c.kind, c.critical_size, c
 
@@ -198,7 +218,11 @@ def _sample_kind_size(p: dict[str, float], pert: str) -> tuple[str | None, float
     kind, _ = _kind_no_core(a, b, Dc, eps, k)
     if kind != "":
         return kind, (0.0 if kind == "zero" else None)
-    c = critical_perturbation(Params(ba=b / a, kappa=kappa_from_lab_stiffness(k, Dc, a), eps=eps, vo=1.0), pert, rtol=_SAMPLE_RTOL)
+    c = critical_perturbation(
+        Params(ba=b / a, kappa=kappa_from_lab_stiffness(k, Dc, a), eps=eps, vo=1.0),
+        pert,
+        rtol=_SAMPLE_RTOL,
+    )
     return c.kind, c.critical_size
 
 
@@ -234,9 +258,14 @@ def stability_answer(
                 crit = v_ref_m_s * np.exp(np.minimum(arr, 700.0))
         else:
             crit = v_ref_m_s * (1.0 + arr)
-        answers[pert] = CriticalAnswer(perturbation=pert, kind=kind, estimate=est, kind_probability=prob,
-                                       size=Spread.of(arr) if arr.size else None,
-                                       critical_m_s=Spread.of(crit) if arr.size else None)
+        answers[pert] = CriticalAnswer(
+            perturbation=pert,
+            kind=kind,
+            estimate=est,
+            kind_probability=prob,
+            size=Spread.of(arr) if arr.size else None,
+            critical_m_s=Spread.of(crit) if arr.size else None,
+        )
     if kind0 == "":
         if kappa < kc:
             regime = "linearly-unstable"
@@ -276,22 +305,40 @@ def stability_answer(
     )
 
 
-def _message(regime: str, kratio: float | None, answers: dict[str, CriticalAnswer], v_ref: float) -> str:
+def _message(
+    regime: str, kratio: float | None, answers: dict[str, CriticalAnswer], v_ref: float
+) -> str:
     if regime == "velocity-strengthening":
-        return "b <= a (velocity strengthening): steady sliding is stable for any machine stiffness and perturbation."
+        return (
+            "b <= a (velocity strengthening): steady sliding is stable for any machine "
+            "stiffness and perturbation."
+        )
     if regime == "rigid-machine":
         return "Infinitely stiff machine: the slider follows the load point; no instability."
     if regime == "linearly-unstable":
-        return f"k/k_crit = {kratio:.4g} < 1: steady sliding is linearly unstable (stick-slip expected)."
+        return (
+            f"k/k_crit = {kratio:.4g} < 1: steady sliding is linearly unstable "
+            "(stick-slip expected)."
+        )
     if regime == "outside-range":
         return "b/a or kappa beyond the core's validated range (1e6): no critical sizes computed."
     parts = [f"k/k_crit = {kratio:.4g}"]
     vj = answers["velocity-jump"].estimate
     if vj is not None and vj.velocity_jump is not None and vj.velocity_jump.factor is not None:
-        parts.append(f"a slip-rate jump by a factor above {vj.velocity_jump.factor:.4g} from {v_ref:.3g} m/s runs away")
+        parts.append(
+            f"a slip-rate jump by a factor above {vj.velocity_jump.factor:.4g} "
+            f"from {v_ref:.3g} m/s runs away"
+        )
     lj = answers["load-point-jump"].estimate
-    if lj is not None and lj.load_point_jump is not None and lj.load_point_jump.new_load_point_velocity_m_s is not None:
-        parts.append(f"a load-point velocity step to above {lj.load_point_jump.new_load_point_velocity_m_s:.4g} m/s runs away")
+    if (
+        lj is not None
+        and lj.load_point_jump is not None
+        and lj.load_point_jump.new_load_point_velocity_m_s is not None
+    ):
+        parts.append(
+            "a load-point velocity step to above "
+            f"{lj.load_point_jump.new_load_point_velocity_m_s:.4g} m/s runs away"
+        )
     if len(parts) == 1:
         parts.append("no perturbation of either kind runs away")
     return "; ".join(parts) + "."

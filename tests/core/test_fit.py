@@ -7,6 +7,7 @@ Standard synthetic record: a = 0.01, b = 0.015, Dc = 10 um, mu0 = 0.6; load poin
 stiffness in friction per metre [1/m]: kappa = k Dc/a, so k = 800 /m is kappa = 0.8
 (kappa/kappa_crit = 1.6) and k = 2000 /m is kappa = 2 (ratio 4).
 """
+
 from __future__ import annotations
 
 import json
@@ -59,12 +60,20 @@ def test_record_csv_json_and_displacement(tmp_path) -> None:
     t, v = design(50)
     mu = 0.6 + 0.001 * np.sin(t)
     rec = Record(t_s=t, v_lp_m_s=v, mu=mu, name="r")
-    assert rec.n_steps == 2 and list(rec.segment_starts) == [0, int(np.argmax(v > 1e-6)), int(np.argmax(t >= 230.0))]
+    assert rec.n_steps == 2 and list(rec.segment_starts) == [
+        0,
+        int(np.argmax(v > 1e-6)),
+        int(np.argmax(t >= 230.0)),
+    ]
     # CSV text (repr round-trips floats exactly), with a comment and an extra column
     csv = "# lab run 17\n" + rec.to_csv().replace("t_s,v_lp_m_s,mu", "t_s,v_lp_m_s,mu,extra", 1)
     csv = "\n".join(ln + (",9" if i > 1 else "") for i, ln in enumerate(csv.splitlines())) + "\n"
     back = read_record(csv)
-    assert np.array_equal(back.t_s, t) and np.array_equal(back.mu, mu) and np.array_equal(back.v_lp_m_s, v)
+    assert (
+        np.array_equal(back.t_s, t)
+        and np.array_equal(back.mu, mu)
+        and np.array_equal(back.v_lp_m_s, v)
+    )
     # JSON text and file; semicolon CSV file
     assert read_record(json.dumps(rec.to_dict())).digest() == rec.digest()
     p = tmp_path / "rec.csv"
@@ -81,12 +90,28 @@ def test_record_csv_json_and_displacement(tmp_path) -> None:
     "cols, field",
     [
         ({"t_s": [0, 1, 1, 2] * 3, "v_lp_m_s": [1e-6] * 12, "mu": [0.6] * 12}, "record.t_s[2]"),
-        ({"t_s": list(range(12)), "v_lp_m_s": [1e-6] * 11 + [-1.0], "mu": [0.6] * 12}, "record.v_lp_m_s[11]"),
-        ({"t_s": list(range(12)), "v_lp_m_s": [0.0] + [1e-6] * 11, "mu": [0.6] * 12}, "record.v_lp_m_s[0]"),
-        ({"t_s": list(range(12)), "v_lp_m_s": [1e-6] * 12, "mu": [0.6] * 5 + [float("nan")] + [0.6] * 6}, "record.mu[5]"),
+        (
+            {"t_s": list(range(12)), "v_lp_m_s": [1e-6] * 11 + [-1.0], "mu": [0.6] * 12},
+            "record.v_lp_m_s[11]",
+        ),
+        (
+            {"t_s": list(range(12)), "v_lp_m_s": [0.0] + [1e-6] * 11, "mu": [0.6] * 12},
+            "record.v_lp_m_s[0]",
+        ),
+        (
+            {
+                "t_s": list(range(12)),
+                "v_lp_m_s": [1e-6] * 12,
+                "mu": [0.6] * 5 + [float("nan")] + [0.6] * 6,
+            },
+            "record.mu[5]",
+        ),
         ({"t_s": list(range(12)), "v_lp_m_s": [1e-6] * 12}, "record.mu"),
         ({"t_s": list(range(5)), "v_lp_m_s": [1e-6] * 5, "mu": [0.6] * 5}, "record"),
-        ({"x_lp_m": list(range(12)), "v_lp_m_s": [1e-6] * 5 + [0.0] * 7, "mu": [0.6] * 12}, "record.v_lp_m_s[5]"),
+        (
+            {"x_lp_m": list(range(12)), "v_lp_m_s": [1e-6] * 5 + [0.0] * 7, "mu": [0.6] * 12},
+            "record.v_lp_m_s[5]",
+        ),
     ],
 )
 def test_record_errors_name_the_field(cols: dict, field: str) -> None:
@@ -117,8 +142,12 @@ def test_forward_model_equals_protocols_load_history() -> None:
     1e-10 in friction (both at rtol 1e-11; their integration error is ~3e-12)."""
     sigma = 1e7
     k = 800.0
-    ph = PhysicalParams(a=A, b=B, Dc=DC, sigma=sigma, k=k * sigma, V_star=1e-6, Vo=1e-6, eps=0.5, f_star=MU0)
-    res = load_history(ph, [(200.0, 1e-6), (30.0, 1e-5), (300.0, 1e-6)], n_points_per_segment=300, rtol=1e-11)
+    ph = PhysicalParams(
+        a=A, b=B, Dc=DC, sigma=sigma, k=k * sigma, V_star=1e-6, Vo=1e-6, eps=0.5, f_star=MU0
+    )
+    res = load_history(
+        ph, [(200.0, 1e-6), (30.0, 1e-5), (300.0, 1e-6)], n_points_per_segment=300, rtol=1e-11
+    )
     t = res.t_s
     # segment of each sample: v on [t_i, t_i+1) -> a junction sample carries the new velocity
     v = np.where(t < 200.0, 1e-6, np.where(t < 230.0, 1e-5, 1e-6))
@@ -153,8 +182,15 @@ def test_stiff_closed_form_against_ode_and_large_stiffness(eps: float) -> None:
         i0, i1 = starts[j], starts[j + 1]
         Vj = v[i0]
         t_end = t[i1] if i1 < t.shape[0] else t[-1]
-        sol = solve_ivp(lambda _t, y: [G(math.log(Vj / V0) + y[0]) * Vj / DC], (t[i0], t_end), [lth],
-                        method="DOP853", rtol=1e-12, atol=1e-14, dense_output=True)
+        sol = solve_ivp(
+            lambda _t, y, Vj=Vj: [G(math.log(Vj / V0) + y[0]) * Vj / DC],
+            (t[i0], t_end),
+            [lth],
+            method="DOP853",
+            rtol=1e-12,
+            atol=1e-14,
+            dense_output=True,
+        )
         lt = sol.sol(t[i0:i1])[0]
         mu_ode[i0:i1] = MU0 + A * math.log(Vj / V0) + B * lt
         lth = float(sol.y[0, -1])
@@ -208,7 +244,9 @@ def test_noise_free_nagata() -> None:
     true = {**TRUE, "eps": eps, "k_per_m": 2000.0}
     res = fit_record(synthetic_record(*design(), **true), "nagata", stiffness=2000.0, nagata_c=2.0)
     assert res.ok and _max_rel(res, true) < 1e-6
-    back = nagata_to_intermediate(res.params["aN"], res.params["bN"], res.params["DcN_m"], res.params["cN"])
+    back = nagata_to_intermediate(
+        res.params["aN"], res.params["bN"], res.params["DcN_m"], res.params["cN"]
+    )
     for key, name in (("a", "a"), ("b", "b"), ("Dc", "Dc_m"), ("eps", "eps")):
         assert abs(back[key] / res.params[name] - 1.0) < 1e-12
 
@@ -255,8 +293,18 @@ def test_law_choice_noise_free(eps: float, want: str) -> None:
 # ---------------------------------------------------------------------------------------
 # A record computed independently of rsfcore
 # ---------------------------------------------------------------------------------------
-def textbook_record(t: np.ndarray, v: np.ndarray, *, mu0: float, a: float, b: float, Dc: float,
-                    k: float, law: str, rtol: float = 1e-12) -> np.ndarray:
+def textbook_record(
+    t: np.ndarray,
+    v: np.ndarray,
+    *,
+    mu0: float,
+    a: float,
+    b: float,
+    Dc: float,
+    k: float,
+    law: str,
+    rtol: float = 1e-12,
+) -> np.ndarray:
     """Spring-slider in SI, textbook form, integrated by scipy solve_ivp (DOP853):
 
         mu = mu0 + a ln(V/V0) + b ln(V0 theta/Dc)  ->  V = V0 exp((mu - mu0 - b ln(V0 theta/Dc))/a)
@@ -280,7 +328,16 @@ def textbook_record(t: np.ndarray, v: np.ndarray, *, mu0: float, a: float, b: fl
     for j in range(len(starts) - 1):
         i0, i1 = starts[j], starts[j + 1]
         t_end = t[i1] if i1 < len(t) else t[-1]
-        sol = solve_ivp(rhs, (t[i0], t_end), y, method="DOP853", rtol=rtol, atol=atol, dense_output=True, args=(float(v[i0]),))
+        sol = solve_ivp(
+            rhs,
+            (t[i0], t_end),
+            y,
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+            dense_output=True,
+            args=(float(v[i0]),),
+        )
         assert sol.success
         out[i0:i1] = sol.sol(t[i0:i1])[0]
         y = sol.y[:, -1]
@@ -295,7 +352,9 @@ def test_fit_independent_solve_ivp_record(law: str, k: float, fit_k: bool) -> No
     in friction)."""
     t, v = design(1000)
     mu = textbook_record(t, v, mu0=MU0, a=A, b=B, Dc=DC, k=k, law=law)
-    res = fit_record(Record(t_s=t, v_lp_m_s=v, mu=mu), law, stiffness=None if fit_k else k, fit_stiffness=fit_k)
+    res = fit_record(
+        Record(t_s=t, v_lp_m_s=v, mu=mu), law, stiffness=None if fit_k else k, fit_stiffness=fit_k
+    )
     assert res.ok, res.message
     assert _max_rel(res, {**TRUE, "k_per_m": k}) < 1e-6
     assert res.rms < 1e-10
@@ -349,7 +408,10 @@ def test_enough_slip_is_determined() -> None:
 # Uncertainty calibration
 # ---------------------------------------------------------------------------------------
 @pytest.mark.slow
-@pytest.mark.parametrize("law, eps, k, fit_k", [("aging", 1.0, 800.0, True), ("slip", 0.0, 2000.0, False), ("eps", 0.5, 2000.0, True)])
+@pytest.mark.parametrize(
+    "law, eps, k, fit_k",
+    [("aging", 1.0, 800.0, True), ("slip", 0.0, 2000.0, False), ("eps", 0.5, 2000.0, True)],
+)
 def test_noisy_records_within_two_sigma(law: str, eps: float, k: float, fit_k: bool) -> None:
     """50 records with Gaussian noise 3e-4 (1.3 % of the step's friction change): each
     parameter lies within 2 stated standard errors of the truth in >= 90 % of them (the
@@ -361,7 +423,9 @@ def test_noisy_records_within_two_sigma(law: str, eps: float, k: float, fit_k: b
     inside: dict[str, int] = {}
     for s in range(50):
         rec = synthetic_record(t, v, **true, noise=3e-4, seed=100 + s)
-        res = fit_record(rec, law, stiffness=None if fit_k else k, fit_stiffness=fit_k, stability=False)
+        res = fit_record(
+            rec, law, stiffness=None if fit_k else k, fit_stiffness=fit_k, stability=False
+        )
         assert res.ok, res.message
         for n in res.fitted:
             inside[n] = inside.get(n, 0) + (abs(res.params[n] - true[n]) <= 2.0 * res.stderr[n])
@@ -398,11 +462,21 @@ def test_stability_answer_in_si() -> None:
     res = fit_record(rec, "slip", stiffness=2000.0)
     st = res.stability
     assert st is not None and st.regime == "finite-critical"
-    assert abs(st.kappa - 2.0) < 1e-9 and abs(st.kappa_crit - 0.5) < 1e-9 and abs(st.kappa_ratio - 4.0) < 1e-8
+    assert (
+        abs(st.kappa - 2.0) < 1e-9
+        and abs(st.kappa_crit - 0.5) < 1e-9
+        and abs(st.kappa_ratio - 4.0) < 1e-8
+    )
     assert abs(st.critical_stiffness_per_m - 500.0) < 1e-6
     p = res.params
-    c_v = critical_perturbation(Params(ba=p["b"] / p["a"], kappa=p["k_per_m"] * p["Dc_m"] / p["a"], eps=0.0), "velocity-jump")
-    c_l = critical_perturbation(Params(ba=p["b"] / p["a"], kappa=p["k_per_m"] * p["Dc_m"] / p["a"], eps=0.0), "load-point-jump")
+    c_v = critical_perturbation(
+        Params(ba=p["b"] / p["a"], kappa=p["k_per_m"] * p["Dc_m"] / p["a"], eps=0.0),
+        "velocity-jump",
+    )
+    c_l = critical_perturbation(
+        Params(ba=p["b"] / p["a"], kappa=p["k_per_m"] * p["Dc_m"] / p["a"], eps=0.0),
+        "load-point-jump",
+    )
     vj = st.velocity_jump.estimate.velocity_jump
     lj = st.load_point_jump.estimate.load_point_jump
     assert abs(vj.d - c_v.critical_size) <= 1e-15 * c_v.critical_size
@@ -419,7 +493,9 @@ def test_stability_uncertainty_covers_truth() -> None:
     res = fit_record(rec, "slip", stiffness=2000.0)
     st = res.stability
     assert st is not None
-    d_true = critical_perturbation(Params(ba=1.5, kappa=2.0, eps=0.0), "velocity-jump").critical_size
+    d_true = critical_perturbation(
+        Params(ba=1.5, kappa=2.0, eps=0.0), "velocity-jump"
+    ).critical_size
     sz = st.velocity_jump.size
     assert sz is not None and sz.p2_5 < d_true < sz.p97_5
     assert st.kappa_ratio_spread.p2_5 < 4.0 < st.kappa_ratio_spread.p97_5
@@ -431,7 +507,10 @@ def test_velocity_strengthening_and_rigid_machine() -> None:
     rec = synthetic_record(*design(), mu0=MU0, a=0.015, b=0.01, Dc_m=DC, eps=1.0, k_per_m=2000.0)
     res = fit_record(rec, "aging", stiffness=2000.0)
     assert res.ok and res.stability.regime == "velocity-strengthening"
-    assert res.stability.velocity_jump.kind == "infinite" and res.stability.critical_stiffness_per_m is None
+    assert (
+        res.stability.velocity_jump.kind == "infinite"
+        and res.stability.critical_stiffness_per_m is None
+    )
     res = fit_record(synthetic_record(*design(), **TRUE, eps=1.0), "aging")
     assert res.ok and res.stability.regime == "rigid-machine"
     _json_ok(res.to_dict())

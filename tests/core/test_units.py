@@ -1,5 +1,6 @@
 """SI <-> dimensionless conversions (rsfcore.units): hand values, round trips, validation,
 and equality of SI and dimensionless critical/classify answers."""
+
 from __future__ import annotations
 
 import json
@@ -27,7 +28,9 @@ from rsfcore.units import (
 )
 
 # The issue's example lab set (sigma = 100 MPa, k = 1 GPa/m) with V_* = 1 um/s, V_load = 10 um/s.
-LAB = dict(a=0.01, b=0.015, Dc_m=1e-5, sigma_Pa=1e8, k_Pa_per_m=1e9, V_star_m_s=1e-6, V_load_m_s=1e-5)
+LAB = dict(
+    a=0.01, b=0.015, Dc_m=1e-5, sigma_Pa=1e8, k_Pa_per_m=1e9, V_star_m_s=1e-6, V_load_m_s=1e-5
+)
 
 
 def _rel(x: float, y: float) -> float:
@@ -41,8 +44,16 @@ def test_hand_computed_groups() -> None:
     4 ulp (1e-15 relative) covers them."""
     ph = PhysicalInputs(**LAB)
     p = ph.to_params(0.3)
-    for got, want in ((p.ba, 1.5), (p.kappa, 0.01), (p.vo, 10.0), (p.eps, 0.3), (ph.kappa_crit, 0.5),
-                      (ph.time_scale_s, 10.0), (ph.stress_scale_Pa, 1e6), (ph.k_crit_Pa_per_m, 5e10)):
+    for got, want in (
+        (p.ba, 1.5),
+        (p.kappa, 0.01),
+        (p.vo, 10.0),
+        (p.eps, 0.3),
+        (ph.kappa_crit, 0.5),
+        (ph.time_scale_s, 10.0),
+        (ph.stress_scale_Pa, 1e6),
+        (ph.k_crit_Pa_per_m, 5e10),
+    ):
         assert _rel(got, want) <= 1e-15
     # answers back: T = 2 -> 20 s; psi = 3 -> 3 MPa and friction change 0.03; phi = ln 5 -> 5 um/s
     assert _rel(ph.time_s(2.0), 20.0) <= 1e-15
@@ -62,9 +73,13 @@ def test_perturbations_hand_computed() -> None:
     """Velocity jump from steady sliding at V_load = 10 um/s to 100 um/s: d = ln 10;
     as a factor 10 the same.  Load-point jump to 30 um/s: dv = 30/10 - 1 = 2."""
     ph = PhysicalInputs(**LAB)
-    assert velocity_jump_size(ph, new_slip_rate_m_s=1e-4) == pytest.approx(math.log(10.0), rel=1e-15)
+    assert velocity_jump_size(ph, new_slip_rate_m_s=1e-4) == pytest.approx(
+        math.log(10.0), rel=1e-15
+    )
     assert velocity_jump_size(ph, factor=10.0) == math.log(10.0)
-    assert load_point_jump_size(ph, new_load_point_velocity_m_s=3e-5) == pytest.approx(2.0, rel=1e-15)
+    assert load_point_jump_size(ph, new_load_point_velocity_m_s=3e-5) == pytest.approx(
+        2.0, rel=1e-15
+    )
     assert load_point_jump_size(ph, factor=3.0) == 2.0
     vj = velocity_jump_si(ph, math.log(10.0))
     assert _rel(vj.factor, 10.0) <= 4e-16 and _rel(vj.new_slip_rate_m_s, 1e-4) <= 1e-15
@@ -73,7 +88,9 @@ def test_perturbations_hand_computed() -> None:
     # stationary load point: the jump starts from V_* (the origin phi = 0)
     ph0 = PhysicalInputs(**{**LAB, "V_load_m_s": 0.0})
     assert ph0.slip_rate_before_m_s == LAB["V_star_m_s"]
-    assert velocity_jump_size(ph0, new_slip_rate_m_s=1e-5) == pytest.approx(math.log(10.0), rel=1e-15)
+    assert velocity_jump_size(ph0, new_slip_rate_m_s=1e-5) == pytest.approx(
+        math.log(10.0), rel=1e-15
+    )
     with pytest.raises(ParameterError) as e:
         load_point_jump_size(ph0, new_load_point_velocity_m_s=1e-6)
     assert e.value.field == "physical.V_load_m_s"
@@ -99,8 +116,15 @@ def _random_inputs(rng: np.random.Generator) -> PhysicalInputs:
     kappa = 10 ** rng.uniform(-4, 5)
     Vs = 10 ** rng.uniform(-12, 0)
     vo = 10 ** rng.uniform(-6, 6)
-    return PhysicalInputs(a=a, b=ba * a, Dc_m=Dc, sigma_Pa=sigma, k_Pa_per_m=kappa * a * sigma / Dc,
-                          V_star_m_s=Vs, V_load_m_s=vo * Vs)
+    return PhysicalInputs(
+        a=a,
+        b=ba * a,
+        Dc_m=Dc,
+        sigma_Pa=sigma,
+        k_Pa_per_m=kappa * a * sigma / Dc,
+        V_star_m_s=Vs,
+        V_load_m_s=vo * Vs,
+    )
 
 
 def test_round_trips() -> None:
@@ -113,9 +137,17 @@ def test_round_trips() -> None:
         ph = _random_inputs(rng)
         eps = float(rng.uniform(0, 1))
         p = ph.to_params(eps)
-        back = PhysicalInputs.from_params(p, a=ph.a, Dc_m=ph.Dc_m, sigma_Pa=ph.sigma_Pa, V_star_m_s=ph.V_star_m_s)
+        back = PhysicalInputs.from_params(
+            p, a=ph.a, Dc_m=ph.Dc_m, sigma_Pa=ph.sigma_Pa, V_star_m_s=ph.V_star_m_s
+        )
         for name in PHYSICAL_FIELDS:
-            worst = max(worst, _rel(getattr(back, name if name != "V_load_m_s" else "V_load"), getattr(ph, "V_load" if name == "V_load_m_s" else name)))
+            worst = max(
+                worst,
+                _rel(
+                    getattr(back, name if name != "V_load_m_s" else "V_load"),
+                    getattr(ph, "V_load" if name == "V_load_m_s" else name),
+                ),
+            )
         p2 = back.to_params(eps)
         for name in ("ba", "kappa", "vo"):
             worst = max(worst, _rel(getattr(p2, name), getattr(p, name)))
@@ -123,17 +155,27 @@ def test_round_trips() -> None:
         T, psi, phi, s = (float(x) for x in rng.uniform(-50, 50, 4))
         T = abs(T)
         worst = max(worst, _rel(ph.T_from_time(ph.time_s(T)), T))
-        worst = max(worst, _rel(ph.psi_from_shear_stress_change(ph.shear_stress_change_Pa(psi)), psi))
-        worst = max(worst, abs(ph.phi_from_slip_rate(ph.slip_rate_m_s(phi)) - phi) / max(1.0, abs(phi)))
+        worst = max(
+            worst, _rel(ph.psi_from_shear_stress_change(ph.shear_stress_change_Pa(psi)), psi)
+        )
+        worst = max(
+            worst, abs(ph.phi_from_slip_rate(ph.slip_rate_m_s(phi)) - phi) / max(1.0, abs(phi))
+        )
         # perturbations
         d = float(rng.uniform(-30, 30))
         vj = velocity_jump_si(ph, d)
-        worst = max(worst, abs(velocity_jump_size(ph, new_slip_rate_m_s=vj.new_slip_rate_m_s) - d) / max(1.0, abs(d)))
+        worst = max(
+            worst,
+            abs(velocity_jump_size(ph, new_slip_rate_m_s=vj.new_slip_rate_m_s) - d)
+            / max(1.0, abs(d)),
+        )
         # dv -> V_load (1 + dv) -> V_new/V_load - 1 is conditioned by (1 + dv)/dv (the
         # SI value cannot hold dv better than ulp(1 + dv)): scaled accordingly.
         dv = float(10 ** rng.uniform(-3, 3))
         lj = load_point_jump_si(ph, dv)
-        dv_back = load_point_jump_size(ph, new_load_point_velocity_m_s=lj.new_load_point_velocity_m_s)
+        dv_back = load_point_jump_size(
+            ph, new_load_point_velocity_m_s=lj.new_load_point_velocity_m_s
+        )
         worst = max(worst, _rel(dv_back, dv) * dv / (1.0 + dv))
         # and against PhysicalParams, the older SI container
         pp = ph.to_physical_params(eps)
@@ -166,8 +208,15 @@ def test_si_and_dimensionless_answers_equal_exactly() -> None:
     V_* = 2^-20 m/s, V_load = 2^-18 m/s (v_o = 4).  The SI route must then give bit-identical
     critical sizes and classify outcomes/times to the dimensionless Params(3, 3, 0.5, 4)
     (kappa/kappa_crit = 1.5, x = eps kappa/kappa_crit = 0.75: both sizes finite)."""
-    ph = PhysicalInputs(a=0.25, b=0.75, Dc_m=2.0**-16, sigma_Pa=2.0**20, k_Pa_per_m=3.0 * 2.0**34,
-                        V_star_m_s=2.0**-20, V_load_m_s=2.0**-18)
+    ph = PhysicalInputs(
+        a=0.25,
+        b=0.75,
+        Dc_m=2.0**-16,
+        sigma_Pa=2.0**20,
+        k_Pa_per_m=3.0 * 2.0**34,
+        V_star_m_s=2.0**-20,
+        V_load_m_s=2.0**-18,
+    )
     p = Params(ba=3.0, kappa=3.0, eps=0.5, vo=4.0)
     assert ph.to_params(0.5) == p
     for pert in ("velocity-jump", "load-point-jump"):
@@ -187,7 +236,9 @@ def test_si_and_dimensionless_answers_equal_exactly() -> None:
         T = r.return_time if r.return_time is not None else r.blowup_time
         t = r_si.return_time_s if r_si.return_time_s is not None else r_si.blowup_time_s
         assert t == T * 2.0**-16 / 2.0**-20
-    r_si = classify_si(ph, 0.5, "load-point-jump", new_load_point_velocity_m_s=2.0**-15)  # dv = 7 exactly
+    r_si = classify_si(
+        ph, 0.5, "load-point-jump", new_load_point_velocity_m_s=2.0**-15
+    )  # dv = 7 exactly
     r = classify(p, "load-point-jump", 7.0)
     assert r_si.size == 7.0 and r_si.outcome == r.outcome
 
@@ -208,7 +259,9 @@ def test_si_and_dimensionless_answers_agree_general() -> None:
         b = ba * a
         k = float(kappa_exact * F(a) * F(sigma) / F(Dc))
         ph = PhysicalInputs(a=a, b=b, Dc_m=Dc, sigma_Pa=sigma, k_Pa_per_m=k, V_star_m_s=Vs)
-        p_dimless = Params(ba=float(F(b) / F(a)), kappa=float(F(k) * F(Dc) / (F(a) * F(sigma))), eps=0.4)
+        p_dimless = Params(
+            ba=float(F(b) / F(a)), kappa=float(F(k) * F(Dc) / (F(a) * F(sigma))), eps=0.4
+        )
         c1 = critical_si(ph, 0.4, "velocity-jump")
         c2 = critical_perturbation(p_dimless, "velocity-jump")
         if c2.kind != "finite":
