@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import socket
 import subprocess
 import sys
@@ -201,3 +202,41 @@ def test_cancelling_another_keys_sweep_is_refused(srv: AuthServer) -> None:
         assert c.get(f"/v1/sweeps/{sid}", headers=h(bob)).json()["status"] == "queued"
         assert c.delete(f"/v1/sweeps/{sid}", headers=h(admin)).status_code == 200
         assert c.get(f"/v1/sweeps/{sid}", headers=h(bob)).json()["status"] == "cancelled"
+
+
+def test_dashboard_asks_for_the_key_once_and_sends_it(srv: AuthServer, tmp_path: Path) -> None:
+    """Headless chromium: the page loads without a key, shows the key form after the
+    first 401, and once the key is entered every request of the page carries it (health,
+    the figure list, a single query with its phase-plane PNG)."""
+    from tests.e2e.test_ui_browser import Browser
+
+    exe = shutil.which("chromium") or "/usr/bin/chromium"
+    if not Path(exe).exists():
+        pytest.skip("chromium not installed")
+    k = srv.key("browser")
+    browser = Browser(exe, tmp_path)
+    try:
+        browser.navigate(srv.url + "/")
+        browser.wait("!document.querySelector('#key-form').hidden", 30, "the key form")
+        assert not browser.js("document.querySelector('#health').classList.contains('ok')")
+        browser.js(f"document.querySelector('#key-input').value = {json.dumps(k)};"
+                   " document.querySelector('#key-form').requestSubmit(); true")
+        browser.wait("document.querySelector('#health').classList.contains('ok')", 30,
+                     "/health with the key")
+        assert browser.js("document.querySelector('#key-form').hidden")
+        assert browser.js("sessionStorage.getItem('rsf-api-key')") == k
+        assert browser.js("localStorage.length") == 0 and browser.js("document.cookie") == ""
+        browser.wait("document.querySelectorAll('#figure-select option').length >= 5", 30,
+                     "the list of paper figures")
+        browser.js("document.querySelector('#query-submit').click(), true")
+        browser.wait("document.querySelector('#phase-img').naturalWidth > 0 && "
+                     "!document.querySelector('#phase-figure').hidden", 90,
+                     "the phase-plane plot")
+        # a reload keeps the key for this tab's session: no prompt again
+        browser.navigate(srv.url + "/")
+        browser.wait("document.querySelector('#health').classList.contains('ok')", 30,
+                     "/health after a reload")
+        assert browser.js("document.querySelector('#key-form').hidden")
+        assert not browser.exceptions(), browser.exceptions()
+    finally:
+        browser.close()
