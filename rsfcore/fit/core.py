@@ -909,13 +909,24 @@ def _advice(rec: Record, names: tuple[str, ...], problems: list[str]) -> str:
             "The record has no velocity step: a, b and Dc need at least one step in "
             "load-point velocity."
         )
+    advice = []
     if "Dc_m" in txt:
-        return (
+        advice.append(
             "Dc needs the friction transient after a velocity step to be resolved: a step "
-            "followed by "
-            "load-point displacement of several Dc, sampled densely during the evolution."
+            "followed by load-point displacement of several Dc, sampled densely during the "
+            "evolution."
         )
-    return "Add steps or longer records, or fix some parameters (law, stiffness)."
+    if "k_per_m" in txt:
+        advice.append(
+            "The machine stiffness shows only in the elastic loading right after a step "
+            "(duration ~ a/(k dv)): sample it densely or fix the stiffness (a measured value, "
+            "or stiffness=inf for a stiff machine)."
+        )
+    if "eps" in txt:
+        advice.append("eps needs steps up and down with evolution over several Dc; or fix the law.")
+    if not advice:
+        advice.append("Add steps or longer records, or fix some parameters (law, stiffness).")
+    return " ".join(advice)
 
 
 # ---------------------------------------------------------------------------------------

@@ -11,7 +11,7 @@ Physics (textbook form, lab stiffness convention):
 with V0 = v_lp[0] (the record starts in steady state at V0: V = V0, theta = Dc/V0,
 mu = mu0) and k the machine stiffness in friction per metre of load-point displacement
 [1/m] (k [Pa/m] / sigma).  In the groups of `eq: characteristic scales` with V_* = V0 and
-f_* = mu0 this is exactly the system integrated by rsfcore.engine.integrate with
+f_* = mu0 this is exactly the system integrated by rsfcore.engine.run with
 b/a, kappa = k Dc/a, v_o = v_lp/V0, T = V0 t/Dc, psi = (mu - mu0)/a, so the record is
 simulated segment by segment by the compiled DOP853 engine, sampled at the record's
 times on its 7th-order dense output.
@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..engine import integrate
+from ..engine import Status, run
 from ..params import ParameterError
 from .record import Record
 
@@ -228,7 +228,7 @@ class ForwardModel:
     def _engine(
         self, p: dict[str, float]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], int, int]:
-        """Segment by segment with rsfcore.engine.integrate (3-component state phi, ln theta, T)."""
+        """Segment by segment with rsfcore.engine.run (3-component state phi, ln theta, T)."""
         a, b, Dc, eps, k = p["a"], p["b"], p["Dc_m"], p["eps"], p["k_per_m"]
         ba = b / a
         kappa = k * Dc / a
@@ -243,7 +243,7 @@ class ForwardModel:
             sT = self.t[i0:i1] * scale
             T_end = (self.t[i1] if i1 < n else self.t[-1]) * scale
             out = np.empty((i1 - i0, 5))
-            res = integrate(
+            res = run(
                 y,
                 ba,
                 kappa,
@@ -262,14 +262,13 @@ class ForwardModel:
                 sT,
                 out,
             )
-            status = int(res[0])
-            nf = int(res[-1])
-            steps += int(res[9]) + int(res[11])
+            nf = res.n_filled
+            steps += res.n_steps + res.n_rejected
             phi[i0 : i0 + nf] = out[:nf, 0]
             lth[i0 : i0 + nf] = out[:nf, 1]
-            if status != 0 or nf != i1 - i0:
+            if res.status is not Status.T_END or nf != i1 - i0:
                 return phi, lth, i0 + nf, steps
-            y = np.asarray(res[1]).copy()
+            y = np.asarray(res.y_end).copy()
         return phi, lth, n, steps
 
 
