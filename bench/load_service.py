@@ -3,6 +3,7 @@
 
     python bench/load_service.py                 # starts `rsf serve` (embedded worker) itself
     python bench/load_service.py --url http://127.0.0.1:8000   # an already running server
+    python bench/load_service.py --api-scaling   # `rsf api --workers 1` then `--workers 2`
 
 Prints p50/p99 latency [ms] and throughput [req/s] for: cached lookups (repeated
 classify queries), closed-form queries (analytic U at fresh points), fresh
@@ -10,6 +11,13 @@ classifications (new parameters each time), and the wall time of a 100 x 100 = 1
 critical-size sweep through the worker against the same sweep computed by rsfcore alone
 in this process.  Targets (2-core machine): cached >= 500 req/s with p99 <= 50 ms;
 sweep within 3x of rsfcore alone.  Every phase stops at --max-requests or --seconds.
+
+``--api-scaling`` measures the API alone: for 1 and 2 API processes (`rsf api
+--workers N`, SQLite under a temporary data directory, no worker) it prints the
+throughput of cached lookups (repeated POST /v1/classify, answered from the result store)
+next to the trivial endpoint GET /health/live (no I/O) in the same run.  Targets (issue
+12): cached >= 0.8x trivial; 2 API processes >= 1.6x one.  The load generator runs on
+the same machine, so on 2 cores it competes with the API processes for the CPU.
 """
 from __future__ import annotations
 
@@ -46,6 +54,15 @@ def _client_loop(args: tuple) -> tuple[list[float], int]:
     errors = 0
     i = 0
     while i < n_max and time.perf_counter() < t_end:
+        if kind == "trivial":
+            t0 = time.perf_counter()
+            conn.request("GET", "/health/live")
+            r = conn.getresponse()
+            r.read()
+            lat.append(time.perf_counter() - t0)
+            errors += r.status != 200
+            i += 1
+            continue
         if kind == "cached":
             path, body = "/v1/classify", bodies[i % len(bodies)]
         elif kind == "closed":
@@ -179,6 +196,69 @@ def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
     return p, url
 
 
+def start_api(data_dir: str, workers: int) -> tuple[subprocess.Popen, str]:
+    """`rsf api --workers N` on a free port (SQLite + filesystem broker in data_dir)."""
+    port = _free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
+    env["RSF_DATA_DIR"] = data_dir
+    log = open(Path(data_dir) / "api.log", "wb")  # noqa: SIM115
+    p = subprocess.Popen([sys.executable, "-m", "rsfcli.main", "api", "--port", str(port),
+                          "--workers", str(workers)], cwd=ROOT, env=env, stdout=log,
+                         stderr=log, start_new_session=True)
+    url = f"http://127.0.0.1:{port}"
+    for _ in range(600):
+        try:
+            if _req(url, "GET", "/health")[0] == 200:
+                return p, url
+        except OSError:
+            pass
+        time.sleep(0.1)
+    raise SystemExit("API did not start; see " + str(Path(data_dir) / "api.log"))
+
+
+def api_scaling(clients: int, max_req: int, secs: float) -> list[dict]:
+    """Trivial vs cached throughput with 1 and 2 API processes (see the module doc)."""
+    bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0}
+              for k in range(50)]
+    rows = []
+    tmp = tempfile.mkdtemp(prefix="rsf-bench-api-")
+    for n in (1, 2):
+        proc, url = start_api(tmp, n)
+        try:
+            for b in bodies:  # warm the cache (shared database: only the first run computes)
+                _req(url, "POST", "/v1/classify", b)
+            phase(url, "trivial", clients, 200, 1.0, bodies)  # warm every API process
+            triv = phase(url, "trivial", clients, max_req, secs, bodies)
+            cached = phase(url, "cached", clients, max_req, secs, bodies)
+        finally:
+            os.killpg(proc.pid, signal.SIGTERM)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+        rows.append({"api_processes": n, "trivial": triv, "cached": cached})
+    return rows
+
+
+def print_api_scaling(rows: list[dict], clients: int) -> None:
+    print(f"API alone (`rsf api --workers N`, SQLite), {clients} client processes, "
+          f"{os.cpu_count()} CPUs")
+    print(f"{'API procs':>9} {'phase':<8} {'requests':>9} {'errors':>7} {'req/s':>9} "
+          f"{'p50 ms':>8} {'p99 ms':>8}")
+    for r in rows:
+        for k in ("trivial", "cached"):
+            p = r[k]
+            print(f"{r['api_processes']:>9} {k:<8} {p['n']:>9} {p['errors']:>7} "
+                  f"{p['req_per_s']:>9.0f} {p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}")
+    for r in rows:
+        ratio = r["cached"]["req_per_s"] / r["trivial"]["req_per_s"]
+        print(f"{r['api_processes']} API process(es): cached / trivial = {ratio:.2f} "
+              "(target >= 0.8)")
+    up = rows[1]["cached"]["req_per_s"] / rows[0]["cached"]["req_per_s"]
+    upt = rows[1]["trivial"]["req_per_s"] / rows[0]["trivial"]["req_per_s"]
+    print(f"2 API processes / 1: cached {up:.2f}x, trivial {upt:.2f}x (target >= 1.6x)")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--url", help="running server (default: start rsf serve on a free port)")
@@ -191,10 +271,19 @@ def main() -> int:
                     help="time rsfcore.diagram.stability_diagram as the baseline")
     ap.add_argument("--sweep-timeout", type=float, default=300.0, help="seconds (<= 3600)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--api-scaling", action="store_true",
+                    help="only the API: trivial vs cached with 1 and 2 API processes")
     a = ap.parse_args()
     clients = min(max(a.clients, 1), 32)
     max_req = min(max(a.max_requests, 1), 100_000)
     secs = min(max(a.seconds, 0.5), 60.0)
+    if a.api_scaling:
+        rows = api_scaling(clients, max_req, secs)
+        if a.json:
+            print(json.dumps(rows))
+        else:
+            print_api_scaling(rows, clients)
+        return 0
     proc = None
     url = a.url
     if url is None:

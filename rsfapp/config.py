@@ -129,9 +129,13 @@ class Settings(BaseSettings):
 
     @property
     def data_path(self) -> Path:
-        """Absolute data directory (created on first use)."""
-        p = Path(self.data_dir).expanduser().resolve()
-        p.mkdir(parents=True, exist_ok=True)
+        """Absolute data directory (created on first use; memoised per process, as it
+        is on every request's path)."""
+        p = _data_paths.get(self.data_dir)
+        if p is None or not p.is_dir():
+            p = Path(self.data_dir).expanduser().resolve()
+            p.mkdir(parents=True, exist_ok=True)
+            _data_paths[self.data_dir] = p
         return p
 
     @property
@@ -171,7 +175,15 @@ def _cached(pid: int, env_key: tuple[tuple[str, str], ...]) -> Settings:
     return Settings()
 
 
+_data_paths: dict[Path, Path] = {}
+
+
 def get_settings() -> Settings:
     """Settings of this process (re-read when the RSF_* environment changes)."""
-    key = tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith("RSF_")))
+    raw = getattr(os.environ, "_data", None)  # bytes on POSIX: no decoding per request
+    if isinstance(raw, dict):
+        key = tuple(sorted((str(k), str(v)) for k, v in raw.items()
+                           if k.startswith(b"RSF_")))
+    else:
+        key = tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith("RSF_")))
     return _cached(os.getpid(), key)

@@ -2,7 +2,9 @@
 
 Handlers declare what they need with these ``Annotated`` types; tests replace any of
 them with ``app.dependency_overrides`` (e.g. a store on a temporary database, a queue
-that records messages).
+that records messages).  The providers are ``async def`` although they do no I/O: a
+plain ``def`` dependency is run in the thread pool, one thread hop per dependency and
+request, which cost a cached lookup more than its database read.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ __all__ = ["Inflight", "InflightDep", "QueueDep", "SettingsDep", "StoresDep", "g
            "get_queue", "get_settings_dep", "get_stores"]
 
 
-def get_settings_dep() -> Settings:
+async def get_settings_dep() -> Settings:
     """This process's settings."""
     return get_settings()
 
@@ -31,7 +33,7 @@ def get_settings_dep() -> Settings:
 SettingsDep = Annotated[Settings, Depends(get_settings_dep)]
 
 
-def get_stores(settings: SettingsDep) -> Stores:
+async def get_stores(settings: SettingsDep) -> Stores:
     """The result, job and sweep stores of the configured database."""
     return stores_for(settings)
 
@@ -42,7 +44,7 @@ _queues: dict[tuple[int, str, str], Queue] = {}
 _qlock = threading.Lock()
 
 
-def get_queue(settings: SettingsDep) -> Queue:
+async def get_queue(settings: SettingsDep) -> Queue:
     """The Celery producer for the configured broker and queue (one per process)."""
     key = (os.getpid(), settings.effective_broker_url, settings.queue)
     with _qlock:
@@ -80,7 +82,7 @@ class Inflight:
             self.failed.pop(next(iter(self.failed)))
 
 
-def get_inflight(request: Request) -> Inflight:
+async def get_inflight(request: Request) -> Inflight:
     """The app's :class:`Inflight` (created in the lifespan, or on first use)."""
     inflight = getattr(request.app.state, "inflight", None)
     if inflight is None:
