@@ -33,9 +33,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from .params import BA_MAX, KAPPA_MAX, VO_MAX, ParameterError, Params, PhysicalParams, check_range
+
+if TYPE_CHECKING:
+    from .trajectory import TrajectoryResult
 
 __all__ = [
     "PHYSICAL_FIELDS",
@@ -612,7 +615,7 @@ class ClassifySI:
     peak_time_s: float | None
     peak_slip_rate_m_s: float | None
     rel_accuracy: float
-    result: Any
+    result: TrajectoryResult
 
     def to_dict(self) -> dict[str, Any]:
         return {
