@@ -643,6 +643,16 @@ def fit(req: FitRequest) -> dict[str, Any]:
         assert req.law is not None
         res = guard(_fit.fit_record, rec, req.law, **opts)
     out = res.to_dict(series=True)
+    out["posterior"] = None
+    if req.posterior is not None:
+        po = req.posterior
+        try:
+            post = guard(_fit.sample_posterior, res, n_walkers=po.n_walkers, n_steps=po.n_steps,
+                         burn=po.burn, thin=po.thin, seed=req.seed,
+                         stability_samples=req.uncertainty_samples)
+            out["posterior"] = post.to_dict()
+        except (ParameterError, ComputeError, ImportError) as exc:
+            out["posterior"] = {"error": str(exc)}
     out["law_comparison"] = jsonsafe(comparison)
     out["options"] = req.options()
     return _json(out)

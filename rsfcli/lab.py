@@ -377,6 +377,9 @@ def fit_command(
                                 "the stability uncertainty, [0, 100000]."),
     series: bool = typer.Option(False, "--series", help="Include the data/model/residual "
                                 "series in --json output."),
+    posterior_steps: int | None = typer.Option(None, "--posterior-steps", help="Also sample "
+                                               "the posterior with emcee (32 walkers, this "
+                                               "many steps, a quarter burnt)."),
     out: Path | None = typer.Option(None, "--out", help="Also write .json (all), .csv "
                                        "(series) or .png (data, fit, residuals)."),
     as_json: bool = JSON_OUT,
@@ -394,6 +397,8 @@ def fit_command(
         body["law"] = law.value
     if stiffness is not None:
         body["stiffness_per_m"] = stiffness
+    if posterior_steps is not None:
+        body["posterior"] = {"n_steps": posterior_steps, "burn": posterior_steps // 4}
     d = _run(FitRequest, body, adapter.fit)
 
     def plot(r: dict[str, Any]) -> bytes:

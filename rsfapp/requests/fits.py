@@ -17,12 +17,31 @@ from ._base import F
 from ._base import Model as _Model
 from .single import field_error
 
-__all__ = ["FitRequest", "FIT_LAWS", "MAX_RECORD_CHARS"]
+__all__ = ["FitRequest", "FIT_LAWS", "MAX_RECORD_CHARS", "PosteriorOptions"]
 
 #: Laws a record can be fitted with (rsfcore.fit.Law values).
 FIT_LAWS: tuple[str, ...] = ("aging", "slip", "nagata", "eps")
 #: Largest record text accepted (characters; ~ 3e5 samples of CSV).
 MAX_RECORD_CHARS = 20_000_000
+
+
+class PosteriorOptions(_Model):
+    """MCMC (emcee) settings of a posterior sample (rsfcore.fit.sample_posterior)."""
+
+    n_walkers: int = F(32, "[4, 256]", "Ensemble size (>= 2 x fitted parameters).",
+                       name="n_walkers", ge=4, le=256)
+    n_steps: int = F(2000, "[10, 100000]", "Steps per walker.", name="n_steps", ge=10,
+                     le=100_000)
+    burn: int = F(500, "[0, 99999], < n_steps", "Discarded steps.", name="burn", ge=0,
+                  le=99_999)
+    thin: int = F(10, "[1, 1000]", "Keep every thin-th step.", name="thin", ge=1, le=1000)
+
+    @model_validator(mode="after")
+    def _burn(self) -> PosteriorOptions:
+        if self.burn >= self.n_steps:
+            raise field_error(type(self).__name__, "burn", "burn must be < n_steps",
+                              self.burn)
+        return self
 
 
 class FitRequest(_Model):
@@ -53,6 +72,9 @@ class FitRequest(_Model):
                                  name="uncertainty_samples", ge=0, le=100_000)
     seed: int = F(0, "[0, 2^31)", "Random seed of those samples.", name="seed", ge=0,
                   lt=2**31)
+    posterior: PosteriorOptions | None = F(
+        None, "null or {n_walkers, n_steps, burn, thin}", "Also sample the posterior with "
+        "emcee (MCMC) and propagate it to the stability answer.", name="posterior")
 
     @model_validator(mode="after")
     def _law_needed(self) -> FitRequest:

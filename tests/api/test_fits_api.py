@@ -82,3 +82,20 @@ def test_fit_bad_input(c: TestClient, body: dict, field: str) -> None:
 def test_unknown_fit(c: TestClient) -> None:
     assert c.get("/v1/fits/" + "0" * 64).status_code == 404
     assert c.get("/v1/fits/nope").status_code == 422
+
+
+def test_fit_with_posterior() -> None:
+    """The posterior option runs rsfcore.fit.sample_posterior (emcee) on the fit; a short
+    chain: only the plumbing is tested here (the sampler is rsfcore's, tested there)."""
+    from rsfapp import adapter
+    from rsfapp.requests.fits import FitRequest
+
+    req = FitRequest(record=_record_csv(), law="aging", compare=False,
+                     stiffness_per_m=K_PER_M, uncertainty_samples=20,
+                     posterior={"n_walkers": 10, "n_steps": 40, "burn": 10, "thin": 2})
+    out = adapter.fit(req)
+    post = out["posterior"]
+    assert post is not None and "error" not in post, post
+    assert out["law_comparison"] is None and out["params"]["b"] == pytest.approx(0.015, rel=1e-6)
+    with pytest.raises(ValueError, match="burn"):
+        FitRequest(record="x", law="aging", posterior={"n_steps": 10, "burn": 10})
