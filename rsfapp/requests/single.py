@@ -16,9 +16,15 @@ in Pa).
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import (
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationError,
+    model_serializer,
+    model_validator,
+)
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from rsfcore import limits
@@ -120,6 +126,16 @@ class _SIInput(_Model):
                                     "The spring-slider in SI units, instead of ba, kappa, vo "
                                     "(never both). Answers then carry an 'si' block.",
                                     name="physical")
+
+    @model_serializer(mode="wrap")
+    def _without_unused(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """With ``physical``, the dump leaves out ba, kappa, vo (unused defaults), so that
+        it validates again (queued work, cache keys) and names only what was asked."""
+        d: dict[str, Any] = handler(self)
+        if self.physical is not None:
+            for f in _DIMLESS:
+                d.pop(f, None)
+        return d
 
 
 class _SIPerturbation(_Model):

@@ -154,3 +154,18 @@ def test_si_errors_name_the_field(c: TestClient, body: dict[str, Any], field: st
 def test_trajectory_seconds_needs_physical(c: TestClient) -> None:
     r = c.post("/v1/trajectory", json={"sampling": "seconds"})
     assert r.status_code == 422 and r.json()["field"] == "sampling"
+
+
+def test_si_request_dump_validates_again() -> None:
+    """Queued work (worker.tasks.compute_single) and cache keys use the request's JSON
+    dump: an SI request's dump must validate to the same request (no unused ba, kappa,
+    vo alongside physical)."""
+    from rsfapp.requests import ClassifyRequest, CriticalRequest, TrajectoryRequest
+
+    for model in (ClassifyRequest, TrajectoryRequest, CriticalRequest):
+        r = model.model_validate({"physical": PHYS, "eps": 0.3})
+        d = r.model_dump(mode="json")
+        assert not {"ba", "kappa", "vo"} & set(d)
+        assert model.model_validate(d) == r
+    d = ClassifyRequest.model_validate({"ba": 3.0}).model_dump(mode="json")
+    assert d["ba"] == 3.0 and d["physical"] is None
