@@ -415,11 +415,14 @@ def _check_combinations(spec: SweepSpec, where: dict[str, str]) -> None:
 
 
 #: Expected seconds of work per point, for the default chunk size (measured on the
-#: compiled batch kernel: ~7 us per critical size with the separatrix method; negative
-#: sizes are classified one by one, ~100 us).
-_COST_S = {"critical": 1e-5, "classify": 1e-4}
-#: Default chunking splits a sweep into at least this many chunks (parallel workers).
+#: compiled batch kernel: 7-90 us per finite critical size with the separatrix method,
+#: depending on b/a and kappa; negative sizes are classified one by one, ~100 us).
+_COST_S = {"critical": 3e-5, "classify": 1e-4}
+#: Default chunking splits a sweep into at least this many chunks (parallel workers) ...
 _MIN_CHUNKS = 8
+#: ... and large sweeps into chunks of at most this many points, so that chunks of
+#: unequal cost (parts of a grid where the separatrix is slow) balance over the workers.
+_BALANCE_POINTS = 20_000
 #: Largest chunk (points): bounds a chunk's memory (~30 bytes a point) and lost work.
 MAX_CHUNK = 1_000_000
 
@@ -438,7 +441,8 @@ def plan_chunks(spec: SweepSpec, settings: Settings, requested: int | None = Non
                 for a in spec.axes) or (spec.points is not None and "size" in spec.points
                                         and bool((spec.points["size"] < 0).any()))
             per = _COST_S["classify"] if neg else per
-        chunk = max(1, min(int(settings.chunk_seconds / per), -(-n // _MIN_CHUNKS)))
+        chunk = max(1, min(int(settings.chunk_seconds / per), -(-n // _MIN_CHUNKS),
+                           max(_BALANCE_POINTS, -(-n // 64))))
     chunk = min(chunk, MAX_CHUNK)
     max_chunks = getattr(settings, "sweep_max_chunks", 100_000)
     return max(chunk, -(-n // max_chunks), 1)
