@@ -44,10 +44,14 @@ from tests.conftest import (  # noqa: E402 - the test fixtures' process helpers
 
 def body(n: int, nudge: float) -> dict[str, object]:
     """The critical-size sweep: n^3 points over (kappa_ratio, eps, ba)."""
-    return {"axes": [{"name": "kappa_ratio", "start": 0.3, "stop": 3.0, "n": n},
-                     {"name": "eps", "start": 0.05, "stop": 0.95, "n": n},
-                     {"name": "ba", "start": 1.5 + nudge, "stop": 4.0, "n": n}],
-            "fixed": {"vo": 1.0}}
+    return {
+        "axes": [
+            {"name": "kappa_ratio", "start": 0.3, "stop": 3.0, "n": n},
+            {"name": "eps", "start": 0.05, "stop": 0.95, "n": n},
+            {"name": "ba", "start": 1.5 + nudge, "stop": 4.0, "n": n},
+        ],
+        "fixed": {"vo": 1.0},
+    }
 
 
 def core_rate(n: int, sample: float = 0.02) -> float:
@@ -105,11 +109,15 @@ def main() -> int:
         api = Server(base / "api", red.url, **env)
         procs.append(api)
         rate1 = core_rate(a.n)
-        print(f"cpus: {os.cpu_count()}; sweep: {a.n}^3 = {a.n ** 3:,} critical sizes "
-              f"(kappa_ratio x eps x b/a), PostgreSQL + Redis")
+        print(
+            f"cpus: {os.cpu_count()}; sweep: {a.n}^3 = {a.n**3:,} critical sizes "
+            f"(kappa_ratio x eps x b/a), PostgreSQL + Redis"
+        )
         print(f"rsfcore.batch.critical_points, 1 core, this process: {rate1:,.0f} points/s")
-        print(f"{'workers':>7} {'seconds':>8} {'points/s':>11} {'per worker':>11} "
-              f"{'speed-up':>8} {'vs core x workers':>17}")
+        print(
+            f"{'workers':>7} {'seconds':>8} {'points/s':>11} {'per worker':>11} "
+            f"{'speed-up':>8} {'vs core x workers':>17}"
+        )
         base_rate = None
         for k, nw in enumerate(a.workers):
             ws = []
@@ -126,8 +134,11 @@ def main() -> int:
             if base_rate is None:  # one worker's rate, from the first run
                 base_rate = rate / nw
             up = rate / base_rate
-            print(f"{nw:>7} {secs:>8.2f} {rate:>11,.0f} {rate / nw:>11,.0f} {up:>7.2f}x "
-                  f"{rate / (rate1 * nw):>16.2f}x", flush=True)
+            print(
+                f"{nw:>7} {secs:>8.2f} {rate:>11,.0f} {rate / nw:>11,.0f} {up:>7.2f}x "
+                f"{rate / (rate1 * nw):>16.2f}x",
+                flush=True,
+            )
     finally:
         for p in reversed(procs):
             p.stop()

@@ -19,6 +19,7 @@ next to the trivial endpoint GET /health/live (no I/O) in the same run.  Targets
 12): cached >= 0.8x trivial; 2 API processes >= 1.6x one.  The load generator runs on
 the same machine, so on 2 cores it competes with the API processes for the CPU.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -66,13 +67,24 @@ def _client_loop(args: tuple) -> tuple[list[float], int]:
         if kind == "cached":
             path, body = "/v1/classify", bodies[i % len(bodies)]
         elif kind == "closed":
-            path, body = "/v1/analytic/u", {"eps": rnd.random(), "ba": 1.5 + rnd.random(),
-                                            "points": [{"phi": rnd.uniform(-3, 3),
-                                                        "psi": rnd.uniform(-3, 3)}]}
+            path, body = (
+                "/v1/analytic/u",
+                {
+                    "eps": rnd.random(),
+                    "ba": 1.5 + rnd.random(),
+                    "points": [{"phi": rnd.uniform(-3, 3), "psi": rnd.uniform(-3, 3)}],
+                },
+            )
         else:
-            path, body = "/v1/classify", {"ba": 1.5 + 2 * rnd.random(),
-                                          "kappa": 3 * rnd.random(), "eps": rnd.random(),
-                                          "size": rnd.uniform(0.1, 3)}
+            path, body = (
+                "/v1/classify",
+                {
+                    "ba": 1.5 + 2 * rnd.random(),
+                    "kappa": 3 * rnd.random(),
+                    "eps": rnd.random(),
+                    "size": rnd.uniform(0.1, 3),
+                },
+            )
         data = json.dumps(body)
         t0 = time.perf_counter()
         conn.request("POST", path, data, {"Content-Type": "application/json"})
@@ -91,27 +103,39 @@ def _pct(xs: list[float], q: float) -> float:
     return xs[min(len(xs) - 1, int(q * len(xs)))] if xs else float("nan")
 
 
-def phase(url: str, kind: str, clients: int, max_requests: int, seconds: float,
-          bodies: list[dict]) -> dict:
+def phase(
+    url: str, kind: str, clients: int, max_requests: int, seconds: float, bodies: list[dict]
+) -> dict:
     u = urlparse(url)
     t0 = time.perf_counter()
     t_end = t0 + seconds
     per = max(1, max_requests // clients)
     with mp.get_context("fork").Pool(clients) as pool:
-        res = pool.map(_client_loop, [(u.hostname, u.port, kind, per, t_end, 1000 * k + 7,
-                                       bodies) for k in range(clients)])
+        res = pool.map(
+            _client_loop,
+            [(u.hostname, u.port, kind, per, t_end, 1000 * k + 7, bodies) for k in range(clients)],
+        )
     wall = time.perf_counter() - t0
     lat = [x for r in res for x in r[0]]
-    return {"kind": kind, "n": len(lat), "errors": sum(r[1] for r in res),
-            "req_per_s": len(lat) / wall, "p50_ms": 1e3 * _pct(lat, 0.5),
-            "p99_ms": 1e3 * _pct(lat, 0.99)}
+    return {
+        "kind": kind,
+        "n": len(lat),
+        "errors": sum(r[1] for r in res),
+        "req_per_s": len(lat) / wall,
+        "p50_ms": 1e3 * _pct(lat, 0.5),
+        "p99_ms": 1e3 * _pct(lat, 0.99),
+    }
 
 
 def _req(url: str, method: str, path: str, body: dict | None = None) -> tuple[int, dict, dict]:
     u = urlparse(url)
     c = http.client.HTTPConnection(u.hostname, u.port, timeout=60)
-    c.request(method, path, None if body is None else json.dumps(body),
-              {"Content-Type": "application/json"})
+    c.request(
+        method,
+        path,
+        None if body is None else json.dumps(body),
+        {"Content-Type": "application/json"},
+    )
     r = c.getresponse()
     data = json.loads(r.read() or b"{}")
     headers = dict(r.getheaders())
@@ -119,8 +143,7 @@ def _req(url: str, method: str, path: str, body: dict | None = None) -> tuple[in
     return r.status, data, headers
 
 
-def sweep_vs_core(url: str, n: int, timeout: float, kind: str,
-                  use_diagram: bool = False) -> dict:
+def sweep_vs_core(url: str, n: int, timeout: float, kind: str, use_diagram: bool = False) -> dict:
     """Wall time of an n x n sweep via the service and via rsfcore alone.
 
     kind 'outcome': kappa_ratio x eps, velocity jump of size 1 (classify per point);
@@ -133,8 +156,11 @@ def sweep_vs_core(url: str, n: int, timeout: float, kind: str,
     kr = [0.5 + 2.5 * i / (n - 1) for i in range(n)]
     eps = [i / (n - 1) for i in range(n)]
     size = 1.0 if kind == "outcome" else None
-    body = {"x": {"name": "kappa_ratio", "values": kr}, "y": {"name": "eps", "values": eps},
-            "fixed": {"ba": ba, "vo": 1.0, "size": size}}
+    body = {
+        "x": {"name": "kappa_ratio", "values": kr},
+        "y": {"name": "eps", "values": eps},
+        "fixed": {"ba": ba, "vo": 1.0, "size": size},
+    }
     t0 = time.perf_counter()
     code, st, h = _req(url, "POST", "/v1/sweeps", body)
     if code not in (200, 202):
@@ -148,11 +174,13 @@ def sweep_vs_core(url: str, n: int, timeout: float, kind: str,
         _req(url, "DELETE", loc)
     from rsfcore import critical, trajectory
     from rsfcore.params import Params
+
     critical.critical_perturbation(Params(2.0, 1.5, 0.5, 1.0))  # compiled kernels loaded
     trajectory.classify(Params(2.0, 1.5, 0.5, 1.0), "velocity-jump", 1.0)
     t0 = time.perf_counter()
     if use_diagram:
         from rsfcore import diagram
+
         diagram.stability_diagram("kappa_ratio", kr, "eps", eps, ba=ba, vo=1.0, size=size)
         how = "rsfcore.diagram.stability_diagram"
     else:
@@ -165,10 +193,17 @@ def sweep_vs_core(url: str, n: int, timeout: float, kind: str,
                     trajectory.classify(p, "velocity-jump", size)
         how = "rsfcore per point (the worker's calls)"
     t_core = time.perf_counter() - t0
-    return {"kind": kind, "points": n * n, "status": st.get("status"),
-            "n_done": st.get("n_done"), "n_failed": st.get("n_failed"),
-            "service_s": t_service, "core_s": t_core, "core_how": how,
-            "ratio": t_service / t_core}
+    return {
+        "kind": kind,
+        "points": n * n,
+        "status": st.get("status"),
+        "n_done": st.get("n_done"),
+        "n_failed": st.get("n_failed"),
+        "service_s": t_service,
+        "core_s": t_core,
+        "core_how": how,
+        "ratio": t_service / t_core,
+    }
 
 
 def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
@@ -176,8 +211,14 @@ def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
     code = f"from rsfcli.serve import serve; serve('127.0.0.1', {port}, {data_dir!r})"
     env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
     log = open(Path(data_dir) / "serve.log", "wb")  # noqa: SIM115
-    p = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env, stdout=log,
-                         stderr=log, start_new_session=True)
+    p = subprocess.Popen(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        env=env,
+        stdout=log,
+        stderr=log,
+        start_new_session=True,
+    )
     url = f"http://127.0.0.1:{port}"
     for _ in range(300):
         try:
@@ -202,9 +243,23 @@ def start_api(data_dir: str, workers: int) -> tuple[subprocess.Popen, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
     env["RSF_DATA_DIR"] = data_dir
     log = open(Path(data_dir) / "api.log", "wb")  # noqa: SIM115
-    p = subprocess.Popen([sys.executable, "-m", "rsfcli.main", "api", "--port", str(port),
-                          "--workers", str(workers)], cwd=ROOT, env=env, stdout=log,
-                         stderr=log, start_new_session=True)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rsfcli.main",
+            "api",
+            "--port",
+            str(port),
+            "--workers",
+            str(workers),
+        ],
+        cwd=ROOT,
+        env=env,
+        stdout=log,
+        stderr=log,
+        start_new_session=True,
+    )
     url = f"http://127.0.0.1:{port}"
     for _ in range(600):
         try:
@@ -218,8 +273,7 @@ def start_api(data_dir: str, workers: int) -> tuple[subprocess.Popen, str]:
 
 def api_scaling(clients: int, max_req: int, secs: float) -> list[dict]:
     """Trivial vs cached throughput with 1 and 2 API processes (see the module doc)."""
-    bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0}
-              for k in range(50)]
+    bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0} for k in range(50)]
     rows = []
     tmp = tempfile.mkdtemp(prefix="rsf-bench-api-")
     for n in (1, 2):
@@ -241,19 +295,26 @@ def api_scaling(clients: int, max_req: int, secs: float) -> list[dict]:
 
 
 def print_api_scaling(rows: list[dict], clients: int) -> None:
-    print(f"API alone (`rsf api --workers N`, SQLite), {clients} client processes, "
-          f"{os.cpu_count()} CPUs")
-    print(f"{'API procs':>9} {'phase':<8} {'requests':>9} {'errors':>7} {'req/s':>9} "
-          f"{'p50 ms':>8} {'p99 ms':>8}")
+    print(
+        f"API alone (`rsf api --workers N`, SQLite), {clients} client processes, "
+        f"{os.cpu_count()} CPUs"
+    )
+    print(
+        f"{'API procs':>9} {'phase':<8} {'requests':>9} {'errors':>7} {'req/s':>9} "
+        f"{'p50 ms':>8} {'p99 ms':>8}"
+    )
     for r in rows:
         for k in ("trivial", "cached"):
             p = r[k]
-            print(f"{r['api_processes']:>9} {k:<8} {p['n']:>9} {p['errors']:>7} "
-                  f"{p['req_per_s']:>9.0f} {p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}")
+            print(
+                f"{r['api_processes']:>9} {k:<8} {p['n']:>9} {p['errors']:>7} "
+                f"{p['req_per_s']:>9.0f} {p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}"
+            )
     for r in rows:
         ratio = r["cached"]["req_per_s"] / r["trivial"]["req_per_s"]
-        print(f"{r['api_processes']} API process(es): cached / trivial = {ratio:.2f} "
-              "(target >= 0.8)")
+        print(
+            f"{r['api_processes']} API process(es): cached / trivial = {ratio:.2f} (target >= 0.8)"
+        )
     up = rows[1]["cached"]["req_per_s"] / rows[0]["cached"]["req_per_s"]
     upt = rows[1]["trivial"]["req_per_s"] / rows[0]["trivial"]["req_per_s"]
     print(f"2 API processes / 1: cached {up:.2f}x, trivial {upt:.2f}x (target >= 1.6x)")
@@ -267,12 +328,18 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=5.0, help="per phase (<= 60)")
     ap.add_argument("--sweep-n", type=int, default=100, help="sweep is n x n (2..200)")
     ap.add_argument("--sweep-kind", choices=("outcome", "critical"), default="outcome")
-    ap.add_argument("--baseline-diagram", action="store_true",
-                    help="time rsfcore.diagram.stability_diagram as the baseline")
+    ap.add_argument(
+        "--baseline-diagram",
+        action="store_true",
+        help="time rsfcore.diagram.stability_diagram as the baseline",
+    )
     ap.add_argument("--sweep-timeout", type=float, default=300.0, help="seconds (<= 3600)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
-    ap.add_argument("--api-scaling", action="store_true",
-                    help="only the API: trivial vs cached with 1 and 2 API processes")
+    ap.add_argument(
+        "--api-scaling",
+        action="store_true",
+        help="only the API: trivial vs cached with 1 and 2 API processes",
+    )
     a = ap.parse_args()
     clients = min(max(a.clients, 1), 32)
     max_req = min(max(a.max_requests, 1), 100_000)
@@ -291,16 +358,23 @@ def main() -> int:
         proc, url = start_server(tmp)
     print(f"driving {url} ...", file=sys.stderr, flush=True)
     try:
-        bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0}
-                  for k in range(50)]
+        bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0} for k in range(50)]
         for b in bodies:  # warm the cache
             _req(url, "POST", "/v1/classify", b)
-        out = {"url": url, "clients": clients, "phases": [
-            phase(url, k, clients, max_req, secs, bodies)
-            for k in ("cached", "closed", "fresh")]}
-        out["sweep"] = sweep_vs_core(url, min(max(a.sweep_n, 2), 200),
-                                     min(max(a.sweep_timeout, 1.0), 3600.0), a.sweep_kind,
-                                     a.baseline_diagram)
+        out = {
+            "url": url,
+            "clients": clients,
+            "phases": [
+                phase(url, k, clients, max_req, secs, bodies) for k in ("cached", "closed", "fresh")
+            ],
+        }
+        out["sweep"] = sweep_vs_core(
+            url,
+            min(max(a.sweep_n, 2), 200),
+            min(max(a.sweep_timeout, 1.0), 3600.0),
+            a.sweep_kind,
+            a.baseline_diagram,
+        )
     finally:
         if proc is not None:
             os.killpg(proc.pid, signal.SIGTERM)
@@ -311,16 +385,19 @@ def main() -> int:
     if a.json:
         print(json.dumps(out))
         return 0
-    print(f"server {url}, {clients} client processes, <= {max_req} requests / {secs:g} s "
-          "per phase")
+    print(f"server {url}, {clients} client processes, <= {max_req} requests / {secs:g} s per phase")
     print(f"{'phase':<8} {'requests':>9} {'errors':>7} {'req/s':>9} {'p50 ms':>8} {'p99 ms':>8}")
     for p in out["phases"]:
-        print(f"{p['kind']:<8} {p['n']:>9} {p['errors']:>7} {p['req_per_s']:>9.0f} "
-              f"{p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}")
+        print(
+            f"{p['kind']:<8} {p['n']:>9} {p['errors']:>7} {p['req_per_s']:>9.0f} "
+            f"{p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}"
+        )
     s = out["sweep"]
-    print(f"sweep ({s['kind']}) {s['points']} points: service {s['service_s']:.2f} s ({s['status']}, "
-          f"{s['n_done']} done, {s['n_failed']} failed) vs {s['core_how']} {s['core_s']:.2f} s"
-          f" -> {s['ratio']:.2f}x")
+    print(
+        f"sweep ({s['kind']}) {s['points']} points: service {s['service_s']:.2f} s ({s['status']}, "
+        f"{s['n_done']} done, {s['n_failed']} failed) vs {s['core_how']} {s['core_s']:.2f} s"
+        f" -> {s['ratio']:.2f}x"
+    )
     c = out["phases"][0]
     ok = c["req_per_s"] >= 500 and c["p99_ms"] <= 50 and s["ratio"] <= 3
     print("targets (cached >= 500 req/s, p99 <= 50 ms; sweep <= 3x):", "MET" if ok else "NOT MET")

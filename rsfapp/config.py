@@ -3,6 +3,7 @@
 Every process (API, Celery worker, ``rsf serve``) reads the same settings, so one
 environment describes one deployment.
 """
+
 from __future__ import annotations
 
 import os
@@ -182,8 +183,7 @@ def get_settings() -> Settings:
     """Settings of this process (re-read when the RSF_* environment changes)."""
     raw = getattr(os.environ, "_data", None)  # bytes on POSIX: no decoding per request
     if isinstance(raw, dict):
-        key = tuple(sorted((str(k), str(v)) for k, v in raw.items()
-                           if k.startswith(b"RSF_")))
+        key = tuple(sorted((str(k), str(v)) for k, v in raw.items() if k.startswith(b"RSF_")))
     else:
         key = tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith("RSF_")))
     return _cached(os.getpid(), key)

@@ -4,6 +4,7 @@ Used by ``GET /health`` and by the start-up checks of ``rsf api`` / ``rsf serve`
 ``rsf worker``.  Every check is bounded in time (1 s socket timeouts, a SQLite page
 check within ``RSF_HEALTH_CHECK_BUDGET_S``, cached for a minute) so /health never hangs.
 """
+
 from __future__ import annotations
 
 import threading
@@ -17,8 +18,14 @@ from .config import Settings
 from .db import ops
 from .db.engine import SCHEMA_VERSION, Database, diagnose, insert_ignore
 
-__all__ = ["check_broker", "check_database", "health_report", "live_workers",
-           "register_worker", "unregister_worker"]
+__all__ = [
+    "check_broker",
+    "check_database",
+    "health_report",
+    "live_workers",
+    "register_worker",
+    "unregister_worker",
+]
 
 _qc_lock = threading.Lock()
 _qc_cache: dict[str, tuple[float, str | None]] = {}
@@ -50,8 +57,10 @@ def check_database(db: Database, settings: Settings) -> dict[str, Any]:
             return out
     except Exception as exc:  # noqa: BLE001 - every failure is reported, none raised
         p = diagnose(exc, db.url)
-        out.update(reason=p.reason if p else f"{type(exc).__name__}: {exc}",
-                   hint=p.hint if p else "see the server log")
+        out.update(
+            reason=p.reason if p else f"{type(exc).__name__}: {exc}",
+            hint=p.hint if p else "see the server log",
+        )
         return out
     out["ok"] = True
     return out
@@ -68,36 +77,51 @@ def check_broker(settings: Settings) -> dict[str, Any]:
     try:
         if transport in ("redis", "rediss"):
             import redis
+
             r = _redis_clients.get(url)
             if r is None:
                 r = _redis_clients[url] = redis.Redis.from_url(
-                    url, socket_timeout=1, socket_connect_timeout=1)
+                    url, socket_timeout=1, socket_connect_timeout=1
+                )
             out["queue_length"] = int(r.llen(settings.queue))
         elif transport == "filesystem":
             folder = Path(str(settings.broker_transport_options["data_folder_in"]))
-            out["queue_length"] = sum(1 for p in folder.iterdir()
-                                      if p.name.endswith(f".{settings.queue}.msg"))
+            out["queue_length"] = sum(
+                1 for p in folder.iterdir() if p.name.endswith(f".{settings.queue}.msg")
+            )
         else:
             out["queue_length"] = None
     except Exception as exc:  # noqa: BLE001
-        out["reason"] = f"broker {url.split('@')[-1]} unreachable: " \
-                        f"{str(exc).strip() or type(exc).__name__}"
+        out["reason"] = (
+            f"broker {url.split('@')[-1]} unreachable: {str(exc).strip() or type(exc).__name__}"
+        )
         return out
     out["ok"] = True
     return out
 
 
-def register_worker(db: Database, name: str, node: str, pid: int, concurrency: int,
-                    stale_after_s: float) -> None:
+def register_worker(
+    db: Database, name: str, node: str, pid: int, concurrency: int, stale_after_s: float
+) -> None:
     """Insert or refresh this worker's row; forget rows silent for ``stale_after_s``."""
     now = time.time()
     with db.write() as conn:
-        n = conn.execute(update(ops.workers).where(ops.workers.c.name == name)
-                         .values(heartbeat=now)).rowcount
+        n = conn.execute(
+            update(ops.workers).where(ops.workers.c.name == name).values(heartbeat=now)
+        ).rowcount
         if not n:
-            insert_ignore(conn, ops.workers, {"name": name, "node": node, "pid": pid,
-                                              "concurrency": concurrency,
-                                              "started_at": now, "heartbeat": now})
+            insert_ignore(
+                conn,
+                ops.workers,
+                {
+                    "name": name,
+                    "node": node,
+                    "pid": pid,
+                    "concurrency": concurrency,
+                    "started_at": now,
+                    "heartbeat": now,
+                },
+            )
         conn.execute(delete(ops.workers).where(ops.workers.c.heartbeat < now - stale_after_s))
 
 
@@ -111,10 +135,21 @@ def live_workers(db: Database, lease_s: float) -> list[dict[str, Any]]:
     """Workers whose heartbeat is younger than the lease."""
     now = time.time()
     with db.read() as conn:
-        rows = conn.execute(select(ops.workers).where(ops.workers.c.heartbeat >= now - lease_s)
-                            .order_by(ops.workers.c.node, ops.workers.c.pid)).all()
-    return [{"name": r.name, "node": r.node, "pid": r.pid, "concurrency": r.concurrency,
-             "heartbeat_age_s": round(now - r.heartbeat, 3)} for r in rows]
+        rows = conn.execute(
+            select(ops.workers)
+            .where(ops.workers.c.heartbeat >= now - lease_s)
+            .order_by(ops.workers.c.node, ops.workers.c.pid)
+        ).all()
+    return [
+        {
+            "name": r.name,
+            "node": r.node,
+            "pid": r.pid,
+            "concurrency": r.concurrency,
+            "heartbeat_age_s": round(now - r.heartbeat, 3),
+        }
+        for r in rows
+    ]
 
 
 def health_report(db: Database, settings: Settings) -> dict[str, Any]:
@@ -131,14 +166,27 @@ def health_report(db: Database, settings: Settings) -> dict[str, Any]:
             workers = live_workers(db, settings.lease_s)
         except Exception as exc:  # noqa: BLE001
             reasons.append(f"worker registry unreadable: {exc}")
-    warnings = [] if workers else ["no live worker: sweeps and long queries wait in the "
-                                   "queue until one starts (rsf worker)"]
-    return {"status": "degraded" if reasons else "ok", "reasons": reasons,
-            "warnings": warnings, "database": dbr, "broker": br,
-            "workers": {"live": len(workers),
-                        "hosts": sorted({w["node"] for w in workers}),
-                        "processes": sum(int(w["concurrency"]) for w in workers),
-                        "list": workers}}
+    warnings = (
+        []
+        if workers
+        else [
+            "no live worker: sweeps and long queries wait in the "
+            "queue until one starts (rsf worker)"
+        ]
+    )
+    return {
+        "status": "degraded" if reasons else "ok",
+        "reasons": reasons,
+        "warnings": warnings,
+        "database": dbr,
+        "broker": br,
+        "workers": {
+            "live": len(workers),
+            "hosts": sorted({w["node"] for w in workers}),
+            "processes": sum(int(w["concurrency"]) for w in workers),
+            "list": workers,
+        },
+    }
 
 
 def main(argv: list[str]) -> int:

@@ -14,6 +14,7 @@ last renewal happened before the death) plus one scan interval; the chunk then t
 one chunk's time on another worker.  Redelivered messages are harmless: storage is
 exactly-once per point.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -65,8 +66,9 @@ class Lease:
         self._thread.start()
         return self
 
-    def __exit__(self, _t: type[BaseException] | None, _e: BaseException | None,
-                 _tb: TracebackType | None) -> None:
+    def __exit__(
+        self, _t: type[BaseException] | None, _e: BaseException | None, _tb: TracebackType | None
+    ) -> None:
         self._stop.set()
         self._thread.join(timeout=5)
 
@@ -89,11 +91,16 @@ class Reaper(threading.Thread):
         send: enqueues chunk ``idx`` of sweep ``sweep_id``.
     """
 
-    def __init__(self, settings: Settings, name: str, concurrency: int,
-                 send: Callable[[str, int], None]) -> None:
+    def __init__(
+        self, settings: Settings, name: str, concurrency: int, send: Callable[[str, int], None]
+    ) -> None:
         super().__init__(name="rsf-reaper", daemon=True)
         self.settings, self.worker_name, self.concurrency, self.send = (
-            settings, name, concurrency, send)
+            settings,
+            name,
+            concurrency,
+            send,
+        )
         self._stop = threading.Event()
         self._failing = False
 
@@ -101,20 +108,30 @@ class Reaper(threading.Thread):
         """One scan (raises on database errors)."""
         s = self.settings
         st = stores_for(s)
-        register_worker(st.db, self.worker_name, s.node, os.getpid(), self.concurrency,
-                        stale_after_s=10 * s.lease_s)
+        register_worker(
+            st.db,
+            self.worker_name,
+            s.node,
+            os.getpid(),
+            self.concurrency,
+            stale_after_s=10 * s.lease_s,
+        )
         expired = st.sweeps.reap_expired(s.lease_s)
         for sweep_id, idx in expired:
             self.send(sweep_id, idx)
         if expired:
-            log.warning("requeued %d chunk(s) whose lease expired: %s", len(expired),
-                        ", ".join(f"{a[:8]}/{b}" for a, b in expired[:10]))
+            log.warning(
+                "requeued %d chunk(s) whose lease expired: %s",
+                len(expired),
+                ", ".join(f"{a[:8]}/{b}" for a, b in expired[:10]),
+            )
         closed, nxt = st.sweeps.close_finished(s.sweep_window)
         for sweep_id, idx in nxt:
             self.send(sweep_id, idx)
         if closed or nxt:
-            log.warning("self-repair: closed %d finished sweep(s), dispatched %d chunk(s)",
-                        closed, len(nxt))
+            log.warning(
+                "self-repair: closed %d finished sweep(s), dispatched %d chunk(s)", closed, len(nxt)
+            )
         return TickResult(len(expired) + len(nxt), closed)
 
     def run(self) -> None:
@@ -127,8 +144,11 @@ class Reaper(threading.Thread):
                 self._failing = False
             except Exception as exc:  # noqa: BLE001 - keep scanning; log once per outage
                 if not self._failing:
-                    log.warning("reaper scan failed (retrying every %.1f s): %s", dt,
-                                str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+                    log.warning(
+                        "reaper scan failed (retrying every %.1f s): %s",
+                        dt,
+                        str(exc).splitlines()[0] if str(exc) else type(exc).__name__,
+                    )
                 self._failing = True
             if self._stop.wait(dt):
                 return

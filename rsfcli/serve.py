@@ -16,6 +16,7 @@ In ``rsf serve`` the worker is restarted if it dies; on exit (Ctrl-C / SIGTERM)
 uvicorn stops first, then the worker gets a warm shutdown (finishes its current chunk;
 a chunk left unfinished is requeued by a reaper when its lease expires).
 """
+
 from __future__ import annotations
 
 import os
@@ -61,35 +62,56 @@ def check_database(wait_s: float = 60.0, who: str = "rsf") -> None:
             if p is None:
                 raise
             if p.kind in ("damaged", "schema") or time.monotonic() >= deadline:
-                msg = (f"[{who}] cannot start: {p.reason}\n"
-                       f"[{who}] how to recover: {p.hint}")
+                msg = f"[{who}] cannot start: {p.reason}\n[{who}] how to recover: {p.hint}"
                 raise StartupError(msg) from None
             if not said:
-                print(f"[{who}] waiting up to {wait_s:g} s for the database: {p.reason}",
-                      file=sys.stderr)
+                print(
+                    f"[{who}] waiting up to {wait_s:g} s for the database: {p.reason}",
+                    file=sys.stderr,
+                )
                 said = True
             time.sleep(1.0)
 
 
-def worker_command(concurrency: int | None = None, pool: str = "prefork",
-                   name: str = "rsf-embedded", loglevel: str = "INFO") -> list[str]:
+def worker_command(
+    concurrency: int | None = None,
+    pool: str = "prefork",
+    name: str = "rsf-embedded",
+    loglevel: str = "INFO",
+) -> list[str]:
     """Command line of a Celery worker for this project.
 
     The node name is ``{name}-{pid}@{RSF_NODE}`` (RSF_NODE defaults to the host name),
     unique per process and naming its host."""
     from rsfapp.config import get_settings
+
     s = get_settings()
     conc = concurrency or max(1, os.cpu_count() or 1)
-    return [sys.executable, "-m", "celery", "-A", "worker.celery_app:app", "worker",
-            "-Q", s.queue, f"--pool={pool}", f"--concurrency={conc}",
-            f"--loglevel={loglevel}", "--without-gossip", "--without-mingle",
-            "--without-heartbeat", "-n", f"{name}-{os.getpid()}@{s.node}"]
+    return [
+        sys.executable,
+        "-m",
+        "celery",
+        "-A",
+        "worker.celery_app:app",
+        "worker",
+        "-Q",
+        s.queue,
+        f"--pool={pool}",
+        f"--concurrency={conc}",
+        f"--loglevel={loglevel}",
+        "--without-gossip",
+        "--without-mingle",
+        "--without-heartbeat",
+        "-n",
+        f"{name}-{os.getpid()}@{s.node}",
+    ]
 
 
 def _die_with_parent() -> None:
     """In the child (Linux): get SIGTERM if `rsf serve` dies, even by SIGKILL."""
     try:
         import ctypes
+
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
@@ -107,8 +129,14 @@ class _Supervisor(threading.Thread):
 
     def _start(self) -> None:
         log = open(self.log_path, "ab")  # noqa: SIM115 - owned by the child
-        self.proc = subprocess.Popen(self.cmd, env=self.env, stdout=log, stderr=log,
-                                     start_new_session=True, preexec_fn=_die_with_parent)
+        self.proc = subprocess.Popen(
+            self.cmd,
+            env=self.env,
+            stdout=log,
+            stderr=log,
+            start_new_session=True,
+            preexec_fn=_die_with_parent,
+        )
         log.close()
 
     def run(self) -> None:
@@ -119,7 +147,9 @@ class _Supervisor(threading.Thread):
                     return
                 self._start()
             started = time.monotonic()
-            rc = self.proc.wait()
+            proc = self.proc
+            assert proc is not None
+            rc = proc.wait()
             if self._stop.is_set():
                 return
             print(f"[rsf serve] worker exited with {rc}; restarting", file=sys.stderr)
@@ -145,8 +175,12 @@ def _note(signum: int, _frame: object) -> None:
     print(f"[rsf serve] signal {signum}: stopping", file=sys.stderr)
 
 
-def serve(host: str = "127.0.0.1", port: int = 8000, data_dir: str | Path = "rsf-data",
-          concurrency: int | None = None) -> None:
+def serve(
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    data_dir: str | Path = "rsf-data",
+    concurrency: int | None = None,
+) -> None:
     """Run the API on host:port and an embedded worker; returns when the API stops.
 
     Args:
@@ -177,8 +211,9 @@ def serve(host: str = "127.0.0.1", port: int = 8000, data_dir: str | Path = "rsf
             signal.signal(sig, h)
 
 
-def api(host: str = "127.0.0.1", port: int = 8000, workers: int = 1,
-        wait_db_s: float = 60.0) -> None:
+def api(
+    host: str = "127.0.0.1", port: int = 8000, workers: int = 1, wait_db_s: float = 60.0
+) -> None:
     """Run the HTTP API only (no worker) in ``workers`` uvicorn processes.
 
     Args:
@@ -194,12 +229,17 @@ def api(host: str = "127.0.0.1", port: int = 8000, workers: int = 1,
         raise StartupError(f"[rsf api] --workers must be >= 1 (got {workers})")
     check_database(wait_db_s, who="rsf api")
     check_bind(host, "rsf api")
-    uvicorn.run("service.app:app", host=host, port=port, workers=workers,
-                log_level="info", timeout_graceful_shutdown=10)
+    uvicorn.run(
+        "service.app:app",
+        host=host,
+        port=port,
+        workers=workers,
+        log_level="info",
+        timeout_graceful_shutdown=10,
+    )
 
 
-def worker(concurrency: int | None = None, loglevel: str = "INFO",
-           wait_db_s: float = 60.0) -> None:
+def worker(concurrency: int | None = None, loglevel: str = "INFO", wait_db_s: float = 60.0) -> None:
     """Replace this process with a Celery worker (``concurrency`` processes, default
     the CPU count) on ``RSF_BROKER_URL`` and ``RSF_CACHE_URL``.
 

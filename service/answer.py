@@ -13,6 +13,7 @@ No state another API process needs lives here: a deferred computation is recorde
 the job store (``queued``, then ``failed`` with its message, or its result in the result
 store), so ``rsf api --workers N`` and several API hosts answer the same.
 """
+
 from __future__ import annotations
 
 import asyncio
@@ -48,9 +49,12 @@ def body(result_json: str, key: str, hit: bool) -> bytes:
 def deferred(key: str, status: str = "running") -> Response:
     """202 with ``Location: /v1/results/{key}`` to poll."""
     loc = f"/v1/results/{key}"
-    return Response(json.dumps({"status": status, "cache_key": key, "location": loc}),
-                    status_code=202, media_type="application/json",
-                    headers={"Location": loc, "Retry-After": "2", "X-Cache": "miss"})
+    return Response(
+        json.dumps({"status": status, "cache_key": key, "location": loc}),
+        status_code=202,
+        media_type="application/json",
+        headers={"Location": loc, "Retry-After": "2", "X-Cache": "miss"},
+    )
 
 
 async def _failed(stores: Stores, inflight: Inflight, key: str, msg: str) -> None:
@@ -63,9 +67,17 @@ async def _failed(stores: Stores, inflight: Inflight, key: str, msg: str) -> Non
         log.warning("could not record the failure of %s", key)
 
 
-async def _compute(kind: str, key: str, version: str, request: dict[str, Any],
-                   req: BaseModel, fn: Callable[[Any], dict[str, Any]], stores: Stores,
-                   queue: Queue, inflight: Inflight) -> str | None:
+async def _compute(
+    kind: str,
+    key: str,
+    version: str,
+    request: dict[str, Any],
+    req: BaseModel,
+    fn: Callable[[Any], dict[str, Any]],
+    stores: Stores,
+    queue: Queue,
+    inflight: Inflight,
+) -> str | None:
     """Compute, store, return the result JSON text (None: sent to the queue);
     ProblemError on failure."""
     try:
@@ -85,24 +97,30 @@ async def _compute(kind: str, key: str, version: str, request: dict[str, Any],
         raise  # 422 naming the field (service.errors)
     except (TypeError, ValueError) as exc:  # non-JSON result: a bug, but never a 500
         await _failed(stores, inflight, key, str(exc))
-        raise ProblemError(422, "Could not be computed", f"unserialisable result: {exc}") \
-            from None
-    await run_in_threadpool(stores.results.put, key, kind, version, request,
-                            json.loads(text))
+        raise ProblemError(422, "Could not be computed", f"unserialisable result: {exc}") from None
+    await run_in_threadpool(stores.results.put, key, kind, version, request, json.loads(text))
     return text
 
 
-async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]], *,
-                 stores: Stores, queue: Queue, inflight: Inflight,
-                 settings: Settings) -> Response:
+async def answer(
+    kind: str,
+    req: BaseModel,
+    fn: Callable[[Any], dict[str, Any]],
+    *,
+    stores: Stores,
+    queue: Queue,
+    inflight: Inflight,
+    settings: Settings,
+) -> Response:
     """Cached answer to ``req`` of ``kind``, computing ``fn(req)`` on a miss."""
     request = req.model_dump(mode="json")
     version = numerics_version()
     key = cache_key(kind, request, version)
     hit = await run_in_threadpool(stores.results.get_text, key)
     if hit is not None:
-        return Response(body(hit, key, True), media_type="application/json",
-                        headers={"X-Cache": "hit"})
+        return Response(
+            body(hit, key, True), media_type="application/json", headers={"X-Cache": "hit"}
+        )
     queued = await run_in_threadpool(stores.jobs.status, key)
     if queued is not None:
         if queued.state is JobState.failed:
@@ -110,15 +128,20 @@ async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]],
         return deferred(key)
     task = inflight.pending.get(key)
     if task is None:
-        task = asyncio.ensure_future(_compute(kind, key, version, request, req, fn, stores,
-                                              queue, inflight))
+        task = asyncio.ensure_future(
+            _compute(kind, key, version, request, req, fn, stores, queue, inflight)
+        )
         inflight.pending[key] = task
 
         def _done(t: asyncio.Future[str | None], key: str = key) -> None:
             inflight.pending.pop(key, None)
-            if not t.cancelled() and t.exception() is not None and \
-                    not isinstance(t.exception(), ProblemError):
+            if (
+                not t.cancelled()
+                and t.exception() is not None
+                and not isinstance(t.exception(), ProblemError)
+            ):
                 log.error("computation %s failed", key, exc_info=t.exception())
+
         task.add_done_callback(_done)
     try:
         text = await asyncio.wait_for(asyncio.shield(task), settings.inline_budget_s)
@@ -129,5 +152,6 @@ async def answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]],
         return deferred(key)
     if text is None:
         return deferred(key)
-    return Response(body(text, key, False), media_type="application/json",
-                    headers={"X-Cache": "miss"})
+    return Response(
+        body(text, key, False), media_type="application/json", headers={"X-Cache": "miss"}
+    )

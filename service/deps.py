@@ -6,6 +6,7 @@ that records messages).  The providers are ``async def`` although they do no I/O
 plain ``def`` dependency is run in the thread pool, one thread hop per dependency and
 request, which cost a cached lookup more than its database read.
 """
+
 from __future__ import annotations
 
 import asyncio
@@ -21,8 +22,17 @@ from rsfapp.config import Settings, get_settings
 from rsfapp.queue import Queue
 from rsfapp.store import Stores, stores_for
 
-__all__ = ["Inflight", "InflightDep", "QueueDep", "SettingsDep", "StoresDep", "get_inflight",
-           "get_queue", "get_settings_dep", "get_stores"]
+__all__ = [
+    "Inflight",
+    "InflightDep",
+    "QueueDep",
+    "SettingsDep",
+    "StoresDep",
+    "get_inflight",
+    "get_queue",
+    "get_settings_dep",
+    "get_stores",
+]
 
 
 async def get_settings_dep() -> Settings:
@@ -70,7 +80,8 @@ class Inflight:
     """
 
     limiter: anyio.CapacityLimiter = field(
-        default_factory=lambda: anyio.CapacityLimiter(max(2, os.cpu_count() or 2)))
+        default_factory=lambda: anyio.CapacityLimiter(max(2, os.cpu_count() or 2))
+    )
     pending: dict[str, asyncio.Future[str | None]] = field(default_factory=dict)
     failed: dict[str, str] = field(default_factory=dict)
     max_failed: int = 1000

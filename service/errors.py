@@ -9,6 +9,7 @@ connection dropped, file locked or damaged) or a broker error (Redis down) is an
 (how to recover).  Connections are retried for at most ``RSF_DB_RETRY_S`` first
 (:mod:`rsfapp.db.engine`).
 """
+
 from __future__ import annotations
 
 import json
@@ -41,34 +42,66 @@ class ProblemError(Exception):
         valid: valid range of that input (for 422).
     """
 
-    def __init__(self, status: int, title: str, detail: str, *, field: str | None = None,
-                 valid: str | None = None) -> None:
+    def __init__(
+        self,
+        status: int,
+        title: str,
+        detail: str,
+        *,
+        field: str | None = None,
+        valid: str | None = None,
+    ) -> None:
         super().__init__(detail)
         self.status, self.title, self.detail, self.field, self.valid = (
-            status, title, detail, field, valid)
+            status,
+            title,
+            detail,
+            field,
+            valid,
+        )
 
 
-def problem(status: int, title: str, detail: str, errors: list[dict[str, Any]] | None = None,
-            headers: dict[str, str] | None = None) -> Response:
+def problem(
+    status: int,
+    title: str,
+    detail: str,
+    errors: list[dict[str, Any]] | None = None,
+    headers: dict[str, str] | None = None,
+) -> Response:
     """A problem+json response."""
-    body: dict[str, Any] = {"type": "about:blank", "title": title, "status": status,
-                            "detail": detail}
+    body: dict[str, Any] = {
+        "type": "about:blank",
+        "title": title,
+        "status": status,
+        "detail": detail,
+    }
     if errors:
         body["errors"] = errors
         body["field"] = errors[0]["field"]
         body["valid"] = errors[0].get("valid")
-    return Response(json.dumps(body, default=str), status_code=status, media_type=PROBLEM,
-                    headers=headers)
+    return Response(
+        json.dumps(body, default=str), status_code=status, media_type=PROBLEM, headers=headers
+    )
 
 
 def unavailable(title: str, reason: str, hint: str) -> Response:
     """503 problem+json with ``Retry-After`` (the part named in ``title`` is down)."""
     after = get_settings().retry_after_s
-    body = {"type": "about:blank", "title": title, "status": 503,
-            "detail": f"{reason}. {hint}.", "reason": reason, "hint": hint,
-            "retry_after_s": after}
-    return Response(json.dumps(body, default=str), status_code=503, media_type=PROBLEM,
-                    headers={"Retry-After": str(after)})
+    body = {
+        "type": "about:blank",
+        "title": title,
+        "status": 503,
+        "detail": f"{reason}. {hint}.",
+        "reason": reason,
+        "hint": hint,
+        "retry_after_s": after,
+    }
+    return Response(
+        json.dumps(body, default=str),
+        status_code=503,
+        media_type=PROBLEM,
+        headers={"Retry-After": str(after)},
+    )
 
 
 def database_problem(exc: BaseException) -> Response:
@@ -76,20 +109,27 @@ def database_problem(exc: BaseException) -> Response:
     p = diagnose(exc, get_settings().effective_cache_url)
     if p is None:
         log.error("database error", exc_info=exc)
-        return unavailable("Database unavailable", f"database error: {type(exc).__name__}",
-                           "retry later")
+        return unavailable(
+            "Database unavailable", f"database error: {type(exc).__name__}", "retry later"
+        )
     log.warning("503: %s", p.reason)
-    return unavailable("Database unavailable" if p.kind != "damaged" else "Database damaged",
-                       p.reason, p.hint)
+    return unavailable(
+        "Database unavailable" if p.kind != "damaged" else "Database damaged", p.reason, p.hint
+    )
 
 
 def broker_problem(exc: BaseException) -> Response:
     """503 for a broker (Redis / filesystem queue) exception."""
-    reason = f"broker {get_settings().effective_broker_url.split('@')[-1]} unavailable: " \
-             f"{str(exc).strip() or type(exc).__name__}"
+    reason = (
+        f"broker {get_settings().effective_broker_url.split('@')[-1]} unavailable: "
+        f"{str(exc).strip() or type(exc).__name__}"
+    )
     log.warning("503: %s", reason)
-    return unavailable("Broker unavailable", reason,
-                       "check that the broker (RSF_BROKER_URL) is running and reachable")
+    return unavailable(
+        "Broker unavailable",
+        reason,
+        "check that the broker (RSF_BROKER_URL) is running and reachable",
+    )
 
 
 def _field_of(loc: tuple[Any, ...]) -> str:
@@ -123,8 +163,9 @@ def validation_problem(exc: RequestValidationError) -> Response:
         field = _field_of(loc)
         valid = _valid_of(loc)
         msg = str(e.get("msg", "invalid"))
-        errors.append({"field": field, "message": msg, "valid": valid,
-                       "input": _safe(e.get("input"))})
+        errors.append(
+            {"field": field, "message": msg, "valid": valid, "input": _safe(e.get("input"))}
+        )
     first = errors[0] if errors else {"field": "body", "message": "invalid", "valid": None}
     detail = f"{first['field']}: {first['message']}"
     if first.get("valid"):
@@ -148,8 +189,12 @@ def install_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(ParameterError)
     async def _parameter(_req: Request, exc: ParameterError) -> Response:
-        return problem(422, "Invalid input", str(exc),
-                       [{"field": exc.field, "message": str(exc), "valid": exc.valid}])
+        return problem(
+            422,
+            "Invalid input",
+            str(exc),
+            [{"field": exc.field, "message": str(exc), "valid": exc.valid}],
+        )
 
     import sqlite3
 
@@ -164,12 +209,19 @@ def install_handlers(app: FastAPI) -> None:
     async def _broker(_req: Request, exc: Exception) -> Response:
         return broker_problem(exc)
 
-    for cls in (SQLAlchemyError, sqlite3.Error, SchemaTooNew):
+    db_errors: tuple[type[Exception], ...] = (SQLAlchemyError, sqlite3.Error, SchemaTooNew)
+    broker_errors: tuple[type[Exception], ...] = (
+        KombuOperationalError,
+        RedisConnectionError,
+        RedisTimeoutError,
+    )
+    for cls in db_errors:
         app.add_exception_handler(cls, _db)
-    for cls in (KombuOperationalError, RedisConnectionError, RedisTimeoutError):
+    for cls in broker_errors:
         app.add_exception_handler(cls, _broker)
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_req: Request, exc: StarletteHTTPException) -> Response:
-        return problem(exc.status_code, "HTTP error", str(exc.detail),
-                       headers=getattr(exc, "headers", None))
+        return problem(
+            exc.status_code, "HTTP error", str(exc.detail), headers=getattr(exc, "headers", None)
+        )

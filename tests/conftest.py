@@ -5,6 +5,7 @@ Every process is started by us, on 127.0.0.1, with its own data directory, and i
 stopped by its pid (process group) at teardown.  Under CI=true a missing redis-server
 or PostgreSQL server is a failure, not a skip.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -34,9 +35,12 @@ def free_port() -> int:
 def service_env(data_dir: Path, broker_url: str = "", **extra: str) -> dict[str, str]:
     """Environment for service/worker processes using ``data_dir``."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
-    env.update(RSF_DATA_DIR=str(data_dir), RSF_BROKER_URL=broker_url,
-               NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache")),
-               PYTHONPATH=str(ROOT))
+    env.update(
+        RSF_DATA_DIR=str(data_dir),
+        RSF_BROKER_URL=broker_url,
+        NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache")),
+        PYTHONPATH=str(ROOT),
+    )
     env.update(extra)
     return env
 
@@ -47,8 +51,9 @@ class Proc:
     def __init__(self, cmd: list[str], env: dict[str, str], log: Path) -> None:
         self.cmd, self.env, self.log = cmd, env, log
         fh = open(log, "ab")  # noqa: SIM115
-        self.p = subprocess.Popen(cmd, env=env, stdout=fh, stderr=fh, cwd=ROOT,
-                                  start_new_session=True)
+        self.p = subprocess.Popen(
+            cmd, env=env, stdout=fh, stderr=fh, cwd=ROOT, start_new_session=True
+        )
         fh.close()
 
     @property
@@ -89,10 +94,22 @@ class Server(Proc):
     def __init__(self, data_dir: Path, broker_url: str = "", **extra: str) -> None:
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
-        super().__init__([sys.executable, "-m", "uvicorn", "service.app:app", "--host",
-                          "127.0.0.1", "--port", str(self.port), "--log-level", "warning"],
-                         service_env(data_dir, broker_url, **extra),
-                         data_dir / f"uvicorn-{self.port}.log")
+        super().__init__(
+            [
+                sys.executable,
+                "-m",
+                "uvicorn",
+                "service.app:app",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--log-level",
+                "warning",
+            ],
+            service_env(data_dir, broker_url, **extra),
+            data_dir / f"uvicorn-{self.port}.log",
+        )
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
             if not self.alive():
@@ -112,22 +129,46 @@ class Worker(Proc):
 
     _n = 0
 
-    def __init__(self, data_dir: Path, broker_url: str = "", pool: str = "solo",
-                 concurrency: int = 1, plugin: bool = False, include: str = "",
-                 **extra: str) -> None:
+    def __init__(
+        self,
+        data_dir: Path,
+        broker_url: str = "",
+        pool: str = "solo",
+        concurrency: int = 1,
+        plugin: bool = False,
+        include: str = "",
+        **extra: str,
+    ) -> None:
         Worker._n += 1
         name = f"w{Worker._n}-{os.getpid()}@127.0.0.1"
         log = data_dir / f"worker-{Worker._n}.log"
         env = service_env(data_dir, broker_url, **extra)
         if plugin or include:
             env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{ROOT / 'tests' / 'e2e'}"
-        super().__init__([sys.executable, "-m", "celery", "-A", "worker.celery_app:app",
-                          "worker", "-Q", "rsf", f"--pool={pool}",
-                          f"--concurrency={concurrency}", "--loglevel=INFO",
-                          "--without-gossip", "--without-mingle", "--without-heartbeat",
-                          "-n", name, *(["--include", "test_worker_faultplugin"] if plugin
-                                        else []), *(["--include", include] if include else [])],
-                         env, log)
+        super().__init__(
+            [
+                sys.executable,
+                "-m",
+                "celery",
+                "-A",
+                "worker.celery_app:app",
+                "worker",
+                "-Q",
+                "rsf",
+                f"--pool={pool}",
+                f"--concurrency={concurrency}",
+                "--loglevel=INFO",
+                "--without-gossip",
+                "--without-mingle",
+                "--without-heartbeat",
+                "-n",
+                name,
+                *(["--include", "test_worker_faultplugin"] if plugin else []),
+                *(["--include", include] if include else []),
+            ],
+            env,
+            log,
+        )
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
             if not self.alive():
@@ -157,12 +198,29 @@ class Redis(Proc):
         self._start()
 
     def _start(self) -> None:
-        durability = (["--appendonly", "yes", "--appendfsync", "always"] if self.persist
-                      else ["--appendonly", "no"])
-        super().__init__([self.exe, "--port", str(self.port), "--bind", "127.0.0.1",
-                          "--save", "", *durability, "--dir", str(self.dir)],
-                         dict(os.environ), self.dir / "redis.log")
+        durability = (
+            ["--appendonly", "yes", "--appendfsync", "always"]
+            if self.persist
+            else ["--appendonly", "no"]
+        )
+        super().__init__(
+            [
+                self.exe,
+                "--port",
+                str(self.port),
+                "--bind",
+                "127.0.0.1",
+                "--save",
+                "",
+                *durability,
+                "--dir",
+                str(self.dir),
+            ],
+            dict(os.environ),
+            self.dir / "redis.log",
+        )
         import redis
+
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
             try:
@@ -187,9 +245,12 @@ def postgres_bindir() -> Path | None:
     exe = shutil.which("initdb")
     if exe and shutil.which("pg_ctl"):
         return Path(exe).resolve().parent
-    found = sorted(Path("/usr/lib/postgresql").glob("*/bin/initdb"),
-                   key=lambda p: float(p.parent.parent.name)
-                   if p.parent.parent.name.replace(".", "").isdigit() else 0.0)
+    found = sorted(
+        Path("/usr/lib/postgresql").glob("*/bin/initdb"),
+        key=lambda p: (
+            float(p.parent.parent.name) if p.parent.parent.name.replace(".", "").isdigit() else 0.0
+        ),
+    )
     return found[-1].parent if found else None
 
 
@@ -205,6 +266,7 @@ class Postgres:
     def __init__(self, bindir: Path) -> None:
         import pwd
         import tempfile
+
         self.bin = bindir
         self.dir = Path(tempfile.mkdtemp(prefix="rsf-pg-"))
         self.user: int | None = None
@@ -219,16 +281,35 @@ class Postgres:
         self.data = self.dir / "data"
         self.port = free_port()
         self.url = f"postgresql+psycopg://rsf@127.0.0.1:{self.port}/postgres"
-        self._run([str(bindir / "initdb"), "-D", str(self.data), "-U", "rsf",
-                   "--auth=trust", "-E", "UTF8", "--no-sync"])
+        self._run(
+            [
+                str(bindir / "initdb"),
+                "-D",
+                str(self.data),
+                "-U",
+                "rsf",
+                "--auth=trust",
+                "-E",
+                "UTF8",
+                "--no-sync",
+            ]
+        )
         self.start()
 
     def _run(self, cmd: list[str], check: bool = True) -> subprocess.CompletedProcess[str]:
-        r = subprocess.run(cmd, user=self.user, group=self.group, capture_output=True,
-                           text=True, timeout=120, cwd=self.dir)
+        r = subprocess.run(
+            cmd,
+            user=self.user,
+            group=self.group,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            cwd=self.dir,
+        )
         if check and r.returncode != 0:
-            raise RuntimeError(f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stdout}"
-                               f"\n{r.stderr}\n{self.tail()}")
+            raise RuntimeError(
+                f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stdout}\n{r.stderr}\n{self.tail()}"
+            )
         return r
 
     def tail(self, n: int = 4000) -> str:
@@ -239,15 +320,29 @@ class Postgres:
 
     def start(self) -> None:
         """Start the server and wait until it accepts connections."""
-        self._run([str(self.bin / "pg_ctl"), "-D", str(self.data), "-l",
-                   str(self.dir / "postgres.log"), "-w", "-t", "60", "-o",
-                   f"-p {self.port} -k {self.dir} -c listen_addresses=127.0.0.1 "
-                   "-c fsync=off -c max_connections=200", "start"])
+        self._run(
+            [
+                str(self.bin / "pg_ctl"),
+                "-D",
+                str(self.data),
+                "-l",
+                str(self.dir / "postgres.log"),
+                "-w",
+                "-t",
+                "60",
+                "-o",
+                f"-p {self.port} -k {self.dir} -c listen_addresses=127.0.0.1 "
+                "-c fsync=off -c max_connections=200",
+                "start",
+            ]
+        )
 
     def stop(self, mode: str = "fast") -> None:
         """Stop the server (``fast``: disconnect clients, clean shutdown)."""
-        self._run([str(self.bin / "pg_ctl"), "-D", str(self.data), "-m", mode, "-w",
-                   "-t", "60", "stop"], check=False)
+        self._run(
+            [str(self.bin / "pg_ctl"), "-D", str(self.data), "-m", mode, "-w", "-t", "60", "stop"],
+            check=False,
+        )
 
     def restart(self, down_s: float = 0.0) -> None:
         """Stop, stay down ``down_s`` seconds, start on the same port."""
@@ -332,6 +427,7 @@ def client_for():
         c = httpx.Client(base_url=url, timeout=60)
         clients.append(c)
         return c
+
     yield make
     for c in clients:
         c.close()

@@ -8,6 +8,7 @@ message once delivered, so work held by a killed worker is resent here) and the 
 of its reaper thread (:class:`rsfapp.reaper.Reaper`: worker registry, chunks whose lease
 expired, self-repair of sweeps), stopped at shutdown.
 """
+
 from __future__ import annotations
 
 import logging
@@ -27,13 +28,13 @@ app = make_app()
 app.conf.include = ["worker.tasks"]
 
 
-@worker_init.connect
+@worker_init.connect  # type: ignore[untyped-decorator]
 def _warm_up(**_kw: object) -> None:
     """Load rsfcore's compiled kernels once, before the pool forks."""
     warm_up()
 
 
-@worker_ready.connect
+@worker_ready.connect  # type: ignore[untyped-decorator]
 def _requeue_unfinished(**_kw: object) -> None:
     """At worker start: requeue chunks of active sweeps that no live worker holds."""
     s = get_settings()
@@ -50,7 +51,7 @@ def _requeue_unfinished(**_kw: object) -> None:
 _reaper: list[Reaper] = []
 
 
-@worker_ready.connect
+@worker_ready.connect  # type: ignore[untyped-decorator]
 def _start_reaper(sender: object = None, **_kw: object) -> None:
     """Start this worker's reaper thread (in the main process, not the pool children)."""
     s = get_settings()
@@ -62,7 +63,7 @@ def _start_reaper(sender: object = None, **_kw: object) -> None:
     _reaper.append(r)
 
 
-@worker_shutdown.connect
+@worker_shutdown.connect  # type: ignore[untyped-decorator]
 def _stop_reaper(**_kw: object) -> None:
     """Stop the reaper and leave the worker registry."""
     while _reaper:

@@ -20,6 +20,7 @@ Schema: created at first use (``create_all`` under a PostgreSQL advisory lock, s
 processes starting together do not race), its version recorded in ``rsf_schema`` and
 migrated forward by :data:`MIGRATIONS`; a database newer than the code is refused.
 """
+
 from __future__ import annotations
 
 import os
@@ -36,8 +37,17 @@ from sqlalchemy.dialects import postgresql, sqlite
 from . import ops
 from .tables import metadata
 
-__all__ = ["Database", "DatabaseUnavailable", "DbProblem", "MIGRATIONS", "SCHEMA_VERSION",
-           "SchemaTooNew", "database", "diagnose", "insert_ignore"]
+__all__ = [
+    "Database",
+    "DatabaseUnavailable",
+    "DbProblem",
+    "MIGRATIONS",
+    "SCHEMA_VERSION",
+    "SchemaTooNew",
+    "database",
+    "diagnose",
+    "insert_ignore",
+]
 
 #: Version of the schema this code writes (bump with a migration in MIGRATIONS).
 SCHEMA_VERSION = 1
@@ -87,46 +97,65 @@ def _where(url: str) -> str:
 def diagnose(exc: BaseException, url: str = "") -> DbProblem | None:
     """A :class:`DbProblem` for a database exception, or None if ``exc`` is not one."""
     where = _where(url) if url else "the database"
-    msg = str(getattr(exc, "orig", None) or exc).strip().splitlines()[0] if str(exc) else \
-        type(exc).__name__
+    msg = (
+        str(getattr(exc, "orig", None) or exc).strip().splitlines()[0]
+        if str(exc)
+        else type(exc).__name__
+    )
     low = msg.lower()
     if isinstance(exc, SchemaTooNew):
-        return DbProblem("schema", f"{where}: {exc}",
-                         "upgrade rsf on this machine to the version the other processes "
-                         "run, or point RSF_CACHE_URL at another database")
+        return DbProblem(
+            "schema",
+            f"{where}: {exc}",
+            "upgrade rsf on this machine to the version the other processes "
+            "run, or point RSF_CACHE_URL at another database",
+        )
     if isinstance(exc, DatabaseUnavailable):
-        return DbProblem("unavailable", f"{where} unavailable: {msg}",
-                         "check that the database server is running and reachable "
-                         "(RSF_CACHE_URL); requests are answered 503 until it is back")
+        return DbProblem(
+            "unavailable",
+            f"{where} unavailable: {msg}",
+            "check that the database server is running and reachable "
+            "(RSF_CACHE_URL); requests are answered 503 until it is back",
+        )
     if not isinstance(exc, sa_exc.SQLAlchemyError):
         import sqlite3
+
         if not isinstance(exc, sqlite3.Error):
             return None
-    damaged = ("malformed", "not a database", "file is encrypted", "disk i/o error",
-               "corrupt")
+    damaged = ("malformed", "not a database", "file is encrypted", "disk i/o error", "corrupt")
     if any(d in low for d in damaged):
-        hint = ("stop every rsf process using it, then move the file aside (results are a "
+        hint = (
+            (
+                "stop every rsf process using it, then move the file aside (results are a "
                 "cache and are recomputed; unfinished sweeps must be resubmitted): "
                 f"mv {url.split('///', 1)[-1]} {url.split('///', 1)[-1]}.damaged; "
                 "or salvage it with `sqlite3 FILE .recover | sqlite3 NEW` and move NEW in "
-                "its place") if url.startswith("sqlite") else \
-            "restore the database from a backup; see the server's log"
+                "its place"
+            )
+            if url.startswith("sqlite")
+            else "restore the database from a backup; see the server's log"
+        )
         return DbProblem("damaged", f"{where} is damaged: {msg}", hint)
     if "locked" in low or "queuepool limit" in low or "busy" in low:
         return DbProblem("busy", f"{where} busy: {msg}", "retry later")
-    if isinstance(exc, (sa_exc.OperationalError, sa_exc.InterfaceError)) or \
-            getattr(exc, "connection_invalidated", False):
-        return DbProblem("unavailable", f"{where} unavailable: {msg}",
-                         "check that the database server is running and reachable "
-                         "(RSF_CACHE_URL); requests are answered 503 until it is back")
+    if isinstance(exc, (sa_exc.OperationalError, sa_exc.InterfaceError)) or getattr(
+        exc, "connection_invalidated", False
+    ):
+        return DbProblem(
+            "unavailable",
+            f"{where} unavailable: {msg}",
+            "check that the database server is running and reachable "
+            "(RSF_CACHE_URL); requests are answered 503 until it is back",
+        )
     if isinstance(exc, sa_exc.DBAPIError):
         return DbProblem("unavailable", f"{where} error: {msg}", "retry later")
     return None
 
 
 def _sqlite_engine(url: str, begin: str) -> Engine:
-    eng = create_engine(url, connect_args={"timeout": 60, "check_same_thread": False},
-                        pool_size=8, max_overflow=16)
+    eng = create_engine(
+        url, connect_args={"timeout": 60, "check_same_thread": False}, pool_size=8, max_overflow=16
+    )
 
     @event.listens_for(eng, "connect")
     def _on_connect(dbapi_conn: Any, _record: Any) -> None:
@@ -163,8 +192,9 @@ class _Backoff:
             try:
                 conn = fn()
             except Exception as exc:  # noqa: BLE001 - driver-specific connect errors
-                self.last_error = str(exc).strip().splitlines()[0] if str(exc) else \
-                    type(exc).__name__
+                self.last_error = (
+                    str(exc).strip().splitlines()[0] if str(exc) else type(exc).__name__
+                )
                 if time.monotonic() + delay > deadline:
                     self.down_until = time.monotonic() + self.cool
                     raise DatabaseUnavailable(self.last_error) from exc
@@ -178,13 +208,23 @@ class _Backoff:
 def _server_engine(url: str, opts: Mapping[str, Any], backoff: _Backoff) -> Engine:
     connect_args: dict[str, Any] = {}
     if url.startswith("postgresql"):
-        connect_args = {"connect_timeout": max(1, int(opts.get("connect_timeout", 5))),
-                        "keepalives": 1, "keepalives_idle": 10, "keepalives_interval": 5,
-                        "keepalives_count": 3, "application_name": "rsf"}
-    eng = create_engine(url, pool_pre_ping=True, pool_size=int(opts.get("pool_size", 5)),
-                        max_overflow=int(opts.get("max_overflow", 10)),
-                        pool_timeout=float(opts.get("pool_timeout", 10.0)),
-                        pool_recycle=1800, connect_args=connect_args)
+        connect_args = {
+            "connect_timeout": max(1, int(opts.get("connect_timeout", 5))),
+            "keepalives": 1,
+            "keepalives_idle": 10,
+            "keepalives_interval": 5,
+            "keepalives_count": 3,
+            "application_name": "rsf",
+        }
+    eng = create_engine(
+        url,
+        pool_pre_ping=True,
+        pool_size=int(opts.get("pool_size", 5)),
+        max_overflow=int(opts.get("max_overflow", 10)),
+        pool_timeout=float(opts.get("pool_timeout", 10.0)),
+        pool_recycle=1800,
+        connect_args=connect_args,
+    )
 
     @event.listens_for(eng, "do_connect")
     def _connect(dialect: Any, _rec: Any, cargs: Any, cparams: Any) -> Any:
@@ -204,18 +244,32 @@ class Database:
             :class:`DatabaseUnavailable`.
     """
 
-    def __init__(self, url: str, *, pool_size: int = 5, max_overflow: int = 10,
-                 pool_timeout: float = 10.0, connect_timeout: float = 5.0,
-                 retry_s: float = 2.0) -> None:
+    def __init__(
+        self,
+        url: str,
+        *,
+        pool_size: int = 5,
+        max_overflow: int = 10,
+        pool_timeout: float = 10.0,
+        connect_timeout: float = 5.0,
+        retry_s: float = 2.0,
+    ) -> None:
         self.url = url
         self._backoff = _Backoff(retry_s)
         if url.startswith("sqlite"):
             self.reader = _sqlite_engine(url, "BEGIN")
             self.writer = _sqlite_engine(url, "BEGIN IMMEDIATE")
         else:
-            eng = _server_engine(url, {"pool_size": pool_size, "max_overflow": max_overflow,
-                                       "pool_timeout": pool_timeout,
-                                       "connect_timeout": connect_timeout}, self._backoff)
+            eng = _server_engine(
+                url,
+                {
+                    "pool_size": pool_size,
+                    "max_overflow": max_overflow,
+                    "pool_timeout": pool_timeout,
+                    "connect_timeout": connect_timeout,
+                },
+                self._backoff,
+            )
             self.reader = self.writer = eng
         self._ready = False
         self._ready_lock = threading.Lock()
@@ -233,22 +287,30 @@ class Database:
                 if self.dialect == "postgresql":
                     conn.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _LOCK_ID})
                 metadata.create_all(conn)
-                found = conn.execute(select(ops.schema.c.version)
-                                     .where(ops.schema.c.id == 1)).scalar()
+                found = conn.execute(
+                    select(ops.schema.c.version).where(ops.schema.c.id == 1)
+                ).scalar()
                 if found is None:
-                    conn.execute(ops.schema.insert().values(id=1, version=SCHEMA_VERSION,
-                                                            updated_at=time.time()))
+                    conn.execute(
+                        ops.schema.insert().values(
+                            id=1, version=SCHEMA_VERSION, updated_at=time.time()
+                        )
+                    )
                     before = 0
                 else:
                     before = int(found)
                     if before > SCHEMA_VERSION:
-                        raise SchemaTooNew(f"schema version {before} is newer than this "
-                                           f"code's ({SCHEMA_VERSION})")
+                        raise SchemaTooNew(
+                            f"schema version {before} is newer than this code's ({SCHEMA_VERSION})"
+                        )
                     for v in range(before, SCHEMA_VERSION):
                         MIGRATIONS[v](conn)
                     if before < SCHEMA_VERSION:
-                        conn.execute(ops.schema.update().where(ops.schema.c.id == 1)
-                                     .values(version=SCHEMA_VERSION, updated_at=time.time()))
+                        conn.execute(
+                            ops.schema.update()
+                            .where(ops.schema.c.id == 1)
+                            .values(version=SCHEMA_VERSION, updated_at=time.time())
+                        )
             self._ready = True
             return before
 
@@ -279,8 +341,7 @@ class Database:
         """The recorded schema version (None if the database has none yet)."""
         with self.reader.connect() as conn:
             try:
-                v = conn.execute(select(ops.schema.c.version)
-                                 .where(ops.schema.c.id == 1)).scalar()
+                v = conn.execute(select(ops.schema.c.version).where(ops.schema.c.id == 1)).scalar()
             except sa_exc.ProgrammingError:
                 return None
             except sa_exc.OperationalError as exc:
@@ -300,6 +361,7 @@ class Database:
         raw = self.reader.raw_connection()
         try:
             dbapi = raw.driver_connection
+            assert dbapi is not None
             deadline = time.monotonic() + budget_s
             dbapi.set_progress_handler(lambda: int(time.monotonic() > deadline), 10_000)
             try:
@@ -334,16 +396,22 @@ def database(url: str) -> Database:
         db = _databases.get(key)
         if db is None:
             from ..config import get_settings
+
             s = get_settings()
             db = _databases[key] = Database(
-                url, pool_size=s.db_pool_size, max_overflow=s.db_max_overflow,
-                pool_timeout=s.db_pool_timeout_s, connect_timeout=s.db_connect_timeout_s,
-                retry_s=s.db_retry_s)
+                url,
+                pool_size=s.db_pool_size,
+                max_overflow=s.db_max_overflow,
+                pool_timeout=s.db_pool_timeout_s,
+                connect_timeout=s.db_connect_timeout_s,
+                retry_s=s.db_retry_s,
+            )
     return db
 
 
-def insert_ignore(conn: Connection, table: Table,
-                  rows: Sequence[Mapping[str, Any]] | Mapping[str, Any]) -> int:
+def insert_ignore(
+    conn: Connection, table: Table, rows: Sequence[Mapping[str, Any]] | Mapping[str, Any]
+) -> int:
     """INSERT rows, silently skipping those whose primary key exists; returns rows added."""
     if not rows:
         return 0

@@ -5,6 +5,7 @@
 * ``rsf_workers``: one row per running worker process (node, host, pid), its
   heartbeat renewed by the reaper thread; /health counts the live ones.
 """
+
 from __future__ import annotations
 
 from sqlalchemy import Column, Float, Integer, String, Table
@@ -14,14 +15,16 @@ from .tables import metadata
 __all__ = ["schema", "workers"]
 
 schema = Table(
-    "rsf_schema", metadata,
+    "rsf_schema",
+    metadata,
     Column("id", Integer, primary_key=True),  # always 1
     Column("version", Integer, nullable=False),
     Column("updated_at", Float, nullable=False),
 )
 
 workers = Table(
-    "rsf_workers", metadata,
+    "rsf_workers",
+    metadata,
     Column("name", String(200), primary_key=True),  # node:pid (unique per process)
     Column("node", String(100), nullable=False),
     Column("pid", Integer, nullable=False),

@@ -1,4 +1,5 @@
 """Health and cache statistics."""
+
 from __future__ import annotations
 
 import json
@@ -19,9 +20,16 @@ from ..errors import ProblemError
 router = APIRouter(tags=["meta"])
 
 
-@router.get("/health", summary="Deployment health: database, broker, workers",
-            responses={503: {"description": "A part is down or damaged; ``reasons`` says "
-                                            "which and ``Retry-After`` when to ask again."}})
+@router.get(
+    "/health",
+    summary="Deployment health: database, broker, workers",
+    responses={
+        503: {
+            "description": "A part is down or damaged; ``reasons`` says "
+            "which and ``Retry-After`` when to ask again."
+        }
+    },
+)
 async def health(stores: StoresDep, settings: SettingsDep) -> Response:
     """``status`` 'ok' (200) or 'degraded' (503 + ``Retry-After``, ``reasons``): the
     database is reachable and sound (schema version, SQLite page check), the broker is
@@ -37,9 +45,12 @@ async def health(stores: StoresDep, settings: SettingsDep) -> Response:
             rep["status"] = "degraded"
             rep["reasons"].append(f"results table unreadable: {exc}")
     ok = rep["status"] == "ok"
-    return Response(json.dumps(rep), status_code=200 if ok else 503,
-                    media_type="application/json",
-                    headers=None if ok else {"Retry-After": str(settings.retry_after_s)})
+    return Response(
+        json.dumps(rep),
+        status_code=200 if ok else 503,
+        media_type="application/json",
+        headers=None if ok else {"Retry-After": str(settings.retry_after_s)},
+    )
 
 
 @router.get("/health/live", summary="Liveness only (no I/O)", include_in_schema=False)
@@ -58,29 +69,45 @@ async def stats(stores: StoresDep) -> Response:
     return Response(json.dumps(st), media_type="application/json")
 
 
-@router.get("/v1/results/{key}", summary="A deferred (long) computation's result",
-            responses={202: {"description": "Still running."},
-                       404: {"description": "Unknown key (problem+json)."},
-                       422: {"description": "The computation failed (problem+json)."}})
-async def result(key: Annotated[str, Path(pattern=r"^[0-9a-f]{64}$",
-                                          description="cache_key (64 hex)")],
-                 stores: StoresDep, inflight: InflightDep) -> Response:
+@router.get(
+    "/v1/results/{key}",
+    summary="A deferred (long) computation's result",
+    responses={
+        202: {"description": "Still running."},
+        404: {"description": "Unknown key (problem+json)."},
+        422: {"description": "The computation failed (problem+json)."},
+    },
+)
+async def result(
+    key: Annotated[str, Path(pattern=r"^[0-9a-f]{64}$", description="cache_key (64 hex)")],
+    stores: StoresDep,
+    inflight: InflightDep,
+) -> Response:
     """The cached result for ``key`` (as the original endpoint answers it), 202 while it
     is still being computed (in this API process or, for a long integration, by a
     worker through the queue), 422 if it failed, else 404."""
     hit = await run_in_threadpool(stores.results.get_text, key)
     if hit is not None:
-        return Response(body(hit, key, True),
-                        media_type="application/json", headers={"X-Cache": "hit"})
+        return Response(
+            body(hit, key, True), media_type="application/json", headers={"X-Cache": "hit"}
+        )
     if key in inflight.pending:
-        return Response(json.dumps({"status": "running", "cache_key": key}), status_code=202,
-                        media_type="application/json", headers={"Retry-After": "2"})
+        return Response(
+            json.dumps({"status": "running", "cache_key": key}),
+            status_code=202,
+            media_type="application/json",
+            headers={"Retry-After": "2"},
+        )
     if key in inflight.failed:
         raise ProblemError(422, "Could not be computed", inflight.failed[key])
     queued = await run_in_threadpool(stores.jobs.status, key)
     if queued is not None:
         if queued.state is JobState.failed:
             raise ProblemError(422, "Could not be computed", queued.message)
-        return Response(json.dumps({"status": "queued", "cache_key": key}), status_code=202,
-                        media_type="application/json", headers={"Retry-After": "2"})
+        return Response(
+            json.dumps({"status": "queued", "cache_key": key}),
+            status_code=202,
+            media_type="application/json",
+            headers={"Retry-After": "2"},
+        )
     raise ProblemError(404, "Not found", f"no result with key {key}")

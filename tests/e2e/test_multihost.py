@@ -64,8 +64,9 @@ class Stack:
 
 
 @pytest.fixture(scope="module")
-def stack(tmp_path_factory: pytest.TempPathFactory, redis_exe: str,
-          postgres_bin: Path) -> Iterator[Stack]:
+def stack(
+    tmp_path_factory: pytest.TempPathFactory, redis_exe: str, postgres_bin: Path
+) -> Iterator[Stack]:
     base = tmp_path_factory.mktemp("multihost")
     dirs = {n: base / n for n in ("redis", "api", "host-a", "host-b")}
     for d in dirs.values():
@@ -75,15 +76,24 @@ def stack(tmp_path_factory: pytest.TempPathFactory, redis_exe: str,
     try:
         red = Redis(redis_exe, dirs["redis"], persist=True)
         started.append(red)
-        env = {"RSF_CACHE_URL": pg.url, "RSF_LEASE_S": str(LEASE_S),
-               "RSF_RETRY_AFTER_S": "2", "RSF_DB_RETRY_S": "1"}
+        env = {
+            "RSF_CACHE_URL": pg.url,
+            "RSF_LEASE_S": str(LEASE_S),
+            "RSF_RETRY_AFTER_S": "2",
+            "RSF_DB_RETRY_S": "1",
+        }
         api = Server(dirs["api"], red.url, RSF_NODE="api-host", **env)
         started.append(api)
         workers = {}
         for node in ("host-a", "host-b"):
-            workers[node] = Worker(dirs[node], red.url, include="chunk_delay_plugin",
-                                   RSF_NODE=node, RSF_TEST_CHUNK_DELAY_S=str(CHUNK_DELAY_S),
-                                   **env)
+            workers[node] = Worker(
+                dirs[node],
+                red.url,
+                include="chunk_delay_plugin",
+                RSF_NODE=node,
+                RSF_TEST_CHUNK_DELAY_S=str(CHUNK_DELAY_S),
+                **env,
+            )
             started.append(workers[node])
         with httpx.Client(base_url=api.url, timeout=10) as c:
             yield Stack(pg, red, api, workers, c)
@@ -95,9 +105,14 @@ def stack(tmp_path_factory: pytest.TempPathFactory, redis_exe: str,
 
 def submit(st: Stack, n_kappa: int, n_eps: int, chunk: int) -> str:
     """A critical-size sweep over (kappa_ratio, eps) of n_kappa x n_eps points."""
-    body = {"axes": [{"name": "kappa_ratio", "start": 0.3, "stop": 2.5, "n": n_kappa},
-                     {"name": "eps", "start": 0.05, "stop": 0.95, "n": n_eps}],
-            "fixed": {"ba": 2.0, "vo": 1.0}, "chunk_points": chunk}
+    body = {
+        "axes": [
+            {"name": "kappa_ratio", "start": 0.3, "stop": 2.5, "n": n_kappa},
+            {"name": "eps", "start": 0.05, "stop": 0.95, "n": n_eps},
+        ],
+        "fixed": {"ba": 2.0, "vo": 1.0},
+        "chunk_points": chunk,
+    }
     r = st.client.post("/v1/sweeps", json=body)
     assert r.status_code == 202, r.text
     return str(r.headers["location"].rsplit("/", 1)[1])
@@ -132,8 +147,9 @@ def check_exactly_once(st: Stack, sid: str, n_total: int) -> None:
     assert len(blocks) == n_chunks
     assert blocks[0][0] == 0 and blocks[-1][1] == n_total
     assert all(a[1] == b[0] for a, b in zip(blocks, blocks[1:], strict=False))
-    left = st.sql("SELECT count(*) FROM sweep_chunks WHERE sweep_id = :s AND status <> 'done'",
-                  s=sid)[0][0]
+    left = st.sql(
+        "SELECT count(*) FROM sweep_chunks WHERE sweep_id = :s AND status <> 'done'", s=sid
+    )[0][0]
     assert left == 0
 
 
@@ -172,8 +188,15 @@ def test_postgres_restart_mid_sweep_503_then_resumes(stack: Stack) -> None:
     while time.monotonic() < t_end:
         t0 = time.monotonic()
         r = stack.client.get(f"/v1/sweeps/{sid}")
-        answers.append((r.status_code, r.headers.get("content-type"),
-                        r.headers.get("retry-after"), time.monotonic() - t0, r.text[:200]))
+        answers.append(
+            (
+                r.status_code,
+                r.headers.get("content-type"),
+                r.headers.get("retry-after"),
+                time.monotonic() - t0,
+                r.text[:200],
+            )
+        )
         time.sleep(0.2)
     h = stack.client.get("/health")
     stack.pg.start()
@@ -194,9 +217,16 @@ def test_postgres_restart_mid_sweep_503_then_resumes(stack: Stack) -> None:
 
 def test_sigkill_one_host_mid_sweep_completes_on_the_other(stack: Stack) -> None:
     sid = submit(stack, 40, 80, chunk=80)  # 3200 points, 40 chunks
-    held = wait_for(lambda: stack.sql(
-        "SELECT idx FROM sweep_chunks WHERE sweep_id = :s AND status = 'running' "
-        "AND owner LIKE 'host-a:%'", s=sid), 30, "host-a to hold a chunk", dt=0.02)
+    held = wait_for(
+        lambda: stack.sql(
+            "SELECT idx FROM sweep_chunks WHERE sweep_id = :s AND status = 'running' "
+            "AND owner LIKE 'host-a:%'",
+            s=sid,
+        ),
+        30,
+        "host-a to hold a chunk",
+        dt=0.02,
+    )
     idx = held[0][0]
     stack.workers["host-a"].kill()  # SIGKILL, mid-chunk, no restart
     t_kill = time.monotonic()
@@ -205,8 +235,9 @@ def test_sigkill_one_host_mid_sweep_completes_on_the_other(stack: Stack) -> None
     elapsed = time.monotonic() - t_kill
     assert s["n_done"] == 3200
     check_exactly_once(stack, sid, 3200)
-    owner, attempts = stack.sql("SELECT owner, attempts FROM sweep_chunks WHERE sweep_id = :s "
-                                "AND idx = :i", s=sid, i=idx)[0]
+    owner, attempts = stack.sql(
+        "SELECT owner, attempts FROM sweep_chunks WHERE sweep_id = :s AND idx = :i", s=sid, i=idx
+    )[0]
     assert owner.startswith("host-b:") and attempts >= 2
     # Within the lease plus the other host's own backlog (0.25 s per chunk at least, and
     # a generous 10 s for a loaded 2-core CI machine), not an hour or a restart.
@@ -229,8 +260,10 @@ def test_damaged_sqlite_health_503_and_startup_says_how_to_recover(tmp_path: Pat
     db = Database(f"sqlite:///{db_file}")
     db.ensure_schema()
     con = sqlite3.connect(db_file)
-    con.executemany("INSERT INTO jobs(key, kind, state, message, updated_at) VALUES (?,?,?,?,?)",
-                    [(f"{i:064x}", "classify", "failed", "x" * 400, 0.0) for i in range(400)])
+    con.executemany(
+        "INSERT INTO jobs(key, kind, state, message, updated_at) VALUES (?,?,?,?,?)",
+        [(f"{i:064x}", "classify", "failed", "x" * 400, 0.0) for i in range(400)],
+    )
     con.commit()
     con.execute("PRAGMA wal_checkpoint(TRUNCATE)")
     con.close()
@@ -253,9 +286,14 @@ def test_damaged_sqlite_health_503_and_startup_says_how_to_recover(tmp_path: Pat
     # A damaged header: start-up refuses, says what and how, no traceback.
     with open(db_file, "r+b") as f:
         f.write(b"this is no database file")
-    r2 = subprocess.run([sys.executable, "-m", "rsfcli.main", "api", "--port",
-                         str(free_port()), "--wait-db", "0"], env=service_env(tmp_path),
-                        cwd=ROOT, capture_output=True, text=True, timeout=120)
+    r2 = subprocess.run(
+        [sys.executable, "-m", "rsfcli.main", "api", "--port", str(free_port()), "--wait-db", "0"],
+        env=service_env(tmp_path),
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r2.returncode == 1
     assert "cannot start" in r2.stderr and "is damaged" in r2.stderr, r2.stderr
     assert "how to recover" in r2.stderr and "Traceback" not in r2.stderr + r2.stdout
