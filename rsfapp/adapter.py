@@ -616,22 +616,30 @@ def fit_key_request(req: FitRequest) -> dict[str, Any]:
     return {"record_sha256": fit_record_of(req).digest(), **req.options()}
 
 
-def fit(req: FitRequest) -> dict[str, Any]:
+def fit(req: FitRequest, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Fit the record (rsfcore.fit): the reported law's FitResult.to_dict() (params,
     stderr, residuals and series, misfit, stability answer in SI with uncertainty), plus
-    ``law_comparison`` (misfit and information criteria per law) when ``compare``."""
+    ``law_comparison`` (misfit and information criteria per law) when ``compare`` and
+    ``posterior`` (emcee) when asked.  ``progress`` is told each stage as it starts."""
     from rsfcore import fit as _fit
 
+    def stage(text: str) -> None:
+        if progress is not None:
+            progress(text)
+
+    stage("reading the record")
     rec = fit_record_of(req)
     opts: dict[str, Any] = {"stiffness": req.stiffness_per_m, "fit_stiffness": req.fit_stiffness,
                             "nagata_c": req.nagata_c, "rtol": req.rtol,
                             "uncertainty_samples": req.uncertainty_samples, "seed": req.seed}
     comparison: dict[str, Any] | None = None
     if req.compare:
+        stage(f"fitting {rec.n} samples with each law ({', '.join(FIT_LAWS)})")
         cmp = guard(_fit.compare_laws, rec, laws=FIT_LAWS, **opts)
         law = req.law or cmp.best or (req.law or "aging")
         res = cmp.fits[law]
         if res.ok and res.stability is None:
+            stage("stability answer with uncertainty")
             guard(_fit.attach_stability, res, uncertainty_samples=req.uncertainty_samples,
                   seed=req.seed)
         comparison = {"best": cmp.best, "misfit_floor": cmp.misfit_floor,
@@ -641,11 +649,13 @@ def fit(req: FitRequest) -> dict[str, Any]:
                       "status": {k: f.status.value for k, f in cmp.fits.items()}}
     else:
         assert req.law is not None
+        stage(f"fitting {rec.n} samples ({req.law} law) and the stability answer")
         res = guard(_fit.fit_record, rec, req.law, **opts)
     out = res.to_dict(series=True)
     out["posterior"] = None
     if req.posterior is not None:
         po = req.posterior
+        stage(f"posterior: {po.n_walkers} walkers x {po.n_steps} steps (emcee)")
         try:
             post = guard(_fit.sample_posterior, res, n_walkers=po.n_walkers, n_steps=po.n_steps,
                          burn=po.burn, thin=po.thin, seed=req.seed,

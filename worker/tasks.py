@@ -113,7 +113,7 @@ def fit_record_body(request: dict[str, Any], key: str, version: str) -> None:
     try:
         req = FitRequest.model_validate(request)
         summary = adapter.fit_key_request(req)
-        result = adapter.fit(req)
+        result = adapter.fit(req, progress=lambda text: st.jobs.set_progress(key, text))
     except Exception as exc:  # noqa: BLE001 - every failure is recorded for the client
         log.warning("fit %s failed: %s", key, exc)
         st.jobs.mark_failed(key, f"{type(exc).__name__}: {exc}")

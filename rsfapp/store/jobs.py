@@ -52,6 +52,14 @@ class JobStore:
             conn.execute(update(jobs).where(jobs.c.key == key).values(
                 state=JobState.failed.value, message=message, updated_at=time.time()))
 
+    def set_progress(self, key: str, message: str) -> None:
+        """While ``key`` is queued (a worker is on it), record how far it got (a short
+        text shown by GET /v1/fits/{key}); no effect once it failed."""
+        with self.db.write() as conn:
+            conn.execute(update(jobs).where((jobs.c.key == key)
+                                            & (jobs.c.state == JobState.queued.value))
+                         .values(message=message[:500], updated_at=time.time()))
+
     def status(self, key: str) -> JobStatus | None:
         """State of a queued single query, or None if it never was queued."""
         with self.db.read() as conn:

@@ -7,7 +7,8 @@ the fit itself runs on a Celery worker (task ``worker.tasks.fit_record``): the a
 (rsfcore.fit.Record.digest) and the options, so the same record with the same options is
 fitted once: later requests get the stored answer (200, ``X-Cache: hit``).
 
-GET answers 202 (``{"status": "queued"}``) while the fit runs, 200 with the fit when done
+GET answers 202 (``{"status": "queued"}``, or ``"running"`` with ``progress``: the stage
+the worker is at) while the fit runs, 200 with the fit when done
 (``?format=png``: data, fit and residuals; ``?format=csv``: t_s, v_lp_m_s, mu, model,
 residuals), 422 if the fit could not be computed, 404 for an unknown key.
 """
@@ -40,9 +41,13 @@ _KEY = re.compile(r"^[0-9a-f]{64}$")
 _FORMATS = ("json", "png", "csv")
 
 
-def _queued(key: str, status: str = "queued") -> Response:
+def _queued(key: str, progress: str = "") -> Response:
+    """202: ``status`` 'queued' (waiting for a worker) or 'running' with ``progress``
+    (the stage the worker is at)."""
     loc = f"/v1/fits/{key}"
-    return Response(json.dumps({"status": status, "cache_key": key, "location": loc}),
+    status = "running" if progress else "queued"
+    return Response(json.dumps({"status": status, "progress": progress or None,
+                                "cache_key": key, "location": loc}),
                     status_code=202, media_type="application/json",
                     headers={"Location": loc, "Retry-After": "1", "X-Cache": "miss"})
 
@@ -96,7 +101,7 @@ async def get_fit(key: Annotated[str, Path(description="The key of POST /v1/fits
             raise ProblemError(404, "Not found", f"no fit with key {key}")
         if st.state is JobState.failed:
             raise ProblemError(422, "Could not be computed", st.message)
-        return _queued(key)
+        return _queued(key, st.message)
     if fmt == "json":
         return Response(body(text, key, True), media_type="application/json",
                         headers={"X-Cache": "hit"})

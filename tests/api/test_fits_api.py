@@ -34,8 +34,15 @@ def test_fit_round_trip(c: TestClient) -> None:
     loc = r.headers["location"]
     key = r.json()["cache_key"]
     assert loc == f"/v1/fits/{key}" and queue.fits[-1][1] == key
-    assert c.get(loc).status_code == 202            # queued, not computed yet
+    assert c.get(loc).json()["status"] == "queued"  # queued, not computed yet
     assert c.post("/v1/fits", json=body).status_code == 202 and len(queue.fits) == 1
+
+    from rsfapp.config import get_settings
+    from rsfapp.store import stores_for
+    stores_for(get_settings()).jobs.set_progress(key, "fitting (test)")
+    running = c.get(loc)
+    assert running.status_code == 202 and running.json()["status"] == "running"
+    assert running.json()["progress"] == "fitting (test)"
 
     from worker.tasks import fit_record_body
     fit_record_body(*queue.fits[-1])
