@@ -88,7 +88,12 @@ async function runFit(ev) {
   busy(status, "queued for fitting\u2026");
   const t0 = performance.now();
   try {
-    const res = await settle(await postJSON("/v1/fits", body));
+    let res = await postJSON("/v1/fits", body);
+    for (let n = 0; res.status === 202 && n < 1200; n++) {  // queued: poll, show the stage
+      busy(status, res.body.progress ? `fitting: ${res.body.progress}\u2026` : "queued for a worker\u2026");
+      await new Promise(ok => setTimeout(ok, 500));
+      res = await getJSON(res.headers.get("location") || res.body.location);
+    }
     showFit(res.body);
     busy(status, "plotting\u2026");
     const key = res.body.cache_key;
