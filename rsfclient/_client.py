@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -25,7 +26,8 @@ class Client:
 
     Args:
         base_url: e.g. ``http://127.0.0.1:8000`` (``rsf serve``'s default).
-        api_key: sent as ``Authorization: Bearer <key>`` when the server requires keys.
+        api_key: sent as ``Authorization: Bearer <key>`` when the server requires keys;
+            default: the ``RSF_API_KEY`` environment variable (if set).
         timeout: seconds per request.
         retries: attempts after the first one for 502/503/504 answers and connection
             errors / timeouts, with exponential backoff from ``backoff`` seconds (capped
@@ -36,6 +38,8 @@ class Client:
     def __init__(self, base_url: str = "http://127.0.0.1:8000", *, api_key: str | None = None,
                  timeout: float = 60.0, retries: int = 5, backoff: float = 0.5,
                  transport: httpx.BaseTransport | None = None) -> None:
+        if api_key is None:
+            api_key = os.environ.get("RSF_API_KEY") or None
         headers = {"Authorization": f"Bearer {api_key}"} if api_key else {}
         self._http = httpx.Client(base_url=base_url.rstrip("/"), timeout=timeout,
                                   headers=headers, transport=transport)

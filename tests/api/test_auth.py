@@ -368,3 +368,25 @@ def test_405_lists_every_method_of_the_path(env: Env) -> None:
     assert r.status_code == 405 and r.headers["allow"] == "GET, POST"
     r = env.c.put("/v1/sweeps/" + "0" * 32, headers=h)
     assert r.status_code == 405 and r.headers["allow"] == "DELETE, GET"
+
+
+def test_python_client_takes_the_key_from_rsf_api_key(monkeypatch: pytest.MonkeyPatch) -> None:
+    import httpx
+
+    from rsfclient import Client
+
+    seen: list[str | None] = []
+
+    def handler(request: httpx.Request) -> httpx.Response:
+        seen.append(request.headers.get("authorization"))
+        return httpx.Response(200, json={"status": "ok"})
+    monkeypatch.setenv("RSF_API_KEY", "rsf_from_env")
+    with Client("http://lab:8000", transport=httpx.MockTransport(handler)) as c:
+        c.request("GET", "/health")
+    with Client("http://lab:8000", api_key="rsf_explicit",
+                transport=httpx.MockTransport(handler)) as c:
+        c.request("GET", "/health")
+    monkeypatch.delenv("RSF_API_KEY")
+    with Client("http://lab:8000", transport=httpx.MockTransport(handler)) as c:
+        c.request("GET", "/health")
+    assert seen == ["Bearer rsf_from_env", "Bearer rsf_explicit", None]

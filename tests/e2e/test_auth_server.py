@@ -240,3 +240,21 @@ def test_dashboard_asks_for_the_key_once_and_sends_it(srv: AuthServer, tmp_path:
         assert not browser.exceptions(), browser.exceptions()
     finally:
         browser.close()
+
+
+def test_client_and_cli_use_the_key(srv: AuthServer, monkeypatch: pytest.MonkeyPatch) -> None:
+    from rsfclient import Client, ProblemError
+
+    k = srv.key("client", "submit")
+    monkeypatch.delenv("RSF_API_KEY", raising=False)
+    with Client(srv.url, retries=0) as c, pytest.raises(ProblemError) as err:
+        c.request("GET", "/v1/cache/stats")
+    assert err.value.status == 401
+    monkeypatch.setenv("RSF_API_KEY", k)
+    with Client(srv.url, retries=0) as c:
+        assert c.request("GET", "/v1/cache/stats").status_code == 200
+    env = {**srv.env, "RSF_API_KEY": k}
+    r = subprocess.run([RSF, "sweep", "status", "--url", srv.url, "0" * 32], env=env,
+                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    out = r.stdout + r.stderr
+    assert "no sweep with id" in out and "401" not in out, out  # authenticated: a 404
