@@ -422,7 +422,7 @@ _COST_S = {"critical": 3e-5, "classify": 1e-4}
 _MIN_CHUNKS = 8
 #: ... and large sweeps into chunks of at most this many points, so that chunks of
 #: unequal cost (parts of a grid where the separatrix is slow) balance over the workers.
-_BALANCE_POINTS = 20_000
+_BALANCE_POINTS = 5_000
 #: Largest chunk (points): bounds a chunk's memory (~30 bytes a point) and lost work.
 MAX_CHUNK = 1_000_000
 
