@@ -48,8 +48,8 @@ def plot_protocol(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -
     pos = v > 0
     ax2.semilogy(t[pos], v[pos], "k-", lw=1.1, label="slip rate V")
     if vo.size == t.size and np.any(vo > 0):
-        ax2.semilogy(t[vo > 0], vo[vo > 0], "--", color="tab:blue", lw=0.9,
-                     label="load-point velocity")
+        ax2.semilogy(t, np.where(vo > 0, vo, np.nan), "--", color="tab:blue", lw=0.9,
+                     label="load-point velocity (gap: hold)")
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("V (m/s)")
     ax2.legend(fontsize=7)
