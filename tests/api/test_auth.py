@@ -390,3 +390,15 @@ def test_python_client_takes_the_key_from_rsf_api_key(monkeypatch: pytest.Monkey
     with Client("http://lab:8000", transport=httpx.MockTransport(handler)) as c:
         c.request("GET", "/health")
     assert seen == ["Bearer rsf_from_env", "Bearer rsf_explicit", None]
+
+
+def test_daily_points_reset_with_the_utc_day(env: Env) -> None:
+    key = env.key(Scope.submit)
+    name = env.names[key]
+    day = 20_000  # any UTC day number; the next day starts from zero
+    assert env.keys.reserve_points(name, 7, 10, day=day) == 3
+    assert env.keys.reserve_points(name, 4, 10, day=day) == -1  # refused, nothing added
+    assert env.keys.points_used(name, day=day) == 7
+    assert env.keys.reserve_points(name, 10, 10, day=day + 1) == 0
+    env.keys.refund_points(name, 100, day=day)  # never below zero
+    assert env.keys.points_used(name, day=day) == 0
