@@ -268,14 +268,16 @@ async function submitSweep(ev) {
 }
 
 function describe(s) {
-  const sp = s.spec || {};
-  const x = sp.x || {}, y = sp.y || {};
-  const fx = sp.fixed || {};
-  const mode = fx.size !== null && fx.size !== undefined ? `outcome @ size ${fmt(fx.size)}`
-    : (x.name === "size" || y.name === "size") ? "outcome" : "critical size";
-  const nx = (x.values || []).length, ny = (y.values || []).length;
-  return { grid: `${NAMES[x.name] || x.name} \u00d7 ${NAMES[y.name] || y.name}`,
-           dims: `${nx}\u00d7${ny}`, mode: `${mode}, ${(sp.perturbation || "").replace("-", " ")}` };
+  // status polls carry dims (names and lengths), fixed, output, perturbation
+  const dims = s.dims || [];
+  const fx = s.fixed || {};
+  const scattered = dims.length === 1 && dims[0].name === "point";
+  const mode = s.output === "outcome"
+    ? (fx.size !== null && fx.size !== undefined ? `outcome @ size ${fmt(fx.size)}` : "outcome")
+    : "critical size";
+  return { grid: scattered ? "scattered points" : dims.map(d => NAMES[d.name] || d.name).join(" \u00d7 "),
+           dims: dims.map(d => d.n).join("\u00d7"),
+           mode: `${mode}, ${(s.perturbation || "").replace("-", " ")}` };
 }
 
 function row(s) {
