@@ -17,6 +17,7 @@ import numpy as np
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
 from rsfcore import NUMERICS_VERSION, analytic
+from rsfcore import batch as _batch
 from rsfcore import boundaries as _bounds
 from rsfcore import critical as _critical
 from rsfcore import protocols as _protocols
@@ -374,16 +375,16 @@ def _param_error(index: int, exc: ParameterError) -> dict[str, Any]:
 def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
     """Critical sizes of many items, answered item by item exactly as :func:`critical`.
 
-    Valid items are grouped by (v_o, perturbation, rtol) and each group runs in one call
-    of the compiled loop rsfcore.critical.critical_batch (the same per-point decision as
-    critical_perturbation); points the separatrix method cannot settle fall back to
-    critical_perturbation one by one (bisection).  Returns {"results": [...] in item order,
+    Valid items are grouped by (perturbation, rtol) and each group is one call of
+    rsfcore.batch.critical_points (the compiled loop of critical_perturbation, with its
+    bisection fallback and per-point failure isolation: a point that fails is an error
+    entry, the others are answered).  Returns {"results": [...] in item order,
     "n_items", "n_ok", "n_failed"}."""
     models, errs = validate_items(CriticalRequest, items)
     n = len(items)
     pdicts: list[dict[str, float] | None] = [None] * n
     physs: list[PhysicalInputs | None] = [None] * n
-    groups: dict[tuple[float, int, float], list[int]] = {}
+    groups: dict[tuple[int, float], list[int]] = {}
     for i, m in enumerate(models):
         if m is None:
             continue
@@ -403,49 +404,46 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
             errs[i] = _param_error(i, exc)
             continue
         pdicts[i] = pd
-        groups.setdefault((pd["vo"], pert, float(m.rtol)), []).append(i)
+        groups.setdefault((pert, float(m.rtol)), []).append(i)
     results: list[dict[str, Any] | None] = [errs.get(i) for i in range(n)]
-    flag_boundary = _critical.FLAG_ON_X1 | _critical.FLAG_ON_KCRIT
     kinds, methods = _critical.KINDS, _critical.METHODS
-    for (vo, pert, rtol), idx in groups.items():
-        pds = [pdicts[i] for i in idx]
-        ba = np.array([p["ba"] for p in pds])  # type: ignore[index]
-        kappa = np.array([p["kappa"] for p in pds])  # type: ignore[index]
-        eps = np.array([p["eps"] for p in pds])  # type: ignore[index]
-        m_ = len(idx)
-        kind, meth, flags = (np.empty(m_, np.int64) for _ in range(3))
-        value, acc = np.empty(m_), np.empty(m_)
-        _critical.critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, acc, meth, flags)
+    for (pert, rtol), idx in groups.items():
+        pds = [pd for pd in (pdicts[i] for i in idx) if pd is not None]  # all set above
         name = _critical.PERTURBATIONS[pert]
-        kind_l, value_l, acc_l = kind.tolist(), value.tolist(), acc.tolist()
-        meth_l, flags_l = meth.tolist(), flags.tolist()
+        res = _batch.critical_points(
+            np.array([p["ba"] for p in pds]), np.array([p["kappa"] for p in pds]),
+            np.array([p["eps"] for p in pds]), np.array([p["vo"] for p in pds]),
+            perturbation=name, rtol=rtol)
+        kind_l, value_l, acc_l = res.kind.tolist(), res.critical_size.tolist(), \
+            res.rel_accuracy.tolist()
+        meth_l, onb_l = res.method.tolist(), res.on_boundary.tolist()
         for j, i in enumerate(idx):
-            pdj = pds[j]
-            assert pdj is not None
-            if flags_l[j] & _critical.FLAG_FALLBACK:
+            if j in res.errors:
+                results[i] = item_error(i, None, res.errors[j])
+                continue
+            k = kind_l[j]
+            out: dict[str, Any]
+            if meth_l[j] == _critical.M_BISECTION:
+                # settled by bisection (rare): the single path's own result, so that the
+                # method text (which may carry a note) is exactly the single answer's
                 try:
-                    r = guard(_critical.critical_perturbation, guard(Params, **pdj), name,
+                    r = guard(_critical.critical_perturbation, guard(Params, **pds[j]), name,
                               rtol=rtol)
-                except ParameterError as exc:
-                    results[i] = _param_error(i, exc)
-                    continue
-                except ComputeError as exc:
-                    results[i] = item_error(i, None, str(exc))
+                except (ParameterError, ComputeError) as exc:
+                    results[i] = item_error(i, getattr(exc, "field", None), str(exc))
                     continue
                 out = _json(r.to_dict())
             else:
-                # the layout of rsfcore.critical.CriticalResult.to_dict (tested equal to
-                # the single endpoint's answer item by item)
-                k = kind_l[j]
-                out = {"kind": kinds[k],
-                       "critical_size": None if k == _critical.KIND_INFINITE else
-                       (0.0 if k == _critical.KIND_ZERO else value_l[j]),
-                       "rel_accuracy": acc_l[j], "method": methods[meth_l[j]],
-                       "perturbation": name, "params": pdj,
-                       "on_boundary": bool(flags_l[j] & flag_boundary)}
+                # the layout of rsfcore.critical.CriticalResult.to_dict (tested equal to the
+                # single endpoint's answer item by item)
+                out = {
+                    "kind": kinds[k], "critical_size": None if k == _critical.KIND_INFINITE
+                    else (0.0 if k == _critical.KIND_ZERO else value_l[j]),
+                    "rel_accuracy": acc_l[j], "method": methods[meth_l[j]],
+                    "perturbation": name, "params": pds[j], "on_boundary": bool(onb_l[j])}
             ph = physs[i]
             if ph is not None:
-                out["si"] = jsonsafe(_critical_si(ph, out))
+                out["si"] = _json(_critical_si(ph, out))
             out["index"] = i
             results[i] = out
     return _batch_summary(results)
