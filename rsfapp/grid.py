@@ -256,10 +256,10 @@ def _axis(ax: SweepAxis, where: str, pert: str) -> Axis:
         x = float(getattr(ax, f))
         if _bad_mask(ax.name, np.array([x]), pert)[0]:
             raise SpecError(f"{where}.{f}", f"{x!r} out of range for {ax.name}", valid)
+    assert ax.start is not None and ax.stop is not None and ax.n is not None
     if ax.log and (ax.start <= 0 or ax.stop <= 0):
         raise SpecError(f"{where}.start" if ax.start <= 0 else f"{where}.stop",
                         "log spacing needs start, stop > 0", "> 0")
-    assert ax.start is not None and ax.stop is not None and ax.n is not None
     return Axis(ax.name, int(ax.n), None, float(ax.start), float(ax.stop), bool(ax.log))
 
 
@@ -315,7 +315,8 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
         points = {}
         n0: int | None = None
         first = ""
-        for name, vals in req.points.items():
+        for pname, vals in req.points.items():
+            name = str(pname)
             v = np.asarray(vals, dtype=np.float64)
             if n0 is None:
                 n0, first = int(v.size), name
@@ -391,8 +392,9 @@ def _check_combinations(spec: SweepSpec, where: dict[str, str]) -> None:
         return
     valid = "kappa_ratio*(ba-1) <= 1e6"
     if spec.mode == "points" and ("kappa_ratio" in where or "ba" in where):
-        pts = spec.params(0, spec.n_total)
-        bad = pts["kappa"] > _KAPPA_MAX  # type: ignore[operator]
+        kappa = spec.params(0, spec.n_total)["kappa"]
+        assert kappa is not None
+        bad = np.asarray(kappa > _KAPPA_MAX)
         if bad.any():
             k = int(np.argmax(bad))
             name = "kappa_ratio" if "kappa_ratio" in where else "ba"

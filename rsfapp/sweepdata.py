@@ -52,8 +52,10 @@ def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[
     """
     p = spec.params(i0, i1)
     n = i1 - i0
+    ba, kappa, eps, vo = p["ba"], p["kappa"], p["eps"], p["vo"]
+    assert ba is not None and kappa is not None and eps is not None and vo is not None
     try:
-        r = batch.critical_points(p["ba"], p["kappa"], p["eps"], p["vo"],
+        r = batch.critical_points(ba, kappa, eps, vo,
                                   perturbation=spec.perturbation, rtol=spec.rtol,
                                   size=p["size"])
     except ParameterError as exc:
@@ -125,9 +127,9 @@ def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArra
                              "n_done": int(status.get("n_done", 0)),
                              "n_failed": int(status.get("n_failed", 0)),
                              "numerics_version": str(status.get("numerics_version", ""))}
-    for k, v in spec.fixed.items():
-        if v is not None:
-            attrs[f"fixed_{k}"] = float(v)
+    for name, fv in spec.fixed.items():
+        if fv is not None:
+            attrs[f"fixed_{name}"] = float(fv)
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
@@ -192,7 +194,7 @@ def json_chunks(spec: SweepSpec, status: dict[str, Any],
     parameters of each point), and one flat list per variable in flat-index order
     (non-finite numbers and missing points are null; ``kind`` tells infinite from
     missing), ``computed``, and ``failures`` [{idx, error}] (first 100)."""
-    head = {k: status[k] for k in ("id", "status", "n_total", "n_done", "n_failed",
+    head: dict[str, Any] = {k: status[k] for k in ("id", "status", "n_total", "n_done", "n_failed",
                                    "numerics_version") if k in status}
     head.update(spec.summary())
     head["shape"] = list(spec.shape)

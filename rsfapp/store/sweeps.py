@@ -93,7 +93,7 @@ def _owner_alive(owner: str | None, heartbeat: float | None, lease_s: float) -> 
 def encode_block(arrays: dict[str, NDArray[Any]]) -> bytes:
     """Arrays of one chunk as a compressed .npz (zlib); ~10-15 bytes per point."""
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    np.savez_compressed(buf, **arrays)  # type: ignore[arg-type]
     return buf.getvalue()
 
 

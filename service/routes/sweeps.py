@@ -50,8 +50,9 @@ from ..images import choice, format_query, image, image_response, png_content
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 log = logging.getLogger("rsf.service")
 SweepId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="Sweep id (32 hex).")]
-_R = {422: {"description": "Invalid input (problem+json naming the field and its range)."}}
-_N = {404: {"description": "Unknown sweep (problem+json)."}}
+_R: dict[int | str, dict[str, Any]] = {
+    422: {"description": "Invalid input (problem+json naming the field and its range)."}}
+_N: dict[int | str, dict[str, Any]] = {404: {"description": "Unknown sweep (problem+json)."}}
 
 
 def _json(obj: object, status: int = 200, headers: dict[str, str] | None = None) -> Response:
