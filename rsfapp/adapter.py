@@ -288,25 +288,31 @@ def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
 
 
 def boundaries(req: BoundariesRequest) -> dict[str, Any]:
-    """kappa_crit, eps_crit, (a/b)_crit, acceleration possibility and line."""
+    """kappa_crit, eps_crit, (a/b)_crit, acceleration possibility and line; with
+    ``physical`` (BoundariesSIRequest) b/a and kappa from the SI machine, plus an ``si``
+    block (k_crit [Pa/m], kappa/kappa_crit)."""
     def soft(fn: Callable[..., Any], *a: Any) -> Any:
         try:
             return guard(fn, *a)
         except ComputeError as exc:
             return {"error": str(exc)}
 
+    phys = si_inputs(req)
+    ba, kappa = (req.ba, req.kappa) if phys is None else (phys.ba, phys.kappa)
     out: dict[str, Any] = {
-        "ba": req.ba, "kappa": req.kappa, "eps": req.eps,
-        "kappa_crit": guard(_bounds.kappa_crit, req.ba),
-        "eps_crit": soft(_bounds.eps_crit, req.ba, req.kappa),
-        "ab_crit": soft(_bounds.ab_crit, req.kappa, req.eps),
-        "acceleration_possible": soft(_bounds.acceleration_possible, req.ba, req.kappa, req.eps),
-        "max_unstable_kappa": soft(_bounds.max_unstable_kappa, req.ba, req.eps),
+        "ba": ba, "kappa": kappa, "eps": req.eps,
+        "kappa_crit": guard(_bounds.kappa_crit, ba),
+        "eps_crit": soft(_bounds.eps_crit, ba, kappa),
+        "ab_crit": soft(_bounds.ab_crit, kappa, req.eps),
+        "acceleration_possible": soft(_bounds.acceleration_possible, ba, kappa, req.eps),
+        "max_unstable_kappa": soft(_bounds.max_unstable_kappa, ba, req.eps),
     }
+    if phys is not None:
+        out["si"] = {**_scales_si(phys), "kappa_ratio": phys.kappa / phys.kappa_crit}
     line = []
     for phi in req.phi:
         try:
-            psi = guard(_bounds.acceleration_line, req.ba, req.kappa, req.eps, phi)
+            psi = guard(_bounds.acceleration_line, ba, kappa, req.eps, phi)
             line.append({"phi": phi, "psi": psi})
         except ComputeError as exc:
             line.append({"phi": phi, "psi": None, "error": str(exc)})

@@ -11,6 +11,7 @@ from .single import (
                      SI_PERTURBATION_FIELDS,
                      AnalyticRequest,
                      BoundariesRequest,
+                     BoundariesSIRequest,
                      ClassifyRequest,
                      CriticalRequest,
                      GridSpec,
@@ -24,7 +25,8 @@ from .single import (
 from .sweeps import AXIS_RANGES, AxisName, SweepAxis, SweepFixed, SweepRequest
 
 __all__ = [
-    "AXIS_RANGES", "AnalyticRequest", "AxisName", "BoundariesRequest", "ClassifyRequest",
+    "AXIS_RANGES", "AnalyticRequest", "AxisName", "BoundariesRequest", "BoundariesSIRequest",
+    "ClassifyRequest",
     "CriticalRequest", "GridSpec", "Perturbation", "PhysicalSI", "PhysicalScales", "Point",
     "SI_PERTURBATION_FIELDS",
     "StiffnessPhysical", "StiffnessRequest", "SweepAxis", "SweepFixed", "SweepRequest",

@@ -33,7 +33,8 @@ from ._base import FL, RTOL, SIZE_TEXT, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
 
 __all__ = [
-    "AnalyticRequest", "BoundariesRequest", "ClassifyRequest", "CriticalRequest",
+    "AnalyticRequest", "BoundariesRequest", "BoundariesSIRequest", "ClassifyRequest",
+    "CriticalRequest",
     "GridSpec", "PhysicalSI", "PhysicalScales", "Point", "SI_PERTURBATION_FIELDS",
     "StiffnessPhysical", "StiffnessRequest", "TrajectoryRequest", "field_error",
 ]
@@ -313,6 +314,16 @@ class BoundariesRequest(_Model):
     phi: Annotated[list[Annotated[float, Field(ge=-1e3, le=1e3)]], Field(max_length=10_000)] = F(
         [], "0..10000 values in [-1e3, 1e3]", "phi values at which to give psi on the "
         "acceleration line (-).", name="phi")
+
+
+class BoundariesSIRequest(_SIInput, BoundariesRequest):
+    """Stability boundaries (POST): dimensionless, or the machine in SI (``physical``
+    instead of ba and kappa; then also k_crit [Pa/m] and kappa/kappa_crit)."""
+
+    @model_validator(mode="after")
+    def _si_rules(self) -> BoundariesSIRequest:
+        _check_si(self, type(self).__name__, with_size=False)
+        return self
 
 
 class StiffnessPhysical(_Model):

@@ -21,6 +21,7 @@ from rsfapp.queue import Queue
 from rsfapp.requests import (
     AnalyticRequest,
     BoundariesRequest,
+    BoundariesSIRequest,
     ClassifyRequest,
     CriticalRequest,
     StiffnessRequest,
@@ -60,8 +61,9 @@ def _ctx(stores: StoresDep, queue: QueueDep, inflight: InflightDep,
 
 
 CtxDep = Annotated[Ctx, Depends(_ctx)]
-_R: dict[int | str, dict[str, Any]] = {422: {"description": "Invalid input (problem+json naming the field and its range) "
-                           "or a computation that could not be completed."}}
+_R: dict[int | str, dict[str, Any]] = {422: {
+    "description": "Invalid input (problem+json naming the field and its range) or a "
+                   "computation that could not be completed."}}
 
 
 @router.post("/classify", responses={200: {"model": ClassifyResult, "description": "The outcome."}, **_R},
@@ -74,8 +76,9 @@ async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
 
 
 _JSON_OR_PNG = ("json", "png")
-_DEFERRED: dict[int | str, dict[str, Any]] = {202: {"description": "Still computing (JSON with `Location: /v1/results/{key}`, "
-                                  "also for format=png): poll it, then repeat the request."}}
+_DEFERRED: dict[int | str, dict[str, Any]] = {202: {
+    "description": "Still computing (JSON with `Location: /v1/results/{key}`, also for "
+                   "format=png): poll it, then repeat the request."}}
 
 
 async def _as_png(resp: Response, plot: Callable[[dict[str, Any]], bytes]) -> Response:
@@ -170,8 +173,11 @@ async def boundaries_get(req: Annotated[BoundariesRequest, Query()], ctx: CtxDep
 
 
 @router.post("/boundaries", responses=_R, summary="Stability boundaries")
-async def boundaries_post(req: BoundariesRequest, ctx: CtxDep) -> Response:
-    """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values. Cached (field `cached`, header `X-Cache: hit|miss`)."""
+async def boundaries_post(req: BoundariesSIRequest, ctx: CtxDep) -> Response:
+    """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values;
+    dimensionless (ba, kappa) or with the machine in SI (``physical``; then also an
+    ``si`` block: k_crit [Pa/m], kappa/kappa_crit). Cached (field `cached`, header
+    `X-Cache: hit|miss`)."""
     return await ctx.answer("boundaries", req, adapter.boundaries)
 
 

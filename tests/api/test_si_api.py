@@ -169,3 +169,18 @@ def test_si_request_dump_validates_again() -> None:
         assert model.model_validate(d) == r
     d = ClassifyRequest.model_validate({"ba": 3.0}).model_dump(mode="json")
     assert d["ba"] == 3.0 and d["physical"] is None
+
+
+def test_boundaries_si_equals_dimensionless(c: TestClient) -> None:
+    s = c.post("/v1/boundaries", json={"physical": PHYS, "eps": 0.3, "phi": [0.5, 2.0]})
+    d = c.post("/v1/boundaries", json={"ba": DIMLESS["ba"], "kappa": DIMLESS["kappa"],
+                                       "eps": 0.3, "phi": [0.5, 2.0]})
+    assert s.status_code == 200 and d.status_code == 200, s.text + d.text
+    sj, dj = s.json(), d.json()
+    assert math.isclose(sj["si"]["kappa_ratio"], DIMLESS["kappa"] / (DIMLESS["ba"] - 1),
+                        rel_tol=TOL)
+    assert math.isclose(sj["si"]["k_crit_Pa_per_m"], SIGMA * (B - A) / DC, rel_tol=TOL)
+    close({k: v for k, v in sj.items() if k not in ("si", "cached", "cache_key")},
+          {k: v for k, v in dj.items() if k not in ("cached", "cache_key")})
+    bad = c.post("/v1/boundaries", json={"physical": PHYS, "kappa": 1.0})
+    assert bad.status_code == 422 and bad.json()["field"] == "kappa"
