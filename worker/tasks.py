@@ -15,9 +15,11 @@ import logging
 from typing import Any
 
 from celery import Task
+from kombu.exceptions import OperationalError as KombuOperationalError
 
 from rsfapp import adapter, requests
 from rsfapp.config import get_settings
+from rsfapp.db.engine import diagnose
 from rsfapp.queue import COMPUTE_SINGLE, FIT_RECORD, RUN_CHUNK, Queue
 from rsfapp.reaper import Lease
 from rsfapp.store import stores_for
@@ -68,14 +70,25 @@ def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
     try:
         return run_chunk_body(sweep_id, idx)
     except Exception as exc:  # noqa: BLE001
-        log.exception("chunk %s/%d failed; retrying", sweep_id, idx)
+        # backoff 2, 4, 8, 16, 30, 30, ... s.  The database or broker being down is an
+        # outage, not a defect of the chunk: one log line, and retried until it is back
+        # (the message is never dropped); any other error: a traceback, 5 retries.
+        delay = min(2.0 * 2 ** self.request.retries, 30.0)
+        outage = diagnose(exc) is not None or isinstance(
+            exc, (OSError, ConnectionError, KombuOperationalError))
+        if outage:
+            log.warning("chunk %s/%d: %s; retrying in %.0f s", sweep_id, idx,
+                        str(exc).strip().splitlines()[0] if str(exc) else type(exc).__name__,
+                        delay)
+        else:
+            log.exception("chunk %s/%d failed; retrying in %.0f s", sweep_id, idx, delay)
         try:
             stores_for(get_settings()).sweeps.release_chunk(sweep_id, idx)
-        except Exception:  # noqa: BLE001
-            log.exception("could not release chunk %s/%d", sweep_id, idx)
-        # backoff 2, 4, 8, 16, 30 s: rides out a database or broker restart
-        raise self.retry(exc=exc, countdown=min(2.0 * 2 ** self.request.retries, 30.0)) \
-            from exc
+        except Exception as exc2:  # noqa: BLE001 - the reaper takes it back after the lease
+            log.warning("could not release chunk %s/%d: %s", sweep_id, idx,
+                        str(exc2).strip().splitlines()[0] if str(exc2) else "")
+        raise self.retry(exc=exc, countdown=delay,
+                         max_retries=None if outage else 5) from exc
 
 
 _SINGLE = {
