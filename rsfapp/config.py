@@ -66,7 +66,7 @@ class Settings(BaseSettings):
             a loopback interface are served (``rsf serve`` refuses a non-loopback host
             without a key).
         max_body_bytes: largest request body [bytes], else 413 before it is read.
-        max_body_bytes_batch: largest body of the batch and fit endpoints [bytes].
+        max_body_bytes_batch: largest body of the batch, fit and sweep endpoints [bytes].
         max_header_bytes: largest total size of the request headers [bytes], else 431.
         cors_origins: comma-separated origins allowed by CORS (empty: CORS off).
         quota_concurrent_sweeps, quota_points_per_day, quota_fresh_per_s,
