@@ -12,6 +12,7 @@ x >= 1 no trajectory runs away, for a moving or a stationary load point alike
 (`eq: critical trajectory condition`).  Hence eps_crit, (a/b)_crit and
 max_unstable_kappa below are the same boundary x = 1 solved for eps, a/b and kappa.
 """
+
 from __future__ import annotations
 
 import math
@@ -116,14 +117,18 @@ def acceleration_L(ba: float, kappa: float, eps: float) -> float:
     e = _eps(eps)
     y = e * k / b
     if not y < 1.0:
-        raise ParameterError("kappa", kappa, f"eps*kappa < b/a = {b!r} (eq: acceleration condition)")
+        raise ParameterError(
+            "kappa", kappa, f"eps*kappa < b/a = {b!r} (eq: acceleration condition)"
+        )
     r = k / b
     if y < 1.0e-4:
         return r * (1.0 + y * (0.5 + y * (1.0 / 3.0 + y * 0.25)))
     return -math.log1p(-y) / e
 
 
-def acceleration_line(ba: float, kappa: float, eps: float, phi: ArrayLike) -> NDArray[np.float64] | float:
+def acceleration_line(
+    ba: float, kappa: float, eps: float, phi: ArrayLike
+) -> NDArray[np.float64] | float:
     """psi on the acceleration line of a stationary load point (`eq: acceleration line`).
 
         psi_a(phi) = (1 - b/a) phi + (b/a) ln[(1 - eps kappa/(b/a))^(-1/eps)]
@@ -182,9 +187,7 @@ def boundaries_summary(ba: float, kappa: float, eps: float, vo: float = 1.0) -> 
     on_kc = abs(r - 1.0) <= BOUNDARY_RTOL
     if x >= 1.0 - BOUNDARY_RTOL:
         regime = "unconditionally stable"
-    elif p.vo > 0.0 and r < 1.0 and not on_kc:
-        regime = "unconditionally unstable"
-    elif p.vo == 0.0 and p.kappa == 0.0:
+    elif p.vo > 0.0 and r < 1.0 and not on_kc or p.vo == 0.0 and p.kappa == 0.0:
         regime = "unconditionally unstable"
     else:
         regime = "conditionally stable"

@@ -62,6 +62,7 @@ delivered error was at most 0.23 rtol (velocity) and 0.52 rtol (load point).
 propagates local errors with the analytic Jacobian of (A)/(B).  The truncation of the
 asymptotic start is ~1e-3 rtol (z0 chosen from rtol; measured to scale as z0^3).
 """
+
 from __future__ import annotations
 
 import math
@@ -112,15 +113,19 @@ METHODS: tuple[str, ...] = (
     "zero: kappa < kappa_crit with a moving load point (linear instability)",
     "infinite: eps*kappa >= kappa_crit, no runaway possible (eq: critical trajectory condition)",
     "closed form: eq: limiting trajectory 1 with psi = phi (kappa = kappa_crit)",
-    "closed form: load-point jump at kappa = kappa_crit, dv = 1/(kappa_crit (1 - eps)) (eq: trajectories 1)",
+    "closed form: load-point jump at kappa = kappa_crit, dv = 1/(kappa_crit (1 - eps))"
+    " (eq: trajectories 1)",
     "closed form: eq: analytical phi crit (v_o = 0), d_crit = L*",
     "separatrix: backward integration of the separatrix from its asymptote (compiled DOP853)",
     "bisection on certified classify() outcomes",
     "zero: kappa = 0 with a stationary load point (L* = 0)",
-    "infinite within double range: the separatrix reaches L = 0 only beyond ln(1 + dv) = 709 (dv > 8e307), so no representable load-point jump runs away",
+    "infinite within double range: the separatrix reaches L = 0 only beyond ln(1 + dv) = 709"
+    " (dv > 8e307), so no representable load-point jump runs away",
 )
 
-# flag bits of the compiled kernel
+# flag bits of the compiled kernel (_critical_point, critical_batch; they call the separatrix
+# driver, whose shared rk kernels numba's cache does not track: touch this file after
+# editing rsfcore/separatrix.py or rsfcore/ode/rk.py, or clear NUMBA_CACHE_DIR)
 FLAG_ON_X1 = 1  # eps*kappa/kappa_crit = 1 up to rounding
 FLAG_ON_KCRIT = 2  # kappa = kappa_crit up to rounding
 FLAG_FALLBACK = 4  # separatrix method failed: use bisection
@@ -129,6 +134,7 @@ FLAG_FALLBACK = 4  # separatrix method failed: use bisection
 #: as exact (rounding of the inputs: ~450 ulp).  Points inside are flagged ``on_boundary``.
 BOUNDARY_RTOL = 1.0e-13
 # DEFAULT_RTOL and RTOL_RANGE: rsfcore.limits (re-exported here for old import paths)
+
 
 @nb.njit(cache=True, nogil=True)
 def _critical_point(ba, kappa, eps, vo, pert, rtol, K):
@@ -193,16 +199,26 @@ def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method,
     return n_total
 
 
-def separatrix_raw(params: Params, perturbation: str = "velocity-jump", rtol: float = DEFAULT_RTOL) -> tuple[int, float, float, int]:
+def separatrix_raw(
+    params: Params, perturbation: str = "velocity-jump", rtol: float = DEFAULT_RTOL
+) -> tuple[int, float, float, int]:
     """Run the separatrix method alone: (status, value, absolute error estimate, n_rhs).
 
     Requires kappa > kappa_crit, eps kappa < kappa_crit and v_o > 0 (else ParameterError).
     status 0 = success; otherwise value is nan (see the S_* codes).  For tests and study.
     """
     pert = _pert_code(perturbation)
-    if not (params.vo > 0.0 and params.kappa >= params.kappa_crit and params.eps * params.kappa < params.kappa_crit):
-        raise ParameterError("params", params.as_dict(), "kappa >= kappa_crit, eps*kappa < kappa_crit, v_o > 0")
-    st, v, e, nr = _separatrix(params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(N_WORK))
+    if not (
+        params.vo > 0.0
+        and params.kappa >= params.kappa_crit
+        and params.eps * params.kappa < params.kappa_crit
+    ):
+        raise ParameterError(
+            "params", params.as_dict(), "kappa >= kappa_crit, eps*kappa < kappa_crit, v_o > 0"
+        )
+    st, v, e, nr = _separatrix(
+        params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(N_WORK)
+    )
     return int(st), float(v), float(e), int(nr)
 
 
@@ -214,7 +230,14 @@ def asymptotic_start(params: Params, s0: float) -> dict[str, float]:
     Ls, c1, c2 = _asym_coeffs(params.kappa, params.kappa_crit, params.eps)
     z = math.exp(s0 - Ls)
     u = Ls - z * (c1 + c2 * z)
-    return {"L_star": float(Ls), "c1": float(c1), "c2": float(c2), "z": z, "u": float(u), "phi": float(u - s0)}
+    return {
+        "L_star": float(Ls),
+        "c1": float(c1),
+        "c2": float(c2),
+        "z": z,
+        "u": float(u),
+        "phi": float(u - s0),
+    }
 
 
 # ----------------------------------------------------------------------------------------
@@ -271,12 +294,18 @@ def _first_decision(params: Params, perturbation: str, rtol: float) -> tuple:
     pert = _pert_code(perturbation)
     rtol = lim.RTOL.check(rtol)
     if pert == 1 and params.vo == 0.0:
-        raise ParameterError("vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)")
-    kind, val, acc, meth, flags, nr = _critical_point(params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(N_WORK))
+        raise ParameterError(
+            "vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)"
+        )
+    kind, val, acc, meth, flags, nr = _critical_point(
+        params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(N_WORK)
+    )
     return rtol, kind, val, acc, meth, flags, nr, bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
 
 
-def critical_perturbation(params: Params, perturbation: str = "velocity-jump", *, rtol: float = DEFAULT_RTOL) -> CriticalResult:
+def critical_perturbation(
+    params: Params, perturbation: str = "velocity-jump", *, rtol: float = DEFAULT_RTOL
+) -> CriticalResult:
     """Critical size of a velocity jump or load-point jump (module docstring for methods).
 
     Args:
@@ -292,11 +321,31 @@ def critical_perturbation(params: Params, perturbation: str = "velocity-jump", *
     rtol, kind, val, acc, meth, flags, nr, on_b = _first_decision(params, perturbation, rtol)
     if flags & FLAG_FALLBACK:
         res = bisect_critical(params, perturbation, rtol=rtol)
-        return CriticalResult(res.kind, res.critical_size, res.rel_accuracy, res.method, perturbation, params, on_b, res.n_rhs)
-    return _make_result(int(kind), float(val), float(acc), int(meth), perturbation, params, on_b, int(nr))
+        return CriticalResult(
+            res.kind,
+            res.critical_size,
+            res.rel_accuracy,
+            res.method,
+            perturbation,
+            params,
+            on_b,
+            res.n_rhs,
+        )
+    return _make_result(
+        int(kind), float(val), float(acc), int(meth), perturbation, params, on_b, int(nr)
+    )
 
 
-def _make_result(kind: int, val: float, acc: float, meth: int, perturbation: str, params: Params, on_b: bool, nr: int = 0) -> CriticalResult:
+def _make_result(
+    kind: int,
+    val: float,
+    acc: float,
+    meth: int,
+    perturbation: str,
+    params: Params,
+    on_b: bool,
+    nr: int = 0,
+) -> CriticalResult:
     size: float | None
     if kind == KIND_INFINITE:
         size = None
@@ -307,7 +356,13 @@ def _make_result(kind: int, val: float, acc: float, meth: int, perturbation: str
     return CriticalResult(KINDS[kind], size, acc, METHODS[meth], perturbation, params, on_b, nr)
 
 
-def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: float = DEFAULT_RTOL, *, integrate_only: bool = False) -> CriticalResult:
+def bisect_critical(
+    params: Params,
+    perturbation: str = "velocity-jump",
+    rtol: float = DEFAULT_RTOL,
+    *,
+    integrate_only: bool = False,
+) -> CriticalResult:
     """Critical size by bisection on certified :func:`rsfcore.trajectory.classify` outcomes.
 
     The exact decisions (zero: kappa < kappa_crit with v_o > 0; infinite: eps kappa >=
@@ -327,7 +382,9 @@ def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: f
 
     rtol, kind, val, acc, meth, flags, _, on_b = _first_decision(params, perturbation, rtol)
     if kind != KIND_FINITE:
-        return _make_result(int(kind), float(val), float(acc), int(meth), perturbation, params, on_b)
+        return _make_result(
+            int(kind), float(val), float(acc), int(meth), perturbation, params, on_b
+        )
 
     crtol = max(1e-13, min(1e-10, rtol))
     kw: dict[str, Any] = {"method": "integrate"} if integrate_only else {}
@@ -371,7 +428,16 @@ def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: f
         while not unstable(math.expm1(l_hi)):
             l_lo = l_hi
             if l_hi >= l_max:
-                return CriticalResult("infinite", None, 0.0, METHODS[M_BISECTION] + " (no runaway up to the largest v_o)", perturbation, params, on_b, n_rhs)
+                return CriticalResult(
+                    "infinite",
+                    None,
+                    0.0,
+                    METHODS[M_BISECTION] + " (no runaway up to the largest v_o)",
+                    perturbation,
+                    params,
+                    on_b,
+                    n_rhs,
+                )
             l_hi = min(l_hi + math.log(4.0), l_max)
         while math.expm1(l_hi) - math.expm1(l_lo) > rtol * 0.25 * math.expm1(l_hi):
             mid = 0.5 * (l_lo + l_hi)
@@ -386,4 +452,6 @@ def bisect_critical(params: Params, perturbation: str = "velocity-jump", rtol: f
         lo, hi = math.expm1(l_lo), math.expm1(l_hi)
         value = 0.5 * (lo + hi)
         width = (hi - lo) / value
-    return CriticalResult("finite", value, max(width, crtol), METHODS[M_BISECTION], perturbation, params, on_b, n_rhs)
+    return CriticalResult(
+        "finite", value, max(width, crtol), METHODS[M_BISECTION], perturbation, params, on_b, n_rhs
+    )

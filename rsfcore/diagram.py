@@ -13,6 +13,7 @@ method elsewhere); the rare points where the separatrix method does not apply ar
 recomputed by bisection on classify().  Points on x = eps kappa/kappa_crit = 1 or kappa
 = kappa_crit up to rounding (critical.BOUNDARY_RTOL) are flagged in ``on_boundary``.
 """
+
 from __future__ import annotations
 
 import csv
@@ -118,7 +119,9 @@ class DiagramResult:
             "numerics_version": NUMERICS_VERSION,
             "outcome": None if self.outcome is None else self.outcome.astype(int).tolist(),
             "outcome_legend": list(OUTCOMES),
-            "outcome_uncertain": None if self.outcome_uncertain is None else self.outcome_uncertain.tolist(),
+            "outcome_uncertain": None
+            if self.outcome_uncertain is None
+            else self.outcome_uncertain.tolist(),
         }
         return d
 
@@ -148,21 +151,53 @@ class DiagramResult:
             if self.outcome is not None:
                 arrays["outcome"] = self.outcome
                 arrays["outcome_uncertain"] = self.outcome_uncertain
-            meta = {k: v for k, v in self.to_dict().items() if k in ("x_name", "y_name", "kind_legend", "method_legend", "perturbation", "rtol", "fixed", "outcome_legend", "numerics_version")}
+            meta = {
+                k: v
+                for k, v in self.to_dict().items()
+                if k
+                in (
+                    "x_name",
+                    "y_name",
+                    "kind_legend",
+                    "method_legend",
+                    "perturbation",
+                    "rtol",
+                    "fixed",
+                    "outcome_legend",
+                    "numerics_version",
+                )
+            }
             arrays["meta"] = np.array(json.dumps(meta))
             with open(p, "wb") as fh:
                 np.savez(fh, **arrays)
             return p
         buf = io.StringIO()
         w = csv.writer(buf)
-        head = ["i", "j", self.x_name, self.y_name, "critical_size", "kind", "on_boundary", "rel_accuracy"]
+        head = [
+            "i",
+            "j",
+            self.x_name,
+            self.y_name,
+            "critical_size",
+            "kind",
+            "on_boundary",
+            "rel_accuracy",
+        ]
         if self.outcome is not None:
             head += ["outcome", "outcome_uncertain"]
         w.writerow(head)
         for i in range(self.x.size):
             for j in range(self.y.size):
-                row = [i, j, repr(float(self.x[i])), repr(float(self.y[j])), repr(float(self.critical_size[i, j])),
-                       KINDS[int(self.kind[i, j])], int(self.on_boundary[i, j]), repr(float(self.rel_accuracy[i, j]))]
+                row = [
+                    i,
+                    j,
+                    repr(float(self.x[i])),
+                    repr(float(self.y[j])),
+                    repr(float(self.critical_size[i, j])),
+                    KINDS[int(self.kind[i, j])],
+                    int(self.on_boundary[i, j]),
+                    repr(float(self.rel_accuracy[i, j])),
+                ]
                 if self.outcome is not None:
                     row += [OUTCOMES[int(self.outcome[i, j])], int(self.outcome_uncertain[i, j])]  # type: ignore[index]
                 w.writerow(row)
@@ -255,7 +290,9 @@ def stability_diagram(
         size = lim.DIAGRAM_SIZE.check(size)
     pert = PERTURBATIONS.index(perturbation)
     if pert == 1 and p_fixed.vo == 0.0:
-        raise ParameterError("vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)")
+        raise ParameterError(
+            "vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)"
+        )
 
     # parameter grid (nx, ny), broadcast along a size axis
     vals = {"ba": p_fixed.ba, "kappa_ratio": float(kappa_ratio), "eps": p_fixed.eps}
@@ -282,7 +319,9 @@ def stability_diagram(
     kappa_a = r_a * (ba_a - 1.0)
     if np.any(kappa_a > KAPPA_MAX):
         i = int(np.argmax(kappa_a > KAPPA_MAX))
-        raise ParameterError("kappa_ratio", float(r_a[i]), f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}")
+        raise ParameterError(
+            "kappa_ratio", float(r_a[i]), f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}"
+        )
 
     n = ba_a.size
     kind = np.empty(n, dtype=np.int64)
@@ -307,7 +346,9 @@ def stability_diagram(
 
     def shape2(a: NDArray[Any]) -> NDArray[Any]:
         if size_axis:
-            return np.ascontiguousarray(np.broadcast_to(a[:, None] if y_name == "size" else a[None, :], shape))
+            return np.ascontiguousarray(
+                np.broadcast_to(a[:, None] if y_name == "size" else a[None, :], shape)
+            )
         return a.reshape(shape)
 
     cs = shape2(value)
@@ -323,19 +364,33 @@ def stability_diagram(
         method=shape2(meth).astype(np.int8),
         perturbation=perturbation,
         rtol=rtol,
-        fixed={k: (None if k in (x_name, y_name) else v) for k, v in
-               {"ba": p_fixed.ba, "kappa_ratio": float(kappa_ratio), "eps": p_fixed.eps, "vo": p_fixed.vo, "size": size}.items()},
+        fixed={
+            k: (None if k in (x_name, y_name) else v)
+            for k, v in {
+                "ba": p_fixed.ba,
+                "kappa_ratio": float(kappa_ratio),
+                "eps": p_fixed.eps,
+                "vo": p_fixed.vo,
+                "size": size,
+            }.items()
+        },
         n_fallback=int(fb.size),
     )
     if size_axis or size is not None:
         if size_axis:
-            sz = np.broadcast_to(xv[:, None], shape) if x_name == "size" else np.broadcast_to(yv[None, :], shape)
+            sz = (
+                np.broadcast_to(xv[:, None], shape)
+                if x_name == "size"
+                else np.broadcast_to(yv[None, :], shape)
+            )
         else:
             sz = np.full(shape, float(size))  # type: ignore[arg-type]
         k2 = res.kind
         unstable = ((k2 == KIND_ZERO) & (sz > 0.0)) | ((k2 == KIND_FINITE) & (sz > cs))
         with np.errstate(divide="ignore", invalid="ignore"):
-            near = (k2 == KIND_FINITE) & (np.abs(sz / cs - 1.0) <= np.maximum(res.rel_accuracy, 4e-16))
+            near = (k2 == KIND_FINITE) & (
+                np.abs(sz / cs - 1.0) <= np.maximum(res.rel_accuracy, 4e-16)
+            )
         uncertain = near | (shape2(on_kc) & (p_fixed.vo > 0.0))
         res.outcome = unstable.astype(np.int8)
         res.outcome_uncertain = uncertain

@@ -91,8 +91,11 @@ class Status(IntEnum):
 
 #: Status texts by code (for callers of the raw kernel).
 STATUS: dict[int, str] = {int(s): s.text for s in Status}
+_STATUS_OF: dict[int, Status] = {int(s): s for s in Status}
 
-# ints for the compiled kernel (numba freezes module-level ints as constants)
+# ints for the compiled kernel (numba freezes module-level ints as constants).
+# The kernels of rsfcore.ode.rk are inlined into integrate(); numba's cache does not see
+# edits there, so touch this file (or clear NUMBA_CACHE_DIR) after changing rk.py.
 _T_END = int(Status.T_END)
 _RUNAWAY = int(Status.RUNAWAY)
 _RETURNED = int(Status.RETURNED)
@@ -703,19 +706,5 @@ def run(
         sample_T,
         samples,
     )
-    return EngineResult(
-        Status(int(res[0])),
-        res[1],
-        float(res[2]),
-        float(res[3]),
-        float(res[4]),
-        float(res[5]),
-        float(res[6]),
-        float(res[7]),
-        float(res[8]),
-        int(res[9]),
-        int(res[10]),
-        int(res[11]),
-        float(res[12]),
-        int(res[13]),
-    )
+    # the kernel already returns Python ints and floats: only the status is wrapped
+    return EngineResult(_STATUS_OF[res[0]], *res[1:])

@@ -19,6 +19,7 @@ and g has the single root L* = -log1p(-x)/eps with x = eps kappa / kappa_crit (L
 kappa/kappa_crit at eps = 0), which exists only while x < 1.  L > L* is absorbing and
 leads to a finite-time runaway; for v_o = 0 dL/ds = g(L) exactly.
 """
+
 from __future__ import annotations
 
 import math
@@ -111,7 +112,9 @@ def L_star(kappa: float, kappa_crit: float, eps: float) -> float:
 
 
 def nagata_to_intermediate(aN: float, bN: float, DcN: float, cN: float) -> dict[str, float]:
-    """Map Nagata-law parameters to the intermediate law (`eq: mapping Nagata and intermediate evolution law`).
+    """Map Nagata-law parameters to the intermediate law.
+
+    (`eq: mapping Nagata and intermediate evolution law`)
 
     Nagata et al. (2012), `eq: Nagata law`:
         f = f_* + aN ln(V/V_*) + bN ln(V_* theta/DcN),
@@ -140,7 +143,9 @@ def nagata_to_intermediate(aN: float, bN: float, DcN: float, cN: float) -> dict[
 
 
 def intermediate_to_nagata(a: float, b: float, Dc: float, eps: float) -> dict[str, float]:
-    """Inverse of :func:`nagata_to_intermediate`: cN = (1 - eps) b/(a eps), aN = a(1+cN), bN = b/eps, DcN = Dc/(1+cN).
+    """Inverse of :func:`nagata_to_intermediate`.
+
+    cN = (1 - eps) b/(a eps), aN = a(1+cN), bN = b/eps, DcN = Dc/(1+cN).
 
     Requires eps in (0, 1]; the slip law (eps = 0) has no Nagata equivalent (cN -> inf).
     """

@@ -10,6 +10,7 @@ and the rate-weakening ratio ``ba = b/a`` together with the evolution-law parame
 The linear-stability critical stiffness is `eq: dimensionless critical stiffness`,
 kappa_crit = b/a - 1.
 """
+
 from __future__ import annotations
 
 import math

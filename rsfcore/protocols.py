@@ -37,11 +37,13 @@ integrates to phi - ln c = 40 (remaining time < e^-40 of the time scale).  The h
 stops there and the result reports the segment index, the time of the certificate and
 the blow-up time; no NaN or inf is ever returned.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -76,10 +78,10 @@ _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, 5))
 
 
-
-
 def steady_state_friction(phys: PhysicalParams, V: float) -> float:
-    """Steady-state friction f_ss = f_* + (a - b) ln(V/V_*) at slip rate V > 0 [m/s] (`eq: steady state`)."""
+    """Steady-state friction f_ss = f_* + (a - b) ln(V/V_*) at slip rate V > 0 [m/s].
+
+    (`eq: steady state`)"""
     V = check_range("V", V, 0.0, None, lo_open=True)
     return phys.f_star + (phys.a - phys.b) * math.log(V / phys.V_star)
 
@@ -210,8 +212,14 @@ class ProtocolResult:
         p = self.params
         return {
             "params": {
-                "a": p.a, "b": p.b, "Dc_m": p.Dc, "sigma_Pa": p.sigma, "k_Pa_m": p.k,
-                "V_star_m_s": p.V_star, "eps": p.eps, "f_star": p.f_star,
+                "a": p.a,
+                "b": p.b,
+                "Dc_m": p.Dc,
+                "sigma_Pa": p.sigma,
+                "k_Pa_m": p.k,
+                "V_star_m_s": p.V_star,
+                "eps": p.eps,
+                "f_star": p.f_star,
             },
             "rtol": self.rtol,
             "rel_accuracy": finite_or_none(self.rel_accuracy),
@@ -253,8 +261,23 @@ def _run(
     n = sample_T.shape[0] + sample_tau.shape[0]
     samples = np.empty((n, 5)) if n else _EMPTY2
     res = run(
-        np.ascontiguousarray(y0, dtype=np.float64), c.ba, c.kappa, c.eps, c.vo, c.rtol, c.rtol,
-        c.Ls, True, False, t_end, PHI_STOP, MAX_STEPS, 0.0, sample_tau, sample_T, samples,
+        np.ascontiguousarray(y0, dtype=np.float64),
+        c.ba,
+        c.kappa,
+        c.eps,
+        c.vo,
+        c.rtol,
+        c.rtol,
+        c.Ls,
+        True,
+        False,
+        t_end,
+        PHI_STOP,
+        MAX_STEPS,
+        0.0,
+        sample_tau,
+        sample_T,
+        samples,
     )
     return res, samples[: res.n_filled]
 
@@ -313,7 +336,9 @@ def load_history(
         d = check_range(f"segments[{i}].duration_s", d, 0.0, None, lo_open=True)
         v = check_range(f"segments[{i}].Vo_m_s", v, 0.0, phys.V_star * VO_MAX)
         if d / phys.time_scale > 1e15:
-            raise ParameterError(f"segments[{i}].duration_s", d, f"<= 1e15 Dc/V_* = {1e15 * phys.time_scale:g} s")
+            raise ParameterError(
+                f"segments[{i}].duration_s", d, f"<= 1e15 Dc/V_* = {1e15 * phys.time_scale:g} s"
+            )
         segs.append((d, v))
 
     p = phys
@@ -343,7 +368,10 @@ def load_history(
             raise ParameterError("start", start, "|ln(V/V_*)| and |ln(theta V_*/Dc)| <= 690")
     y = np.array([phi0, lth0, 0.0, 0.0, 0.0])
 
-    summaries = [SegmentSummary(index=i, duration_s=d, Vo_m_s=v, t_start_s=math.nan) for i, (d, v) in enumerate(segs)]
+    summaries = [
+        SegmentSummary(index=i, duration_s=d, Vo_m_s=v, t_start_s=math.nan)
+        for i, (d, v) in enumerate(segs)
+    ]
     chunks: list[NDArray[np.float64]] = []
     seg_idx: list[NDArray[np.int64]] = []
     runaway: Runaway | None = None
@@ -361,7 +389,12 @@ def load_history(
         sT[-1] = T_end
         res, samp = _run(y_start, ctx, T_end, sample_T=sT)
         status, T_cert = res.status, res.T_cert
-        peak_phi, peak_T, peak_psi, peak_psi_T = res.peak_phi, res.peak_T, res.peak_psi, res.peak_psi_T
+        peak_phi, peak_T, peak_psi, peak_psi_T = (
+            res.peak_phi,
+            res.peak_T,
+            res.peak_psi,
+            res.peak_psi_T,
+        )
         y_end = np.asarray(res.y_end).copy()
         sm.n_steps = res.n_steps + res.n_rejected
         err_total += res.err_sum
@@ -370,13 +403,18 @@ def load_history(
         unfinished = status in (Status.BUDGET, Status.STEP_UNDERFLOW)
         if unfinished and not ran_away:
             raise IntegrationBudgetError(
-                f"segment {i} (Vo={Vo:g} m/s, {dur:g} s) did not finish: engine status {status.text} "
+                f"segment {i} (Vo={Vo:g} m/s, {dur:g} s) did not finish: engine status "
+                f"{status.text} "
                 f"after {sm.n_steps} steps at t={float(y_end[2]) * ts:g} s"
             )
         blew_up = status == Status.RUNAWAY or (ran_away and unfinished)
         if blew_up:
             # append the blow-up state so that the runaway shows in the output
-            samp = np.vstack([samp, y_end[None, :]]) if samp.shape[0] == 0 or samp[-1, 2] < y_end[2] else samp
+            samp = (
+                np.vstack([samp, y_end[None, :]])
+                if samp.shape[0] == 0 or samp[-1, 2] < y_end[2]
+                else samp
+            )
         if i > 0 and samp.shape[0] > 0 and chunks and samp[0, 2] <= chunks[-1][-1, 2]:
             samp = samp[1:]
         chunks.append(samp)
@@ -402,7 +440,12 @@ def load_history(
         if ran_away:
             sm.status = "runaway"
             if runaway is None:
-                runaway = Runaway(segment=i, t_certificate_s=float(T_cert) * ts, blowup_segment=None, t_blowup_s=None)
+                runaway = Runaway(
+                    segment=i,
+                    t_certificate_s=float(T_cert) * ts,
+                    blowup_segment=None,
+                    t_blowup_s=None,
+                )
         else:
             sm.status = "completed"
         y = y_end
@@ -411,7 +454,9 @@ def load_history(
         if blew_up:
             assert runaway is not None
             runaway.blowup_segment = i
-            runaway.t_blowup_s = (T_now + blowup_tail(float(y_end[0]), float(y_end[0] + y_end[1]), ba, kappa, p.eps)) * ts
+            runaway.t_blowup_s = (
+                T_now + blowup_tail(float(y_end[0]), float(y_end[0] + y_end[1]), ba, kappa, p.eps)
+            ) * ts
             break
 
     s = np.vstack(chunks) if chunks else np.empty((0, 5))
@@ -496,7 +541,7 @@ def velocity_step(
     n_points: int = 400,
     rtol: float = 1e-10,
 ) -> VelocityStepResult:
-    """Load-point velocity step V1 -> V2 [m/s] from steady state at V1, compared with `eq: delta tau`.
+    """Load-point velocity step V1 -> V2 [m/s] from steady state at V1, against `eq: delta tau`.
 
     Args:
         phys: physical parameters; needs k > 0.
@@ -518,9 +563,17 @@ def velocity_step(
         raise ParameterError("k", phys.k, "> 0 for a velocity step (the spring transmits the step)")
     kappa = phys.k * phys.Dc / (phys.a * phys.sigma)
     layer = 20.0 * phys.a * phys.sigma / phys.k
-    s_after = layer if slip_after_m is None else check_range("slip_after_m", slip_after_m, 0.0, None)
-    s_tot = 10.0 * phys.Dc if slip_total_m is None else check_range("slip_total_m", slip_total_m, 0.0, None, lo_open=True)
-    res = load_history(phys, [(s_tot / V2, V2)], n_points_per_segment=n_points, rtol=rtol, start=(V1, phys.Dc / V1))
+    s_after = (
+        layer if slip_after_m is None else check_range("slip_after_m", slip_after_m, 0.0, None)
+    )
+    s_tot = (
+        10.0 * phys.Dc
+        if slip_total_m is None
+        else check_range("slip_total_m", slip_total_m, 0.0, None, lo_open=True)
+    )
+    res = load_history(
+        phys, [(s_tot / V2, V2)], n_points_per_segment=n_points, rtol=rtol, start=(V1, phys.Dc / V1)
+    )
     slip = res.slip_m - res.slip_m[0]
     psi_ss2 = (1.0 - phys.b / phys.a) * math.log(V2 / phys.V_star)
     sim = phys.a * (res.psi - psi_ss2) / phys.b
@@ -530,8 +583,15 @@ def velocity_step(
         mask &= res.phi < math.log(max(V1, V2) / phys.V_star) + 5.0
     dev = float(np.max(np.abs(sim[mask] - ana[mask]))) if np.any(mask) else 0.0
     return VelocityStepResult(
-        protocol=res, V1_m_s=V1, V2_m_s=V2, slip_since_step_m=slip, delta_tau_over_b_sigma=sim,
-        analytic_over_b_sigma=np.asarray(ana, dtype=np.float64), slip_after_m=s_after, max_deviation=dev, kappa=kappa,
+        protocol=res,
+        V1_m_s=V1,
+        V2_m_s=V2,
+        slip_since_step_m=slip,
+        delta_tau_over_b_sigma=sim,
+        analytic_over_b_sigma=np.asarray(ana, dtype=np.float64),
+        slip_after_m=s_after,
+        max_deviation=dev,
+        kappa=kappa,
     )
 
 
@@ -599,8 +659,11 @@ def slide_hold_slide(
     V = check_range("V", V, 0.0, None, lo_open=True)
     hold_s = check_range("hold_s", hold_s, 0.0, None, lo_open=True)
     res = load_history(
-        phys, [(slide_before_s, V), (hold_s, 0.0), (slide_after_s, V)],
-        n_points_per_segment=n_points_per_segment, rtol=rtol, start="steady",
+        phys,
+        [(slide_before_s, V), (hold_s, 0.0), (slide_after_s, V)],
+        n_points_per_segment=n_points_per_segment,
+        rtol=rtol,
+        start="steady",
     )
     f_ss = steady_state_friction(phys, V)
     rs = res.segments[2]
@@ -617,7 +680,9 @@ def slide_hold_slide(
         f_ss=f_ss,
         peak_friction=pk,
         peak_time_s=rs.peak_friction_time_s if pk is not None else None,
-        peak_time_after_reslide_s=(rs.peak_friction_time_s - rs.t_start_s) if pk is not None else None,
+        peak_time_after_reslide_s=(rs.peak_friction_time_s - rs.t_start_s)
+        if pk is not None
+        else None,
         healing_delta_f=(pk - f_ss) if pk is not None else None,
         relaxation_delta_f=relax,
         peak_V_reslide_m_s=rs.peak_V_m_s if rs.status == "completed" else None,

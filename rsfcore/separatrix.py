@@ -51,6 +51,9 @@ __all__ = [
     "N_WORK",
 ]
 
+# The kernels of rsfcore.ode.rk are inlined into _dop853_scalar; numba's cache does not
+# see edits there, so touch this file (or clear NUMBA_CACHE_DIR) after changing rk.py.
+
 #: length of the stage workspace K the drivers take (13 stages: 12 + f at the step end)
 N_WORK = rk.N_STAGES + 1
 _C = rk.C_NODES

@@ -62,12 +62,13 @@ Checks of the paper's printed material (see also the module tests):
 * The sentence after the table reads "mu' = mu/2(1-nu) in mode II and mu'/2 in
   mode III"; the mode III value is mu/2 (as in the table caption).
 """
+
 from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from functools import lru_cache
-from typing import Callable
 
 import numpy as np
 from scipy import integrate, special
@@ -112,8 +113,11 @@ def _check_mode(case: str, mode: int) -> int:
         raise ParameterError("mode", mode, "an integer >= 0 (0 = smallest eigenvalue)")
     if case in ("A", "C") and mode > 0:
         raise ParameterError(
-            "mode", mode, f"0 only: case {case} is unbounded, its spectrum is continuous "
-            "(k/k_* holds for every wavelength) and has no discrete higher modes")
+            "mode",
+            mode,
+            f"0 only: case {case} is unbounded, its spectrum is continuous "
+            "(k/k_* holds for every wavelength) and has no discrete higher modes",
+        )
     return int(mode)
 
 
@@ -154,6 +158,7 @@ def _solve(case: str, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (ascending) and basis coefficients (columns) for case B or E."""
     if case == "B":
         j = np.arange(1, n + 1)
+
         # c(m) = int_0^pi cos(m t) sin t dt = (1 + (-1)^m)/(1 - m^2), and 0 for |m| = 1
         def c(m: np.ndarray) -> np.ndarray:
             m = np.abs(m)
@@ -208,7 +213,7 @@ def eigen_stiffness(case: str, mode: int = 0, n: int | None = None) -> float:
     if case == "A":
         return 2.0 * math.pi
     if case == "C":
-        return 4.0 * math.pi ** 2
+        return 4.0 * math.pi**2
     if case == "D":
         return (math.pi / 2.0) ** 2 * (mode + 1) ** 2
     return float(_solve(case, _check_n(case, mode, n))[0][mode])
@@ -336,8 +341,17 @@ def _modulus_times(case: str, mu: float, nu: float, mode_of_slip: str, h: float 
 
 
 def critical_dimension(
-    case: str, *, mu: float, nu: float, mode_of_slip: str, sigma: float, a: float, b: float,
-    Dc: float, h: float | None = None, mode: int = 0,
+    case: str,
+    *,
+    mu: float,
+    nu: float,
+    mode_of_slip: str,
+    sigma: float,
+    a: float,
+    b: float,
+    Dc: float,
+    h: float | None = None,
+    mode: int = 0,
 ) -> float:
     """Critical dimension of `eq: critical dimensions`, in metres.
 
@@ -383,8 +397,14 @@ def critical_dimension(
 
 
 def stiffness_of_fault(
-    case: str, size: float, *, mu: float, nu: float, mode_of_slip: str,
-    h: float | None = None, mode: int = 0,
+    case: str,
+    size: float,
+    *,
+    mu: float,
+    nu: float,
+    mode_of_slip: str,
+    h: float | None = None,
+    mode: int = 0,
 ) -> float:
     """Equivalent stiffness k = eta k_*(size) of a fault, in Pa/m (`tab: table`).
 
@@ -392,8 +412,11 @@ def stiffness_of_fault(
     in metres, > 0; the other arguments as in :func:`critical_dimension`.
     """
     case = _check_case(case)
-    if isinstance(size, bool) or not isinstance(size, (int, float, np.floating, np.integer)) \
-            or not 0.0 < size < math.inf:
+    if (
+        isinstance(size, bool)
+        or not isinstance(size, (int, float, np.floating, np.integer))
+        or not 0.0 < size < math.inf
+    ):
         raise ParameterError("size", size, f"the {_SIZE_NAME[case]} in metres, > 0 and finite")
     size = float(size)
     modulus = _modulus_times(case, mu, nu, mode_of_slip, h)
@@ -401,8 +424,17 @@ def stiffness_of_fault(
 
 
 def kappa_of_fault(
-    case: str, size: float, *, mu: float, nu: float, mode_of_slip: str, sigma: float,
-    a: float, Dc: float, h: float | None = None, mode: int = 0,
+    case: str,
+    size: float,
+    *,
+    mu: float,
+    nu: float,
+    mode_of_slip: str,
+    sigma: float,
+    a: float,
+    Dc: float,
+    h: float | None = None,
+    mode: int = 0,
 ) -> float:
     """Dimensionless stiffness kappa = k Dc/(a sigma) of a fault of the given size.
 

@@ -22,11 +22,13 @@ A trajectory of `eq:psi_T` / `eq:phi_T` is integrated with the compiled DOP853 e
 The peak of phi is located on every step (never read off an output grid); blow-up
 times include the analytic tail beyond phi - ln c = 40 (< e^-40 of time).
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, Sequence
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -152,10 +154,16 @@ class TrajectoryResult:
             ph = self.physical
             d["physical"] = {
                 "time_scale_s": ph.time_scale,
-                "blowup_time_s": None if self.blowup_time is None else self.blowup_time * ph.time_scale,
-                "return_time_s": None if self.return_time is None else self.return_time * ph.time_scale,
+                "blowup_time_s": None
+                if self.blowup_time is None
+                else self.blowup_time * ph.time_scale,
+                "return_time_s": None
+                if self.return_time is None
+                else self.return_time * ph.time_scale,
                 "peak_time_s": None if self.peak_time is None else self.peak_time * ph.time_scale,
-                "peak_velocity_m_s": ph.velocity(self.peak_phi) if math.isfinite(self.peak_phi) and self.peak_phi < 700 else None,
+                "peak_velocity_m_s": ph.velocity(self.peak_phi)
+                if math.isfinite(self.peak_phi) and self.peak_phi < 700
+                else None,
             }
         return d
 
@@ -177,11 +185,15 @@ def start_point(params: Params, perturbation: str, size: float) -> tuple[float, 
         d = lim.VELOCITY_JUMP_SIZE.check(size)
         return phi_ss + d, psi_ss + d, params
     if vo == 0.0:
-        raise ParameterError("vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)")
+        raise ParameterError(
+            "vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)"
+        )
     dv = check_range("size", size, -1.0, None, lo_open=True)  # upper end 1e300/v_o: below
     new_vo = vo * (1.0 + dv)
     if new_vo == 0.0 or not math.isfinite(new_vo) or new_vo > 1e300:
-        raise ParameterError("size", size, f"(-1, {1e300 / vo:g}] so that v_o (1 + dv) stays in (0, 1e300]")
+        raise ParameterError(
+            "size", size, f"(-1, {1e300 / vo:g}] so that v_o (1 + dv) stays in (0, 1e300]"
+        )
     return phi_ss, psi_ss, params.with_(vo=new_vo)
 
 
@@ -201,13 +213,18 @@ def _plan(p: Params, phi0: float, psi0: float) -> _Plan:
         # dL/ds = g(L) exactly (no reloading by the load point): L is monotone and
         # the outcome is fixed by L at the start (`eq: limiting trajectory2`).
         tag = "vo0" if p.vo == 0.0 else "kappa0"
-        if L0 == Ls:
+        if Ls == L0:
             if p.kappa == 0.0:  # L* = 0: steady sliding at the constant stress psi0
                 return _Plan(False, False, "stable", "at_equilibrium")
             return _Plan(True, False, "unstable", f"{tag}_L_on_Lstar")
-        if L0 > Ls:
+        if Ls < L0:
             return _Plan(True, False, "unstable", f"{tag}_L_above_Lstar")
-        return _Plan(False, True, "stable", f"{tag}_L_below_Lstar" if math.isfinite(Ls) else "no_runaway_possible")
+        return _Plan(
+            False,
+            True,
+            "stable",
+            f"{tag}_L_below_Lstar" if math.isfinite(Ls) else "no_runaway_possible",
+        )
     phi_ss = math.log(p.vo)
     if phi0 == phi_ss and L0 == 0.0:
         return _Plan(False, False, "stable", "at_equilibrium")
@@ -250,8 +267,23 @@ def _run(
     samples = np.empty((n_samp, 5)) if n_samp else _EMPTY2
     sor = plan.stop_on_return if stop_on_return is None else stop_on_return
     res = run(
-        y0, p.ba, p.kappa, p.eps, p.vo, rtol, rtol, Ls, plan.check_runaway, sor,
-        t_end, PHI_STOP, max_steps, EQ_TOL, sample_tau, sample_T, samples,
+        y0,
+        p.ba,
+        p.kappa,
+        p.eps,
+        p.vo,
+        rtol,
+        rtol,
+        Ls,
+        plan.check_runaway,
+        sor,
+        t_end,
+        PHI_STOP,
+        max_steps,
+        EQ_TOL,
+        sample_tau,
+        sample_T,
+        samples,
     )
     return res, samples
 
@@ -279,7 +311,9 @@ def classify(
     true peak.  Raises UndecidedError if no certificate is reached within the budget
     (1e7 steps, ~10 s), ParameterError on invalid input.
     """
-    return simulate(params, perturbation, size, start=start, rtol=rtol, method=method, max_steps=max_steps)
+    return simulate(
+        params, perturbation, size, start=start, rtol=rtol, method=method, max_steps=max_steps
+    )
 
 
 def simulate(
@@ -335,7 +369,11 @@ def simulate(
         if p_run.vo == 0.0 or p_run.kappa == 0.0:
             plan = _Plan(True, True, None, None)
         else:
-            plan = _Plan(True, True, None, None) if p_run.kappa >= p_run.kappa_crit else _Plan(True, False, None, None)
+            plan = (
+                _Plan(True, True, None, None)
+                if p_run.kappa >= p_run.kappa_crit
+                else _Plan(True, False, None, None)
+            )
     if plan.certificate in ("at_equilibrium",) or (plan.certificate or "").endswith("_L_on_Lstar"):
         # decided in closed form; nothing to integrate
         res = None
@@ -351,7 +389,13 @@ def simulate(
         status, y_end, tau_end, T_cert, T_ret = None, None, 0.0, math.nan, math.nan
         peak_phi, peak_T, n_steps, n_rhs, err_sum = phi0, 0.0, 0, 0, 0.0
     else:
-        status, y_end, tau_end, T_cert, T_ret = res.status, res.y_end, res.tau_end, res.T_cert, res.T_return
+        status, y_end, tau_end, T_cert, T_ret = (
+            res.status,
+            res.y_end,
+            res.tau_end,
+            res.T_cert,
+            res.T_return,
+        )
         peak_phi, peak_T, err_sum = res.peak_phi, res.peak_T, res.err_sum
         n_steps, n_rhs = res.n_steps + res.n_rejected, res.n_rhs
 
@@ -372,13 +416,18 @@ def simulate(
         peak_phi, peak_T = phi0, 0.0
     elif runaway:
         if plan.outcome == "stable":  # pragma: no cover - guarded by check_runaway=False
-            raise UndecidedError("integration crossed L* on an orbit that the closed form says is closed")
+            raise UndecidedError(
+                "integration crossed L* on an orbit that the closed form says is closed"
+            )
         outcome = "unstable"
         cert = plan.certificate or "L_above_Lstar"
         peak_phi = math.inf
         if status == Status.RUNAWAY:
             assert y_end is not None
-            blowup_time = float(y_end[2] + blowup_tail(y_end[0], y_end[0] + y_end[1], p_run.ba, p_run.kappa, p_run.eps))
+            blowup_time = float(
+                y_end[2]
+                + blowup_tail(y_end[0], y_end[0] + y_end[1], p_run.ba, p_run.kappa, p_run.eps)
+            )
             peak_T = blowup_time
         else:
             peak_T = None
@@ -400,7 +449,8 @@ def simulate(
         complete = False
     else:
         msg = (
-            f"no certificate within {max_steps} steps ({status.text if status is not None else '-'}); "
+            f"no certificate within {max_steps} steps "
+            f"({status.text if status is not None else '-'}); "
             f"params={p_run.as_dict()}, start=({phi0}, {psi0}), rtol={rtol}"
         )
         if status == Status.STEP_UNDERFLOW:
@@ -410,7 +460,9 @@ def simulate(
     traj = None
     want = n_points > 0 or (times is not None and len(times) > 0)
     if want:
-        traj = _sample(p_run, phi0, psi0, rtol, plan, tau_end, t_end, n_points, times, sampling, physical)
+        traj = _sample(
+            p_run, phi0, psi0, rtol, plan, tau_end, t_end, n_points, times, sampling, physical
+        )
 
     return TrajectoryResult(
         outcome=outcome,  # type: ignore[arg-type]
@@ -453,7 +505,16 @@ def _sample(
         sT = np.asarray(times, dtype=np.float64)
         if not np.all(np.isfinite(sT)) or np.any(sT < 0) or np.any(np.diff(sT) < 0):
             raise ParameterError("times", "...", "finite, non-negative and sorted ascending")
-        res, samples = _run(p, phi0, psi0, rtol, plan, t_end=min(te, float(sT[-1])), stop_on_return=False, sample_T=sT)
+        res, samples = _run(
+            p,
+            phi0,
+            psi0,
+            rtol,
+            plan,
+            t_end=min(te, float(sT[-1])),
+            stop_on_return=False,
+            sample_T=sT,
+        )
     else:
         if t_end is not None or sampling == "time":
             res0, _ = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor)
@@ -462,14 +523,25 @@ def _sample(
             T_end = math.nan
         if sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
-            res, samples = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_T=sT)
+            res, samples = _run(
+                p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_T=sT
+            )
         else:
             sTau = np.linspace(0.0, tau_end, n_points)
-            res, samples = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_tau=sTau)
+            res, samples = _run(
+                p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_tau=sTau
+            )
     n = res.n_filled
     s = samples[:n]
     phi, lth = s[:, 0], s[:, 1]
-    tr = Trajectory(T=s[:, 2].copy(), phi=phi.copy(), psi=phi + p.ba * lth, ln_theta=lth.copy(), slip=s[:, 3].copy(), load_point=s[:, 4].copy())
+    tr = Trajectory(
+        T=s[:, 2].copy(),
+        phi=phi.copy(),
+        psi=phi + p.ba * lth,
+        ln_theta=lth.copy(),
+        slip=s[:, 3].copy(),
+        load_point=s[:, 4].copy(),
+    )
     if physical is not None:
         ph = physical
         with np.errstate(over="ignore"):

@@ -13,7 +13,13 @@ from typing import Any
 
 import pytest
 
-__all__ = ["REFERENCE_PATH", "perturbation_of", "reference_case", "reference_cases", "reference_by_id"]
+__all__ = [
+    "REFERENCE_PATH",
+    "perturbation_of",
+    "reference_case",
+    "reference_cases",
+    "reference_by_id",
+]
 
 REFERENCE_PATH = Path(__file__).resolve().parents[1] / "data" / "reference.json"
 

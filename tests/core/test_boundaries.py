@@ -1,4 +1,5 @@
 """Tests of rsfcore.boundaries: each boundary checked numerically, plus the reference values."""
+
 from __future__ import annotations
 
 import json
@@ -11,6 +12,7 @@ from rsfcore import ParameterError, Params, classify
 from rsfcore import boundaries as bd
 from rsfcore.critical import critical_perturbation
 from rsfcore.laws import G
+
 from .reference import reference_case
 
 
@@ -34,12 +36,22 @@ def _phi_dot_vo0(phi: float, psi: float, ba: float, kappa: float, eps: float) ->
     return -kappa - ba * G(L, eps)
 
 
-@pytest.mark.parametrize("ba,kappa,eps", [(2.0, 0.5, 0.0), (2.0, 0.5, 0.6), (2.0, 1.5, 0.3), (2.0, 4.0, 0.4), (10.0, 3.0, 1.0), (2.0, 1.0, 1e-300)])
+@pytest.mark.parametrize(
+    "ba,kappa,eps",
+    [
+        (2.0, 0.5, 0.0),
+        (2.0, 0.5, 0.6),
+        (2.0, 1.5, 0.3),
+        (2.0, 4.0, 0.4),
+        (10.0, 3.0, 1.0),
+        (2.0, 1.0, 1e-300),
+    ],
+)
 def test_acceleration_line_has_zero_phi_rate(ba, kappa, eps):
     assert bd.acceleration_possible(ba, kappa, eps)
     phi = np.linspace(-5.0, 5.0, 11)
     psi = bd.acceleration_line(ba, kappa, eps, phi)
-    for f, s in zip(phi, psi):
+    for f, s in zip(phi, psi, strict=True):
         assert abs(_phi_dot_vo0(f, s, ba, kappa, eps)) <= 1e-12 * (kappa + ba)
         assert _phi_dot_vo0(f, s + 1e-3, ba, kappa, eps) > 0.0  # above: accelerating
         assert _phi_dot_vo0(f, s - 1e-3, ba, kappa, eps) < 0.0
@@ -68,7 +80,10 @@ def test_eps_crit_separates_finite_from_infinite(ba, kappa, vo):
     assert below.kind == "finite"
     assert above.kind == "infinite" and at.kind == "infinite" and at.on_boundary
     # direct integration above eps_crit: a large jump stays stable
-    assert classify(Params(ba, kappa, min(1.0, ec * 1.01), vo), "velocity-jump", 30.0).outcome == "stable"
+    assert (
+        classify(Params(ba, kappa, min(1.0, ec * 1.01), vo), "velocity-jump", 30.0).outcome
+        == "stable"
+    )
     # and below it that jump runs away (it exceeds L*)
     assert classify(Params(ba, kappa, ec * 0.5, vo), "velocity-jump", 30.0).outcome == "unstable"
 
@@ -96,7 +111,10 @@ def test_max_unstable_kappa(vo):
         km = bd.max_unstable_kappa(ba, eps)
         assert abs(km - (ba - 1) / eps) <= 4e-16 * km
         # below it something runs away ("zero" at eps = 1, where km = kappa_crit, v_o > 0)
-        assert critical_perturbation(Params(ba, km * (1 - 1e-6), eps, vo)).kind in ("finite", "zero")
+        assert critical_perturbation(Params(ba, km * (1 - 1e-6), eps, vo)).kind in (
+            "finite",
+            "zero",
+        )
         assert critical_perturbation(Params(ba, km * (1 + 1e-6), eps, vo)).kind == "infinite"
     assert bd.max_unstable_kappa(2.0, 0.0) == math.inf
     assert bd.max_unstable_kappa(2.0, 1.0) == bd.kappa_crit(2.0)

@@ -1,10 +1,10 @@
 """Tests of rsfcore.diagram: grid accuracy, exact regions, boundary flags, outcomes, I/O."""
+
 from __future__ import annotations
 
 import csv
 import json
 import math
-import time
 
 import numpy as np
 import pytest
@@ -23,18 +23,11 @@ def bench_grid():
     return stability_diagram("kappa_ratio", XR, "eps", YE)
 
 
-def test_benchmark_grid_time():
-    """Target 0.1 s after warm-up on one core (bench/bench_diagram.py reports it); asserted
-    at 0.3 s (best of 3) so that a loaded shared test machine does not fail it."""
-    stability_diagram("kappa_ratio", XR, "eps", YE)
-    best = math.inf
-    for _ in range(3):
-        t = time.perf_counter()
-        stability_diagram("kappa_ratio", XR, "eps", YE)
-        best = min(best, time.perf_counter() - t)
-    assert best <= 0.3, best
+# Speed of the benchmark grid (target 0.1 s after warm-up) is measured and printed by
+# bench/bench_diagram.py together with scipy bisection; tests assert no wall-clock time.
 
 
+@pytest.mark.slow
 def test_grid_accuracy_against_tight_grid(bench_grid):
     """<= 1e-9 relative error on every finite point, against the same grid at rtol 1e-13."""
     tight = stability_diagram("kappa_ratio", XR, "eps", YE, rtol=1e-13)
@@ -91,7 +84,9 @@ def test_outcome_mode_against_classify():
         if d.outcome_uncertain[i, j]:
             continue
         p = Params.from_ratio(2.0, d.x[i], 0.2)
-        assert classify(p, "velocity-jump", sizes[j]).outcome == ("unstable" if d.outcome[i, j] else "stable")
+        assert classify(p, "velocity-jump", sizes[j]).outcome == (
+            "unstable" if d.outcome[i, j] else "stable"
+        )
     # a size on the critical value is flagged
     c = critical_perturbation(Params.from_ratio(2.0, 2.0, 0.25)).critical_size
     d2 = stability_diagram("kappa_ratio", [2.0, 4.0], "eps", [0.25], size=c)
@@ -100,8 +95,14 @@ def test_outcome_mode_against_classify():
 
 
 def test_other_axes_and_load_point():
-    d = stability_diagram("ba", np.linspace(1.05, 20.0, 15), "eps", np.linspace(0.0, 0.9, 10), kappa_ratio=2.0,
-                          perturbation="load-point-jump")
+    d = stability_diagram(
+        "ba",
+        np.linspace(1.05, 20.0, 15),
+        "eps",
+        np.linspace(0.0, 0.9, 10),
+        kappa_ratio=2.0,
+        perturbation="load-point-jump",
+    )
     for i, j in ((0, 0), (7, 3), (14, 4)):
         c = critical_perturbation(Params.from_ratio(d.x[i], 2.0, d.y[j]), "load-point-jump")
         ref = math.inf if c.critical_size is None else c.critical_size

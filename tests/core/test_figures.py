@@ -6,6 +6,7 @@ scipy integration, the vendored reference values (tests/data/reference.json), or
 property the figure must have (U constant along its trajectories, a closed orbit
 returning to its start, eigenmodes vanishing at the tips).
 """
+
 from __future__ import annotations
 
 import json
@@ -26,9 +27,18 @@ from .reference import reference_by_id
 
 Q = "draft"
 EXPECTED = {
-    "velocity-step", "trajectories-kcrit", "critical-jump-kcrit", "rate-neutral", "stability-diagram-velocity",
-    "stability-diagram-load-point", "trajectories-vo0-soft", "trajectories-vo0-stiff", "critical-jump-vo0",
-    "periodic-response", "non-periodic-response", "continuum-modes",
+    "velocity-step",
+    "trajectories-kcrit",
+    "critical-jump-kcrit",
+    "rate-neutral",
+    "stability-diagram-velocity",
+    "stability-diagram-load-point",
+    "trajectories-vo0-soft",
+    "trajectories-vo0-stiff",
+    "critical-jump-vo0",
+    "periodic-response",
+    "non-periodic-response",
+    "continuum-modes",
 }
 
 
@@ -42,7 +52,7 @@ def _ref_close(got: float, case: dict, factor: float = 100.0) -> None:
     assert got == pytest.approx(case["value"], rel=tol), case["id"]
 
 
-def _a(v) -> np.ndarray:  # noqa: ANN001
+def _a(v) -> np.ndarray:
     return np.array([np.nan if x is None else x for x in v], dtype=float)
 
 
@@ -66,8 +76,8 @@ def _dist_to_polylines(px: np.ndarray, py: np.ndarray, lines: list[dict]) -> np.
 
 
 # printed closed forms, re-implemented independently of rsfcore.analytic ------------------
-def U_kcrit_printed(phi, psi, ba, eps, vo=1.0):  # noqa: ANN001, ANN201
-    """eq: trajectories 1 (0 < eps < 1), eq: trajectories 1-2 (eps = 1), slip-law limit (eps = 0)."""
+def U_kcrit_printed(phi, psi, ba, eps, vo=1.0):
+    """eq: trajectories 1 (0 < eps < 1), eq: trajectories 1-2 (eps = 1), slip limit (eps = 0)."""
     kappa = ba - 1.0
     if eps == 1.0:
         return ba * (np.exp((psi - phi) / ba) * (vo + np.exp(phi) / (ba - 1.0)) * kappa - psi)
@@ -76,16 +86,35 @@ def U_kcrit_printed(phi, psi, ba, eps, vo=1.0):  # noqa: ANN001, ANN201
     q = (psi - phi) * (1.0 - eps * (1.0 - 1.0 / ba))
     D = ba * (1.0 - eps) + eps
     m = ((1.0 - ba) * phi - psi) / ba
-    return ba * np.exp(q) * (kappa * vo / D + np.exp(phi) / eps * (np.exp(eps * m) / (eps - 1.0) + (ba - kappa * eps) / D))
+    return (
+        ba
+        * np.exp(q)
+        * (
+            kappa * vo / D
+            + np.exp(phi) / eps * (np.exp(eps * m) / (eps - 1.0) + (ba - kappa * eps) / D)
+        )
+    )
 
 
-def U_vo0_printed(phi, psi, ba, kappa, eps):  # noqa: ANN001, ANN201
+def U_vo0_printed(phi, psi, ba, kappa, eps):
     """eq: trajectories 2 (eps > 0) and its eps -> 0 limit."""
     n = ((ba - 1.0) * phi + psi) / ba
     if eps == 0.0:
-        return np.exp(psi * (ba - 1.0) / kappa) * kappa * ba * ((ba - 1.0) * n - kappa) / (ba - 1.0) ** 2
+        return (
+            np.exp(psi * (ba - 1.0) / kappa)
+            * kappa
+            * ba
+            * ((ba - 1.0) * n - kappa)
+            / (ba - 1.0) ** 2
+        )
     num = 1.0 - ba + np.exp(eps * n) * (ba - 1.0 - kappa * eps)
-    return np.exp(psi * (ba - kappa * eps - 1.0) / kappa) * kappa * ba * num / (eps * (ba - 1.0) * (ba - 1.0 - kappa * eps))
+    return (
+        np.exp(psi * (ba - kappa * eps - 1.0) / kappa)
+        * kappa
+        * ba
+        * num
+        / (eps * (ba - 1.0) * (ba - 1.0 - kappa * eps))
+    )
 
 
 def dcrit_kcrit_printed(ba: float, eps: float) -> float:
@@ -95,8 +124,11 @@ def dcrit_kcrit_printed(ba: float, eps: float) -> float:
     kappa = ba - 1.0
 
     def f(phi: float) -> float:
-        arg = math.exp(phi + (1.0 / ba - 1.0) * eps * phi) * (ba - eps * (ba - 1.0)) / (
-            (eps - 1.0) * (math.exp(phi) * (kappa * eps - ba) - kappa * eps))
+        arg = (
+            math.exp(phi + (1.0 / ba - 1.0) * eps * phi)
+            * (ba - eps * (ba - 1.0))
+            / ((eps - 1.0) * (math.exp(phi) * (kappa * eps - ba) - kappa * eps))
+        )
         return ba / eps * math.log(arg) - phi
 
     return brentq(f, 1e-9, 60.0, xtol=1e-15)
@@ -179,8 +211,12 @@ def test_result_plots() -> None:
     phi, psi = np.linspace(-3, 4, 40), np.linspace(-3, 3, 30)
     U = U_kcrit(phi[:, None], psi[None, :], 2.0, 0.25)
     _png_ok(rsfplots.plot_u_field(phi, psi, U))
-    svc = {"phi": phi.tolist(), "psi": psi.tolist(), "U": [[None if not np.isfinite(v) else v for v in row] for row in U.tolist()],
-           "function": "kcrit"}
+    svc = {
+        "phi": phi.tolist(),
+        "psi": psi.tolist(),
+        "U": [[None if not np.isfinite(v) else v for v in row] for row in U.tolist()],
+        "function": "kcrit",
+    }
     _png_ok(rsfplots.plot_u_field(svc))
     d = stability_diagram("kappa_ratio", [0.5, 1, 1.5, 2, 3], "eps", [0, 0.25, 0.5])
     _png_ok(rsfplots.plot_diagram(d))
@@ -206,25 +242,33 @@ def test_velocity_step(data: dict) -> None:
         eps_seen.append(eps)
         for c in panel["curves"]:
             r, s, y = c["v2_over_v1"], _a(c["slip"]), _a(c["dtau_over_bsigma"])
-            assert s[0] == 0.0 and y[0] == pytest.approx(math.log(r), rel=1e-12)  # starts at ln(V2/V1)
+            assert s[0] == 0.0 and y[0] == pytest.approx(
+                math.log(r), rel=1e-12
+            )  # starts at ln(V2/V1)
             mag = np.abs(y)
             assert np.all(np.diff(mag) <= 1e-12)  # decays monotonically
             assert mag[-1] < 0.01 * abs(math.log(r))  # to 0
             if eps == 0.0:  # slip law: ln(V2/V1) e^(-delta/Dc)
                 np.testing.assert_allclose(y, math.log(r) * np.exp(-s), rtol=1e-12, atol=1e-300)
             if eps == 1.0:  # aging law: ln(1 + (V2/V1 - 1) e^(-delta/Dc))
-                np.testing.assert_allclose(y, np.log1p((r - 1.0) * np.exp(-s)), rtol=1e-10, atol=1e-15)
-        assert {c["v2_over_v1"] for c in panel["curves"]} == {10.0 ** k for k in (-4, -3, -2, -1, 1, 2, 3, 4)}
+                np.testing.assert_allclose(
+                    y, np.log1p((r - 1.0) * np.exp(-s)), rtol=1e-10, atol=1e-15
+                )
+        assert {c["v2_over_v1"] for c in panel["curves"]} == {
+            10.0**k for k in (-4, -3, -2, -1, 1, 2, 3, 4)
+        }
     assert eps_seen[0] == 0.0 and eps_seen[-1] == 1.0
 
 
-def _check_phase_panel(panel: dict, window, Ufun, tol_U: float = 1e-6) -> None:  # noqa: ANN001
+def _check_phase_panel(panel: dict, window, Ufun, tol_U: float = 1e-6) -> None:
     x0, x1, y0, y1 = window
     levels = [c["level"] for c in panel["contours"]]
     h = max((x1 - x0), (y1 - y0)) / 89.0  # draft grid spacing
     for t in panel["trajectories"]:
         ph, ps = _a(t["phi"]), _a(t["psi"])
-        assert ph[0] == pytest.approx(t["size"]) and ps[0] == pytest.approx(t["size"])  # 45 degree jump
+        assert ph[0] == pytest.approx(t["size"]) and ps[0] == pytest.approx(
+            t["size"]
+        )  # 45 degree jump
         inside = (ph > x0) & (ph < x1) & (ps > y0) & (ps < y1)
         U = Ufun(ph[inside], ps[inside])
         U0 = Ufun(np.array([t["size"]]), np.array([t["size"]]))[0]
@@ -268,7 +312,7 @@ def test_critical_jump_kcrit(data: dict) -> None:
     d = data["critical-jump-kcrit"]
     a, b = d["panel_a"], d["panel_b"]
     eps, dc = _a(a["eps"]), _a(a["critical_size"])
-    for e, v in zip(eps[::7], dc[::7]):
+    for e, v in zip(eps[::7], dc[::7], strict=True):
         assert v == pytest.approx(dcrit_kcrit_printed(1.25, float(e)), rel=1e-9)
     # the two asymptotes of the caption
     assert dc[0] == pytest.approx(a["slip_law_asymptote"], rel=1e-12)  # eps = 0 exactly
@@ -281,8 +325,12 @@ def test_critical_jump_kcrit(data: dict) -> None:
     np.testing.assert_allclose(db, 1.0 + lambertw((ab - 1.0) / math.e).real, rtol=1e-10)
     assert db[0] / math.sqrt(2.0 * ab[0]) == pytest.approx(1.0, rel=0.01)  # sqrt(2 a/b) scaling
     ref = _reference()
-    for e, key in ((0.0, "kcrit_vjump_ba1.25_eps0"), (0.1, "kcrit_vjump_ba1.25_eps0.1"),
-                   (0.5, "kcrit_vjump_ba1.25_eps0.5"), (0.99, "kcrit_vjump_ba1.25_eps0.99")):
+    for e, key in (
+        (0.0, "kcrit_vjump_ba1.25_eps0"),
+        (0.1, "kcrit_vjump_ba1.25_eps0.1"),
+        (0.5, "kcrit_vjump_ba1.25_eps0.5"),
+        (0.99, "kcrit_vjump_ba1.25_eps0.99"),
+    ):
         _ref_close(float(dc[np.flatnonzero(eps == e)[0]]), ref[key])
     for v, key in ((0.1, "slip_kcrit_vjump_a/b=0.1"), (0.5, "slip_kcrit_vjump_a/b=0.5")):
         _ref_close(float(db[np.flatnonzero(ab == v)[0]]), ref[key])
@@ -302,14 +350,16 @@ def test_rate_neutral(data: dict) -> None:
         L = ph + (ps - ph) / ba
         return [dps - ba / eps * math.expm1(-eps * L) * math.exp(ph), dps]
 
-    sol = solve_ivp(rhs, (0.0, T[-1]), [1.0, 1.0], method="DOP853", rtol=1e-11, atol=1e-13, t_eval=T)
+    sol = solve_ivp(
+        rhs, (0.0, T[-1]), [1.0, 1.0], method="DOP853", rtol=1e-11, atol=1e-13, t_eval=T
+    )
     np.testing.assert_allclose(phi, sol.y[0], atol=2e-6)
     np.testing.assert_allclose(psi, sol.y[1], atol=2e-6)
     assert abs(phi[-1]) < 1e-4 and abs(psi[-1]) < 1e-4  # back at steady state
     assert np.count_nonzero(np.diff(np.sign(phi)) != 0) >= 2  # spirals
 
 
-def _check_diagram(d: dict, at_kcrit, ref_value: float) -> None:  # noqa: ANN001
+def _check_diagram(d: dict, at_kcrit, ref_value: float) -> None:
     curves = d["panel_a"]["curves"]
     for c in curves:
         x, v = _a(c["kappa_ratio"]), _a(c["critical_size"])
@@ -329,8 +379,11 @@ def _check_diagram(d: dict, at_kcrit, ref_value: float) -> None:  # noqa: ANN001
 def test_stability_diagram_velocity(data: dict) -> None:
     ref = _reference()
     d = data["stability-diagram-velocity"]
-    _check_diagram(d, lambda e: dcrit_kcrit_printed(2.0, e) if e < 1 else math.inf,
-                   ref["vjump_ba2_r2_eps0.25"]["value"])
+    _check_diagram(
+        d,
+        lambda e: dcrit_kcrit_printed(2.0, e) if e < 1 else math.inf,
+        ref["vjump_ba2_r2_eps0.25"]["value"],
+    )
     pb = d["panel_b"]
     assert [t["size"] for t in pb["trajectories"]] == [1.0, 1.5, 2.5, 3.0]
     for t in pb["trajectories"]:
@@ -358,8 +411,10 @@ def test_stability_diagram_load_point(data: dict) -> None:
         ph, ps = _a(t["phi"]), _a(t["psi"])
         assert ph[0] == 0.0 and ps[0] == 0.0
         if t["outcome"] == "stable":
-            l = math.log1p(t["size"])
-            assert ph[-1] == pytest.approx(l, abs=1e-4) and ps[-1] == pytest.approx(-l, abs=1e-4)
+            ell = math.log1p(t["size"])
+            assert ph[-1] == pytest.approx(ell, abs=1e-4) and ps[-1] == pytest.approx(
+                -ell, abs=1e-4
+            )
         else:
             assert t["size"] == 14.0 and ph[-1] > 30
 
@@ -368,13 +423,17 @@ def _check_vo0(d: dict, ref: dict) -> None:
     ba, kappa = d["ba"], d["kappa"]
     for panel in d["panels"]:
         eps = panel["eps"]
-        _check_phase_panel(panel, d["window"], lambda f, s, e=eps: U_vo0_printed(f, s, ba, kappa, e))
+        _check_phase_panel(
+            panel, d["window"], lambda f, s, e=eps: U_vo0_printed(f, s, ba, kappa, e)
+        )
         dc = dcrit_vo0_printed(ba, kappa, eps)
         if math.isfinite(dc):
             assert panel["critical_size"] == pytest.approx(dc, rel=1e-12)
             c = panel["critical_trajectory"]
             # the plotted critical line passes through (d_crit, d_crit)
-            assert np.interp(dc, _a(c["phi"]), _a(c["psi"])) == pytest.approx(dc, rel=1e-12, abs=1e-12)
+            assert np.interp(dc, _a(c["phi"]), _a(c["psi"])) == pytest.approx(
+                dc, rel=1e-12, abs=1e-12
+            )
             for t in panel["trajectories"]:
                 assert t["outcome"] == ("stable" if t["size"] < dc else "unstable")
         else:
@@ -391,14 +450,22 @@ def _check_vo0(d: dict, ref: dict) -> None:
             assert a["psi"][0] == pytest.approx((1.0 - ba) * a["phi"][0] + ba * La, rel=1e-12)
             off = ps - psa
             dphi = np.diff(ph)
-            sure = (np.abs(off[:-1]) > 0.05) & (np.abs(off[1:]) > 0.05) & (np.sign(off[:-1]) == np.sign(off[1:]))
+            sure = (
+                (np.abs(off[:-1]) > 0.05)
+                & (np.abs(off[1:]) > 0.05)
+                & (np.sign(off[:-1]) == np.sign(off[1:]))
+            )
             assert np.all(np.sign(dphi[sure]) == np.sign(off[:-1][sure])), (eps, t["size"])
 
 
 def test_trajectories_vo0_soft(data: dict) -> None:
     ref = _reference()
     d = data["trajectories-vo0-soft"]
-    assert d["kappa"] == 0.5 and d["ba"] == 2.0 and [p["eps"] for p in d["panels"]] == [0.0, 0.3, 0.6, 1.0]
+    assert (
+        d["kappa"] == 0.5
+        and d["ba"] == 2.0
+        and [p["eps"] for p in d["panels"]] == [0.0, 0.3, 0.6, 1.0]
+    )
     _check_vo0(d, ref)
     _ref_close(d["panels"][0]["critical_size"], ref["vo0_vjump_ba2_k0.5_eps0"])
 
@@ -422,7 +489,11 @@ def test_critical_jump_vo0(data: dict) -> None:
         want = np.array([dcrit_vo0_printed(2.0, c["kappa"], float(e)) for e in eps])
         np.testing.assert_array_equal(np.isnan(v), ~np.isfinite(want))
         np.testing.assert_allclose(v[np.isfinite(want)], want[np.isfinite(want)], rtol=1e-12)
-        for e, key in ((0.0, "vo0_vjump_ba2_k0.5_eps0"), (0.3, "vo0_vjump_ba2_k1_eps0.3"), (0.9, "vo0_vjump_ba2_k1_eps0.9")):
+        for e, key in (
+            (0.0, "vo0_vjump_ba2_k0.5_eps0"),
+            (0.3, "vo0_vjump_ba2_k1_eps0.3"),
+            (0.9, "vo0_vjump_ba2_k1_eps0.9"),
+        ):
             if c["kappa"] == ref[key]["inputs"]["kappa"]:
                 _ref_close(float(v[np.flatnonzero(eps == e)[0]]), ref[key])
     _ref_close(a["eps_crit"]["1.5"], ref["vo0_eps_crit_ba2_k1.5"])
@@ -471,9 +542,11 @@ def test_non_periodic_response(data: dict) -> None:
     for r in d["rows"]:
         phi, psi, th = _a(r["phi"]), _a(r["psi"]), _a(r["theta"])
         if r["size"] < d["critical_size"]:
-            l = math.log1p(r["size"])  # new steady state at v_o (1 + dv)
+            ell = math.log1p(r["size"])  # new steady state at v_o (1 + dv)
             assert r["outcome"] == "stable"
-            assert phi[-1] == pytest.approx(l, abs=1e-4) and psi[-1] == pytest.approx(-l, abs=1e-4)
+            assert phi[-1] == pytest.approx(ell, abs=1e-4) and psi[-1] == pytest.approx(
+                -ell, abs=1e-4
+            )
             assert th[-1] == pytest.approx(1.0 / (1.0 + r["size"]), rel=1e-4)
         else:
             assert r["outcome"] == "unstable" and phi[-1] > 30 and psi[-1] < psi[0]
@@ -490,8 +563,10 @@ def test_continuum_modes(data: dict) -> None:
         if name != "E":
             assert abs(y[0]) < 1e-8  # and at x = -1
             np.testing.assert_allclose(y, y[::-1], atol=1e-8)  # symmetric lowest mode
-    np.testing.assert_allclose(_a(cases["D"]["delta"]), np.cos(math.pi * _a(cases["D"]["x"]) / 2.0), atol=1e-12)
-    assert cases["D"]["eigenvalue"] == pytest.approx(math.pi ** 2 / 4.0, rel=1e-15)
+    np.testing.assert_allclose(
+        _a(cases["D"]["delta"]), np.cos(math.pi * _a(cases["D"]["x"]) / 2.0), atol=1e-12
+    )
+    assert cases["D"]["eigenvalue"] == pytest.approx(math.pi**2 / 4.0, rel=1e-15)
     _ref_close(cases["B"]["eigenvalue"], ref["eig_interval_B"])
     _ref_close(cases["E"]["eigenvalue"], ref["eig_disk_E"])
     # the table's printed digits: E agrees to all 10 printed, B only to 9 (not converged)

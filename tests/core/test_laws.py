@@ -1,4 +1,5 @@
-"""Evolution-law family: exact slip limit, no cancellation for tiny eps, L*, Nagata mapping algebra."""
+"""Evolution-law family: exact slip limit, no cancellation for tiny eps, L*, Nagata mapping."""
+
 from __future__ import annotations
 
 import math
@@ -6,7 +7,14 @@ import math
 import mpmath as mp
 import pytest
 
-from rsfcore.laws import G, G_clipped, L_star, intermediate_to_nagata, nagata_to_intermediate, state_rate
+from rsfcore.laws import (
+    G,
+    G_clipped,
+    L_star,
+    intermediate_to_nagata,
+    nagata_to_intermediate,
+    state_rate,
+)
 from rsfcore.params import ParameterError
 
 mp.mp.dps = 50

@@ -11,8 +11,9 @@ with V solved from the friction law given tau and theta.  The intermediate law r
 through rsfcore.protocols.load_history (compiled DOP853 engine) from the same steady
 state, after the same load-point velocity step.
 
-Finding (now applied in rsfcore.laws): the mapping printed in the paper (`eq: mapping Nagata and intermediate
-evolution law`) has Dc = DcN/(1 + cN); the correct one is Dc = DcN (1 + cN).
+Finding (now applied in rsfcore.laws): the mapping printed in the paper
+(`eq: mapping Nagata and intermediate evolution law`) has Dc = DcN/(1 + cN); the correct
+one is Dc = DcN (1 + cN).
 Derivation: with tau = sigma f, d tau/dt = sigma (aN dlnV/dt + bN dln theta/dt), so the
 Nagata law is (1 + cN) dln theta/dt = 1/theta - V/DcN - cN (aN/bN) dlnV/dt.  The state
 Theta' = ln(V_* theta/DcN) + gamma ln(V/V_*), gamma = aN cN/((1 + cN) bN), obeys
@@ -24,6 +25,7 @@ slip distance grows).  a, b and eps of the paper are right.  Numerically (below)
 corrected mapping reproduces the Nagata histories to ~1e-11 in friction, while the
 printed one is off by ~1e-2.
 """
+
 from __future__ import annotations
 
 import math
@@ -77,17 +79,29 @@ def nagata_run(cN: float, k: float, V1: float, V2: float, t_eval: np.ndarray):
         return [taudot, lthdot]
 
     y0 = [SIGMA * (AN - BN) * math.log(V1 / VS), math.log(DCN / V1)]  # steady state at V1
-    sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), y0, method="DOP853", rtol=1e-11, atol=1e-12,
-                    t_eval=t_eval, dense_output=False)
+    sol = solve_ivp(
+        rhs,
+        (0.0, float(t_eval[-1])),
+        y0,
+        method="DOP853",
+        rtol=1e-11,
+        atol=1e-12,
+        t_eval=t_eval,
+        dense_output=False,
+    )
     assert sol.success
     f = FS + sol.y[0] / SIGMA
-    V = np.array([V_of(d, l) for d, l in zip(sol.y[0], sol.y[1])])
+    V = np.array([V_of(d, lth) for d, lth in zip(sol.y[0], sol.y[1], strict=True)])
     return f, V
 
 
 def intermediate_run(m: dict[str, float], k: float, V1: float, V2: float, duration: float):
-    p = PhysicalParams(a=m["a"], b=m["b"], Dc=m["Dc"], sigma=SIGMA, k=k, V_star=VS, Vo=V1, eps=m["eps"], f_star=FS)
-    return load_history(p, [(duration, V2)], n_points_per_segment=300, rtol=1e-12, start=(V1, m["Dc"] / V1))
+    p = PhysicalParams(
+        a=m["a"], b=m["b"], Dc=m["Dc"], sigma=SIGMA, k=k, V_star=VS, Vo=V1, eps=m["eps"], f_star=FS
+    )
+    return load_history(
+        p, [(duration, V2)], n_points_per_segment=300, rtol=1e-12, start=(V1, m["Dc"] / V1)
+    )
 
 
 @pytest.mark.parametrize("cN", [0.5, 2.0])
@@ -122,8 +136,10 @@ def test_nagata_equals_intermediate_with_corrected_mapping(cN: float, ratio: flo
     f_np, _ = nagata_run(cN, k, V1, V2, rp.t_s)
     if rp.runaway is None:
         assert np.max(np.abs(rp.friction - f_np)) > 1e-3
-    print(f"cN={cN} V2/V1={ratio}: corrected |df|={df:.2e} |dlnV|={dlnV:.2e}; printed map "
-          f"{'runs away' if rp.runaway else f'|df|={np.max(np.abs(rp.friction - f_np)):.2e}'}")
+    print(
+        f"cN={cN} V2/V1={ratio}: corrected |df|={df:.2e} |dlnV|={dlnV:.2e}; printed map "
+        f"{'runs away' if rp.runaway else f'|df|={np.max(np.abs(rp.friction - f_np)):.2e}'}"
+    )
 
 
 def test_nagata_with_cN_zero_is_the_aging_law() -> None:

@@ -1,4 +1,5 @@
 """Parameter validation and physical <-> dimensionless conversion (`eq: characteristic scales`)."""
+
 from __future__ import annotations
 
 import math

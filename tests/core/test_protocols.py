@@ -5,6 +5,7 @@ Units: a = 0.01, b = 0.015 (b/a = 1.5, kappa_crit = 0.5), Dc = 10 um, sigma = 10
 V_* = 1 um/s (time scale Dc/V_* = 10 s), f_* = 0.6.  Stiffness is set through
 kappa = k Dc/(a sigma).
 """
+
 from __future__ import annotations
 
 import json
@@ -28,7 +29,9 @@ KC = B / A - 1.0  # dimensionless critical stiffness
 
 def phys(kappa: float, eps: float, **kw) -> PhysicalParams:
     """Physical parameters with dimensionless stiffness kappa = k Dc/(a sigma)."""
-    return PhysicalParams(a=A, b=B, Dc=DC, sigma=SIGMA, k=kappa * A * SIGMA / DC, V_star=VS, Vo=VS, eps=eps, **kw)
+    return PhysicalParams(
+        a=A, b=B, Dc=DC, sigma=SIGMA, k=kappa * A * SIGMA / DC, V_star=VS, Vo=VS, eps=eps, **kw
+    )
 
 
 def _json_ok(d: dict) -> None:
@@ -61,7 +64,12 @@ def test_velocity_step_converges_to_delta_tau(eps: float, ratio: float) -> None:
         assert r.kappa == pytest.approx(kappa)
         assert np.all(np.isfinite(r.delta_tau_over_b_sigma))
         # the returned analytic curve is eq: delta tau at the simulated slip
-        np.testing.assert_allclose(r.analytic_over_b_sigma, delta_tau(r.slip_since_step_m / DC, ratio, eps), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(
+            r.analytic_over_b_sigma,
+            delta_tau(r.slip_since_step_m / DC, ratio, eps),
+            rtol=0,
+            atol=1e-15,
+        )
         errs.append(r.max_deviation)
     e2, e3, e4 = errs
     assert e2 > e3 > e4
@@ -158,10 +166,11 @@ def _healing(eps: float, kappa: float) -> list[float]:
 def test_slide_hold_slide_aging_law_heals_log_time() -> None:
     """Aging law (eps = 1): theta grows like t during the hold, so Delta f ~ b ln(hold),
     i.e. b ln 10 = 0.0345 per decade at long holds.  Measured on a stiff machine
-    (kappa = 100 = 200 kappa_crit, V = 10 um/s = Dc per s): 0.0101, 0.0354, 0.0686, 0.1030, 0.1375."""
+    (kappa = 100 = 200 kappa_crit, V = 10 um/s = Dc per s): 0.0101, 0.0354, 0.0686, 0.1030,
+    0.1375."""
     dh = _healing(1.0, 100.0)
     assert all(x > 0 for x in dh)
-    assert all(b > a for a, b in zip(dh, dh[1:]))
+    assert all(b > a for a, b in zip(dh, dh[1:], strict=False))
     assert (dh[-1] - dh[-2]) == pytest.approx(B * math.log(10.0), rel=0.05)
 
 
@@ -172,7 +181,7 @@ def test_slide_hold_slide_slip_law_heals_little() -> None:
     slip = _healing(0.0, 100.0)
     aging = _healing(1.0, 100.0)
     assert all(s > 0 for s in slip)
-    assert all(s < 0.2 * a for s, a in zip(slip, aging))
+    assert all(s < 0.2 * a for s, a in zip(slip, aging, strict=True))
     # eps -> 0 is continuous: eps = 1e-8 gives the slip-law numbers
     r = slide_hold_slide(phys(100.0, 1e-8), 1e-5, 100.0, slide_before_s=10.0, slide_after_s=20.0)
     assert r.healing_delta_f == pytest.approx(slip[2], rel=1e-6)
@@ -194,7 +203,7 @@ def test_peaks_are_true_peaks() -> None:
     b = load_history(p, SEGS, n_points_per_segment=2000, rtol=1e-12)
     dense = load_history(p, SEGS, n_points_per_segment=20000)
     assert a.runaway is None and b.runaway is None
-    for sa, sb in zip(a.segments, b.segments):
+    for sa, sb in zip(a.segments, b.segments, strict=True):
         assert sa.status == sb.status == "completed"
         assert sa.peak_friction_where == sb.peak_friction_where
         assert sa.peak_friction == pytest.approx(sb.peak_friction, rel=0, abs=1e-10)

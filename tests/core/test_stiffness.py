@@ -1,4 +1,5 @@
 """Tests of rsfcore.stiffness: eigenstiffnesses of `tab: table` and `eq: critical dimensions`."""
+
 from __future__ import annotations
 
 import math
@@ -9,6 +10,7 @@ import pytest
 from scipy import linalg, special
 
 from rsfcore import stiffness as st
+
 from .reference import reference_cases
 
 REFERENCE_ID = {"B": "eig_interval_B", "E": "eig_disk_E"}
@@ -84,8 +86,9 @@ def test_D_higher_modes_closed_form_and_finite_differences():
         hstep = 2.0 / (m_interior + 1)
         diag = np.full(m_interior, 2.0 / hstep**2)
         off = np.full(m_interior - 1, -1.0 / hstep**2)
-        return linalg.eigh_tridiagonal(diag, off, eigvals_only=True,
-                                       select="i", select_range=(0, 5))
+        return linalg.eigh_tridiagonal(
+            diag, off, eigvals_only=True, select="i", select_range=(0, 5)
+        )
 
     coarse, fine = fd(999), fd(1999)  # h and h/2
     extrapolated = (4.0 * fine - coarse) / 3.0
@@ -219,14 +222,19 @@ def test_case_E_uses_mu_whatever_nu_and_slip_mode():
 
 def test_summary():
     out = st.stiffness_summary("B")
-    assert out == {"case": "B", "mode": 0, "eigenvalue": st.eigen_stiffness("B"),
-                   "k_star_formula": "mu'/L"}
+    assert out == {
+        "case": "B",
+        "mode": 0,
+        "eigenvalue": st.eigen_stiffness("B"),
+        "k_star_formula": "mu'/L",
+    }
     full = st.stiffness_summary("D", mode=1, nu=0.2, mode_of_slip="III", **PHYS)
     assert full["critical_dimension_name"] == "L_c"
     assert full["eigenvalue"] == pytest.approx(math.pi**2)
     assert full["critical_dimension_m"] == pytest.approx(
-        st.critical_dimension("D", nu=0.2, mode_of_slip="III", mode=1, **PHYS))
-    for case, name in zip("ABCDE", ["lambda_c", "L_c", "lambda_c", "L_c", "R_c"]):
+        st.critical_dimension("D", nu=0.2, mode_of_slip="III", mode=1, **PHYS)
+    )
+    for case, name in zip("ABCDE", ["lambda_c", "L_c", "lambda_c", "L_c", "R_c"], strict=True):
         out = st.stiffness_summary(case, nu=0.2, mode_of_slip="II", **PHYS)
         assert out["critical_dimension_name"] == name and out["critical_dimension_m"] > 0
     with _field_error("nu"):
@@ -242,14 +250,25 @@ GOOD = dict(mu=30e9, nu=0.25, mode_of_slip="II", sigma=50e6, a=0.01, b=0.015, Dc
 @pytest.mark.parametrize(
     "field, value",
     [
-        ("mu", 0.0), ("mu", -1.0), ("mu", math.nan),
-        ("nu", -0.1), ("nu", 0.5), ("nu", math.inf),
-        ("sigma", 0.0), ("sigma", -5e6),
-        ("a", 0.0), ("a", -0.01),
-        ("b", 0.01), ("b", 0.005),  # b must exceed a (velocity weakening)
-        ("Dc", 0.0), ("Dc", -1e-4),
-        ("h", 0.0), ("h", -1.0), ("h", None),
-        ("mode_of_slip", "I"), ("mode_of_slip", 2),
+        ("mu", 0.0),
+        ("mu", -1.0),
+        ("mu", math.nan),
+        ("nu", -0.1),
+        ("nu", 0.5),
+        ("nu", math.inf),
+        ("sigma", 0.0),
+        ("sigma", -5e6),
+        ("a", 0.0),
+        ("a", -0.01),
+        ("b", 0.01),
+        ("b", 0.005),  # b must exceed a (velocity weakening)
+        ("Dc", 0.0),
+        ("Dc", -1e-4),
+        ("h", 0.0),
+        ("h", -1.0),
+        ("h", None),
+        ("mode_of_slip", "I"),
+        ("mode_of_slip", 2),
     ],
 )
 def test_invalid_physical_input_names_the_field(field, value):

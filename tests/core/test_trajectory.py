@@ -1,4 +1,5 @@
 """Trajectories: certificates, delivered accuracy, true peaks, sampling, physical units."""
+
 from __future__ import annotations
 
 import math
@@ -26,6 +27,7 @@ ACCURACY_CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("p, pert, d", ACCURACY_CASES)
 def test_delivered_accuracy_within_reported(p: Params, pert: str, d: float) -> None:
     """Times and peaks at rtol 1e-6..1e-12 against an rtol = 1e-13 run: error <= rel_accuracy.
@@ -106,7 +108,9 @@ def test_samples_at_requested_times_match_independent_scipy() -> None:
 
     times = np.linspace(0.0, 0.6, 13)
     r = simulate(Params(ba, kappa, eps, 1.0), "velocity-jump", 2.0, times=times)
-    sol = solve_ivp(rhs, (0, 0.6), [2.0, 2.0], method="DOP853", rtol=1e-13, atol=1e-13, t_eval=times)
+    sol = solve_ivp(
+        rhs, (0, 0.6), [2.0, 2.0], method="DOP853", rtol=1e-13, atol=1e-13, t_eval=times
+    )
     assert np.allclose(r.trajectory.T, times, rtol=1e-13, atol=1e-15)
     assert np.allclose(r.trajectory.phi, sol.y[0], rtol=1e-8, atol=1e-8)
     assert np.allclose(r.trajectory.psi, sol.y[1], rtol=1e-8, atol=1e-8)
@@ -115,7 +119,9 @@ def test_samples_at_requested_times_match_independent_scipy() -> None:
 def test_sampling_modes_and_t_end() -> None:
     p = Params(2, 2, 0.25, 1)
     r = simulate(p, "velocity-jump", 2.0, n_points=7)
-    assert len(r.trajectory.T) == 7 and r.trajectory.T[-1] == pytest.approx(r.return_time, rel=1e-12)
+    assert len(r.trajectory.T) == 7 and r.trajectory.T[-1] == pytest.approx(
+        r.return_time, rel=1e-12
+    )
     r = simulate(p, "velocity-jump", 2.0, n_points=5, t_end=5.0, sampling="time")
     assert np.allclose(r.trajectory.T, np.linspace(0, 5, 5), rtol=1e-12)
     assert r.outcome == "stable" and np.all(np.abs(r.trajectory.phi[1:]) < r.peak_phi)
@@ -125,7 +131,9 @@ def test_sampling_modes_and_t_end() -> None:
 
 
 def test_physical_units() -> None:
-    ph = PhysicalParams(a=0.01, b=0.02, Dc=1e-5, sigma=1e7, k=2 * 0.01 * 1e7 / 1e-5, V_star=1e-6, Vo=1e-6, eps=0.25)
+    ph = PhysicalParams(
+        a=0.01, b=0.02, Dc=1e-5, sigma=1e7, k=2 * 0.01 * 1e7 / 1e-5, V_star=1e-6, Vo=1e-6, eps=0.25
+    )
     p = ph.to_dimensionless()
     assert p.kappa == pytest.approx(2.0)
     r = simulate(p, "velocity-jump", 2.0, n_points=20, physical=ph)
