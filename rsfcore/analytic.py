@@ -27,7 +27,10 @@ from .params import ParameterError, Params, check_range
 
 __all__ = [
     "U_kcrit",
+    "U_kcrit_scale",
+    "U_kcrit_sign",
     "U_vo0",
+    "U_vo0_scale",
     "psi_crit_kcrit",
     "psi_crit_vo0",
     "velocity_jump_crit_kcrit",
@@ -70,41 +73,140 @@ def _check_ba_eps(ba: float, eps: float) -> tuple[float, float]:
     return Params(ba=ba, kappa=0.0, eps=eps).ba, check_range("eps", eps, 0.0, 1.0)
 
 
+def _kcrit_parts(
+    phi: ArrayLike, psi: ArrayLike, ba: float, eps: float, vo: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(r, s, m, log P) with U = P r for eps < 1 (module notation of :func:`U_kcrit`).
+
+    With phi1 = phi - ln v_o, w = e^(-max(phi1, 0)) and G = G(L):
+    P = (b/a) v_o theta^D / w > 0 (theta = e^((psi - phi)/(b/a))),
+    r = w [kappa_crit/D - e^phi1 (G + 1)/(1 - eps)] (bounded: no overflow at large phi),
+    m = w [kappa_crit/D + e^phi1 (|G| + 1)/(1 - eps)] >= |r|, so that P m = U_kcrit_scale,
+    s = m + w e^phi1 [(|G| + 1)|phi1| + e^(-eps L)(|phi| + 2|ln theta|)]/(1 - eps) bounds
+    the rounding of r: |fl(r) - r| <= 8 u s (u = 2^-53; the extra terms carry the
+    rounding of L and of phi - ln v_o through G' = -e^(-eps L) and exp).  r depends on phi
+    only through phi1 and L, so it is the same in every v_o frame.
+    """
+    phi = np.asarray(phi, dtype=np.float64)
+    psi = np.asarray(psi, dtype=np.float64)
+    kc = ba - 1.0
+    D = ba * (1.0 - eps) + eps
+    lnvo = math.log(vo)
+    with np.errstate(over="ignore", invalid="ignore"):
+        lth = (psi - phi) / ba
+        L = phi + lth
+        phi1 = phi - lnvo
+        top = np.maximum(phi1, 0.0)
+        w = np.exp(-top)
+        g = _expm1_over(eps, -L)  # expm1(-eps L)/eps = G(L)
+        e1 = np.exp(phi1 - top) / (1.0 - eps)  # w e^phi1/(1 - eps) <= 1/(1 - eps)
+        r = kc / D * w - e1 * (g + 1.0)
+        m = kc / D * w + e1 * (np.abs(g) + 1.0)
+        dL = np.abs(phi) + 2.0 * np.abs(lth)  # rounding of L and of phi1, in ulps
+        s = m + e1 * ((np.abs(g) + 1.0) * np.abs(phi1) + np.exp(-eps * L) * dL)
+        logP = math.log(ba) + D * lth + lnvo + top
+    return r, s, m, logP
+
+
+def _times_exp(x: NDArray[np.float64], logP: NDArray[np.float64]) -> NDArray[np.float64]:
+    """x e^logP without spurious overflow/underflow/nan (0 stays 0, the sign is kept)."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        P = np.exp(logP)
+        direct = P * x
+        viaLog = np.sign(x) * np.exp(logP + np.log(np.abs(x)))
+        ok = np.isfinite(direct) & (((P > 0.0) & np.isfinite(P)) | (x == 0.0))
+        return np.where(ok, direct, np.where(x == 0.0, 0.0, viaLog))
+
+
 def U_kcrit(
     phi: ArrayLike, psi: ArrayLike, ba: float, eps: float, vo: float = 1.0
 ) -> NDArray[np.float64]:
     """Lyapunov function U(phi, psi) for kappa = kappa_crit and v_o > 0.
 
     Implements `eq: trajectories 1` with the integrating factor `eq: q function1`,
-    q = (psi - phi)(1 - eps(1 - a/b)), rewritten for kappa = kappa_crit as
+    q = (psi - phi)(1 - eps(1 - a/b)) = D ln theta, rewritten for kappa = kappa_crit as
 
         U = (b/a) [kappa_crit v_o e^q / D - e^(q + phi) (expm1(eps m)/eps + 1)/(1 - eps)],
-        D = (b/a)(1 - eps) + eps,
+        D = (b/a)(1 - eps) + eps,  m = -L,
 
     which equals the printed form and has the exact slip-law limit (eps = 0)
-    U = e^(psi - phi) [kappa_crit v_o - e^phi ((1 - b/a) phi - psi + b/a)].
-    At eps = 1 (aging law) the printed form is singular and `eq: trajectories 1-2`,
-    U = (b/a)[e^((psi - phi)/(b/a)) (v_o + e^phi/(b/a - 1)) kappa_crit - psi], is used.
+    U = e^(psi - phi) [kappa_crit v_o - e^phi ((1 - b/a) phi - psi + b/a)].  It is
+    evaluated as U = P r with P = (b/a) v_o e^q > 0 formed through its logarithm and
+    r = kappa_crit/D - e^(phi - ln v_o)(G(L) + 1)/(1 - eps), so that far from v_o = 1
+    (where e^q alone over- or underflows: b/a = 1e4, v_o = 1e-6 gave nan and v_o = 1e3 gave
+    0 before) the sign is kept and U is +-inf or +-0 only when its true value is beyond
+    the double range.  At eps = 1 (aging law) the printed form is singular and
+    `eq: trajectories 1-2`, U = (b/a)[e^((psi - phi)/(b/a)) (v_o + e^phi/(b/a - 1))
+    kappa_crit - psi], is used.
 
     Args: phi, psi broadcastable arrays; ba in (1, 1e6]; eps in [0, 1]; vo in (0, 1e300].
-    Returns U (same shape), +-inf where the true value exceeds the double range.
-    Level sets of U are trajectories (conserved to integration accuracy: relative drift
-    below 1e-9 at rtol 1e-10, tests/test_analytic.py).  U < 0: closed orbit (stable);
-    U > 0: runaway when eps < 1.
+    Returns U (same shape).  U < 0: closed orbit (stable); U > 0: runaway when eps < 1
+    (for a sign decision use :func:`U_kcrit_sign`, which accounts for rounding).
+    Level sets of U are trajectories.  Along a computed trajectory U drifts (measured law,
+    docs/accuracy.md, tests/core/test_u_drift.py):
+
+        |U(T) - U(0)| <= 10 rtol M (1 + Y)(1 + V),
+
+    M = max of :func:`U_kcrit_scale` along the path, Y = max(|phi|, |ln theta|) along it,
+    V = total variation of phi (about 2 x amplitude x number of oscillations): linear in
+    the number of oscillations; the relative drift is this over |U(0)|, and |U(0)|
+    vanishes like (1 - d/d_crit) at the separatrix.
     """
     ba, eps = _check_ba_eps(ba, eps)
     vo = check_range("vo", vo, 0.0, None, lo_open=True)
     phi = np.asarray(phi, dtype=np.float64)
     psi = np.asarray(psi, dtype=np.float64)
     kc = ba - 1.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        if eps == 1.0:
-            return ba * (np.exp((psi - phi) / ba) * (vo + np.exp(phi) / kc) * kc - psi)
-        q = (psi - phi) * (1.0 - eps * (1.0 - 1.0 / ba))
-        D = ba * (1.0 - eps) + eps
-        m = ((1.0 - ba) * phi - psi) / ba
-        bracket = (_expm1_over(eps, m) + 1.0) / (1.0 - eps)
-        return ba * (kc * vo * np.exp(q) / D - np.exp(q + phi) * bracket)
+    if eps == 1.0:
+        with np.errstate(over="ignore", invalid="ignore"):
+            lth = (psi - phi) / ba
+            return ba * (kc * np.exp(lth + math.log(vo)) + np.exp(phi + lth) - psi)
+    r, _, _, logP = _kcrit_parts(phi, psi, ba, eps, vo)
+    return _times_exp(r, logP)
+
+
+def U_kcrit_scale(
+    phi: ArrayLike, psi: ArrayLike, ba: float, eps: float, vo: float = 1.0
+) -> NDArray[np.float64]:
+    """Scale M >= |U| of :func:`U_kcrit`: the sum of the magnitudes of the terms of U.
+
+    U is a difference of such terms, so its rounding error is a few u M and its drift
+    along computed trajectories is proportional to rtol M (law in :func:`U_kcrit`).
+    M/|U| is the condition number of U: large near the separatrix, where U -> 0.
+    Same arguments and normalisation as :func:`U_kcrit`.
+    """
+    ba, eps = _check_ba_eps(ba, eps)
+    vo = check_range("vo", vo, 0.0, None, lo_open=True)
+    phi = np.asarray(phi, dtype=np.float64)
+    psi = np.asarray(psi, dtype=np.float64)
+    kc = ba - 1.0
+    if eps == 1.0:
+        with np.errstate(over="ignore", invalid="ignore"):
+            lth = (psi - phi) / ba
+            return ba * (kc * np.exp(lth + math.log(vo)) + np.exp(phi + lth) + np.abs(psi))
+    _, _, m, logP = _kcrit_parts(phi, psi, ba, eps, vo)
+    return _times_exp(m, logP)
+
+
+def U_kcrit_sign(
+    phi: ArrayLike, psi: ArrayLike, ba: float, eps: float, vo: float = 1.0
+) -> NDArray[np.int64]:
+    """Sign of U of :func:`U_kcrit` that rounding cannot flip: -1 (closed orbit, stable),
+    +1 (open orbit, runaway for eps < 1) or 0 (|r| <= 8 u s: within rounding of U = 0, the
+    critical trajectory, undecidable in double precision from this start).
+
+    Computed from the reduced form r = U/P (P > 0, :func:`_kcrit_parts`), which neither
+    over- nor underflows for any v_o.  At eps = 1 every orbit is closed: -1 everywhere.
+    """
+    ba, eps = _check_ba_eps(ba, eps)
+    vo = check_range("vo", vo, 0.0, None, lo_open=True)
+    if eps == 1.0:
+        return -np.ones(np.broadcast(np.asarray(phi), np.asarray(psi)).shape, dtype=np.int64)
+    r, s, _, _ = _kcrit_parts(phi, psi, ba, eps, vo)
+    with np.errstate(invalid="ignore"):
+        certain = np.abs(r) > 8.0 * UNIT_ROUNDOFF * s
+        sign = np.where(certain & (r < 0.0), -1, np.where(certain & (r > 0.0), 1, 0))
+        return sign.astype(np.int64)
 
 
 def U_vo0(
@@ -123,6 +225,14 @@ def U_vo0(
     (`eq: limiting trajectory2`).  Singular (ParameterError) at kappa = 0 and at
     eps kappa = kappa_crit.  When eps kappa > kappa_crit U > 0 everywhere yet every
     trajectory is stable (the sign criterion holds only while eps kappa < kappa_crit).
+    The prefactor is formed through its logarithm (no spurious overflow).
+
+    Along a computed trajectory (measured law, docs/accuracy.md, tests/core/test_u_drift.py)
+
+        |U(T) - U(0)| <= 10 rtol M (1 + Y)(1 + V),
+
+    M = max of :func:`U_vo0_scale` along the path, Y = max(|phi|, |ln theta|), V = total
+    variation of phi; relative to |U(0)|, which vanishes like L* - L(0) at the critical line.
     """
     ba, eps = _check_ba_eps(ba, eps)
     kappa = check_range("kappa", kappa, 0.0, None, lo_open=True)
@@ -137,7 +247,33 @@ def U_vo0(
     n = ((ba - 1.0) * phi + psi) / ba
     with np.errstate(over="ignore", invalid="ignore"):
         num = kc * _expm1_over(eps, n) - kappa * np.exp(eps * n)
-        return np.exp(psi * den / kappa) * kappa * ba * num / (kc * den)
+        logP = psi * den / kappa + math.log(kappa * ba / (kc * abs(den)))
+    return _times_exp(math.copysign(1.0, den) * num, logP)
+
+
+def U_vo0_scale(
+    phi: ArrayLike, psi: ArrayLike, ba: float, kappa: float, eps: float
+) -> NDArray[np.float64]:
+    """Scale M >= |U| of :func:`U_vo0`: the sum of the magnitudes of its terms.
+
+    The rounding of U is a few u M; its drift along computed trajectories follows the
+    law of :func:`U_vo0` (docs/accuracy.md).  Same arguments as :func:`U_vo0`.
+    """
+    ba, eps = _check_ba_eps(ba, eps)
+    kappa = check_range("kappa", kappa, 0.0, None, lo_open=True)
+    kc = ba - 1.0
+    den = kc - kappa * eps
+    if den == 0.0:
+        raise ParameterError(
+            "kappa", kappa, "eps*kappa != b/a - 1 (U of eq: trajectories 2 is singular there)"
+        )
+    phi = np.asarray(phi, dtype=np.float64)
+    psi = np.asarray(psi, dtype=np.float64)
+    n = ((ba - 1.0) * phi + psi) / ba
+    with np.errstate(over="ignore", invalid="ignore"):
+        m = kc * np.abs(_expm1_over(eps, n)) + kappa * np.exp(eps * n)
+        logP = psi * den / kappa + math.log(kappa * ba / (kc * abs(den)))
+    return _times_exp(m, logP)
 
 
 def psi_crit_kcrit(phi: ArrayLike, ba: float, eps: float, vo: float = 1.0) -> NDArray[np.float64]:

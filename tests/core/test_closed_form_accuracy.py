@@ -111,13 +111,13 @@ def _check_vjump(pts: list[tuple[float, float]]) -> float:
 
 
 def test_vjump_kcrit_issue_point() -> None:
-    # issue 13: claimed 4e-16, actual 3.1e-14 at b/a = 2946.3, eps = 0.818 (now ~9e-15
-    # through the same formulation, with a bound that covers it)
+    # issue 13: claimed 4e-16, actual 3.1e-14 at b/a = 2946.3, eps = 0.818; now the
+    # error is 2.3e-14 and the reported bound 9.4e-13
     d, acc = velocity_jump_crit_kcrit_acc(2946.3, 0.818)
     err = _rel(d, _ref_vjump_kcrit(2946.3, 0.818, d))
     assert err <= acc
     assert acc > 4e-16  # the old machine-epsilon claim would not bound this point
-    assert acc < 1e-12  # ... and the bound is informative (about 30x the error)
+    assert acc < 1e-12  # ... and the bound is informative (about 40x the error)
 
 
 def test_vjump_kcrit_fast_sample() -> None:
