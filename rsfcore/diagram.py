@@ -318,9 +318,9 @@ def stability_diagram(
         eps_a = np.ascontiguousarray(grids["eps"]).ravel()
     kappa_a = r_a * (ba_a - 1.0)
     if np.any(kappa_a > KAPPA_MAX):
-        i = int(np.argmax(kappa_a > KAPPA_MAX))
+        first = int(np.argmax(kappa_a > KAPPA_MAX))
         raise ParameterError(
-            "kappa_ratio", float(r_a[i]), f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}"
+            "kappa_ratio", float(r_a[first]), f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}"
         )
 
     n = ba_a.size
@@ -334,10 +334,10 @@ def stability_diagram(
     fb = np.flatnonzero(flags & FLAG_FALLBACK)
     for i in fb:
         p = Params(float(ba_a[i]), float(kappa_a[i]), float(eps_a[i]), p_fixed.vo)
-        res = bisect_critical(p, perturbation, rtol=rtol)
-        kind[i] = KINDS.index(res.kind)
-        value[i] = math.inf if res.critical_size is None else res.critical_size
-        acc[i] = res.rel_accuracy
+        bis = bisect_critical(p, perturbation, rtol=rtol)
+        kind[i] = KINDS.index(bis.kind)
+        value[i] = math.inf if bis.critical_size is None else bis.critical_size
+        acc[i] = bis.rel_accuracy
         meth[i] = M_BISECTION
     value[kind == KIND_ZERO] = 0.0
     value[kind == KIND_INFINITE] = math.inf

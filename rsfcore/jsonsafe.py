@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsFloat
 
 import numpy as np
 
 __all__ = ["jsonsafe", "finite_or_none", "finite_list"]
 
 
-def finite_or_none(x: float | None) -> float | None:
+def finite_or_none(x: SupportsFloat | None) -> float | None:
     """``float(x)`` if it is finite, else None (None stays None): JSON has no inf/nan."""
     if x is None:
         return None

@@ -681,7 +681,7 @@ def slide_hold_slide(
         peak_friction=pk,
         peak_time_s=rs.peak_friction_time_s if pk is not None else None,
         peak_time_after_reslide_s=(rs.peak_friction_time_s - rs.t_start_s)
-        if pk is not None
+        if pk is not None and rs.peak_friction_time_s is not None
         else None,
         healing_delta_f=(pk - f_ss) if pk is not None else None,
         relaxation_delta_f=relax,

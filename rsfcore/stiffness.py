@@ -253,6 +253,7 @@ def eigen_mode(
         if case == "D":  # cos for symmetric, sin for antisymmetric modes
             q = (mode + 1) * math.pi / 2.0
             return np.cos(q * z) if mode % 2 == 0 else np.sin(q * z)
+        assert coef is not None  # cases B and E
         if case == "B":  # sum_j c_j sin(j theta), x = cos(theta)
             return np.sin(np.outer(np.arccos(z), np.arange(1, coef.size + 1))) @ coef
         return np.sqrt(1.0 - z * z) * (coef @ _jacobi_half0(coef.size, 2.0 * z * z - 1.0))
@@ -337,7 +338,10 @@ def _modulus_times(case: str, mu: float, nu: float, mode_of_slip: str, h: float 
     """M such that k = eta M/size (A, B, E) or k = eta M/size^2 (C, D)."""
     mu_p, e_p = _moduli(case, mu, nu, mode_of_slip)
     h = _check_h(case, h)
-    return e_p * h if case in _THIN_SLAB else mu_p
+    if case in _THIN_SLAB:
+        assert h is not None  # _check_h requires it for these cases
+        return e_p * h
+    return mu_p
 
 
 def critical_dimension(

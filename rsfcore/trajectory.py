@@ -385,6 +385,10 @@ def simulate(
         decided = plan.outcome is not None or (p_run.kappa < p_run.kappa_crit and method == "auto")
         budget = min(DECIDED_BUDGET, max_steps) if decided else max_steps
         res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget)
+    status: Status | None
+    y_end: NDArray[np.float64] | None
+    peak_T: float | None
+    cert: str | None
     if res is None:
         status, y_end, tau_end, T_cert, T_ret = None, None, 0.0, math.nan, math.nan
         peak_phi, peak_T, n_steps, n_rhs, err_sum = phi0, 0.0, 0, 0, 0.0
