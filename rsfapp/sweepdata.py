@@ -27,7 +27,6 @@ from numpy.typing import NDArray
 
 from rsfcore import batch
 from rsfcore.critical import KINDS
-from rsfcore.params import ParameterError
 
 from .grid import SpecError, SweepSpec
 from .store.sweeps import SweepStore
@@ -40,37 +39,70 @@ VARIABLES: tuple[str, ...] = ("critical_size", "kind", "outcome", "rel_accuracy"
 _OUTCOMES = ("stable", "unstable")
 
 
-def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[Any]],
-                                                              dict[int, str]]:
-    """Results of flat indices [i0, i1): one :func:`rsfcore.batch.critical_points` call.
+def _failed_arrays(n: int, outcome: bool) -> dict[str, NDArray[Any]]:
+    out: dict[str, NDArray[Any]] = {
+        "critical_size": np.full(n, math.nan), "rel_accuracy": np.full(n, math.nan),
+        "kind": np.full(n, -1, np.int8), "method": np.full(n, -1, np.int8),
+        "failed": np.ones(n, np.bool_), "on_boundary": np.zeros(n, np.bool_)}
+    if outcome:
+        out["outcome"] = np.full(n, -1, np.int8)
+        out["outcome_uncertain"] = np.zeros(n, np.bool_)
+    return out
 
-    Returns (arrays, errors): the per-point arrays of the module docstring (plus
-    ``method``, ``on_boundary`` and, for outcomes, ``outcome_uncertain``) and
-    {offset in the chunk: "Type: message"} of the failed points.  A ParameterError (an
-    input the spec validation let through) fails every point of the chunk, with its
-    message, instead of the chunk.
-    """
-    p = spec.params(i0, i1)
-    n = i1 - i0
-    ba, kappa, eps, vo = p["ba"], p["kappa"], p["eps"], p["vo"]
-    assert ba is not None and kappa is not None and eps is not None and vo is not None
-    try:
-        r = batch.critical_points(ba, kappa, eps, vo,
-                                  perturbation=spec.perturbation, rtol=spec.rtol,
-                                  size=p["size"])
-    except ParameterError as exc:
-        msg = f"ParameterError: {exc}"[:2000]
-        return ({"critical_size": np.full(n, math.nan), "rel_accuracy": np.full(n, math.nan),
-                 "kind": np.full(n, -1, np.int8), "method": np.full(n, -1, np.int8),
-                 "failed": np.ones(n, np.bool_), "on_boundary": np.zeros(n, np.bool_),
-                 "outcome": np.full(n, -1, np.int8)}, {k: msg for k in range(n)})
+
+def _arrays(r: batch.BatchResult) -> dict[str, NDArray[Any]]:
     arrays: dict[str, NDArray[Any]] = {
         "critical_size": r.critical_size, "rel_accuracy": r.rel_accuracy, "kind": r.kind,
         "method": r.method, "failed": r.failed, "on_boundary": r.on_boundary}
     if r.outcome is not None and r.outcome_uncertain is not None:
         arrays["outcome"] = r.outcome
         arrays["outcome_uncertain"] = r.outcome_uncertain
-    return arrays, dict(r.errors)
+    return arrays
+
+
+def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[Any]],
+                                                              dict[int, str]]:
+    """Results of flat indices [i0, i1): one :func:`rsfcore.batch.critical_points` call.
+
+    Returns (arrays, errors): the per-point arrays of the module docstring (plus
+    ``method``, ``on_boundary`` and, for outcomes, ``outcome_uncertain``) and
+    {offset in the chunk: "Type: message"} of the failed points.
+
+    rsfcore.batch already isolates the points whose per-point fallback fails.  Should the
+    batch call itself raise (an input the spec validation let through, or a defect of the
+    kernel at some point), the chunk is recomputed point by point so that only the points
+    that raise are marked failed, with their messages; MemoryError propagates (the task is
+    retried).
+    """
+    p = spec.params(i0, i1)
+    n = i1 - i0
+    ba, kappa, eps, vo, size = p["ba"], p["kappa"], p["eps"], p["vo"], p["size"]
+    assert ba is not None and kappa is not None and eps is not None and vo is not None
+    kw: dict[str, Any] = {"perturbation": spec.perturbation, "rtol": spec.rtol}
+    try:
+        r = batch.critical_points(ba, kappa, eps, vo, size=size, **kw)
+        return _arrays(r), dict(r.errors)
+    except MemoryError:
+        raise
+    except Exception:  # noqa: BLE001 - isolate the offending points below
+        pass
+    out = _failed_arrays(n, size is not None)
+    errors: dict[int, str] = {}
+    for k in range(n):
+        sl = slice(k, k + 1)
+        try:
+            r = batch.critical_points(ba[sl], kappa[sl], eps[sl], vo[sl],
+                                      size=None if size is None else size[sl], **kw)
+        except MemoryError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - recorded per point, the chunk goes on
+            errors[k] = f"{type(exc).__name__}: {exc}"[:2000]
+            continue
+        for name, arr in _arrays(r).items():
+            out[name][k] = arr[0]
+        if r.errors:
+            errors[k] = r.errors[0]
+    return out, errors
 
 
 def _empty(n: int) -> dict[str, NDArray[Any]]:
