@@ -14,6 +14,7 @@ evaluations of the same formulas (tests/core/test_closed_form_accuracy.py):
 Notation: kappa_crit = b/a - 1, m = ((1 - b/a) phi - psi)/(b/a) = -L, with
 L = phi + (psi - phi)/(b/a) = ln(V theta/Dc).
 """
+
 from __future__ import annotations
 
 import math
@@ -685,15 +686,20 @@ def closed_form_critical(
             eq = "eq: trajectories 1 (U = 0 at the load-point jump start)"
     else:
         raise ParameterError(
-            "params", params.as_dict(),
+            "params",
+            params.as_dict(),
             "v_o = 0 or kappa = kappa_crit (b/a - 1) exactly for a closed form",
         )
     v, lv, acc = float(v), float(lv), float(acc)
     kind = "infinite" if math.isinf(v) else ("zero" if v == 0.0 else "finite")
     met = acc <= rtol
-    reason = "" if met else (
-        f"the closed form is ill-conditioned here: rounding in double precision limits its"
-        f" relative accuracy to {acc:.2g} (> rtol {rtol:.2g})"
+    reason = (
+        ""
+        if met
+        else (
+            f"the closed form is ill-conditioned here: rounding in double precision limits its"
+            f" relative accuracy to {acc:.2g} (> rtol {rtol:.2g})"
+        )
     )
     return ClosedFormResult(kind, v, lv, acc, met, reason, eq)
 

@@ -12,6 +12,7 @@ Points: b/a = 1 + 10^U(-12, 6) (1 + 1e-12 .. 1e6, plus the end points), eps in
 to 1 - 1e-13 for L*.  The big sweep (>= 1000 points per closed form) is marked slow; a
 fast subset of ~100 points per closed form runs unmarked.
 """
+
 from __future__ import annotations
 
 import math
@@ -65,11 +66,14 @@ def _ref_vjump_kcrit(ba: float, eps: float, start: float) -> float:
         D = B * (1 - e) + e
         q = (1 - e) * kc / D
         if e == 0:
+
             def h(d):  # slip-law limit
                 return d + q * mpmath.exp(-d) - 1
         else:
+
             def h(d):
                 return d + mpmath.log1p(e * (q * mpmath.exp(-d) - 1)) / e
+
         r = mpmath.findroot(h, mpmath.mpf(start), tol=mpmath.mpf(10) ** (-2 * DPS + 10))
         # the root is bracketed: h < 0 below, > 0 above (h increasing)
         assert h(r * (1 - mpmath.mpf(10) ** -30)) < 0 < h(r * (1 + mpmath.mpf(10) ** -30))
@@ -91,8 +95,13 @@ def _rel(v: float, ref) -> float:
 
 def _vjump_points(n: int, seed: int) -> list[tuple[float, float]]:
     rng = random.Random(seed)
-    pts = [(2946.3, 0.818), (1e6, 0.9972673220817913), (1.0 + 1e-12, 0.0), (1e6, 0.0),
-           (1e6, 1 - 1e-15)]
+    pts = [
+        (2946.3, 0.818),
+        (1e6, 0.9972673220817913),
+        (1.0 + 1e-12, 0.0),
+        (1e6, 0.0),
+        (1e6, 1 - 1e-15),
+    ]
     while len(pts) < n:
         eps = _eps(rng)
         if eps < 1.0:
@@ -140,8 +149,13 @@ def _lstar_points(n: int, seed: int) -> list[tuple[float, float, float]]:
         if eps == 0.0:
             kappa = kc * 10.0 ** rng.uniform(-6.0, 6.0)
         else:
-            x = rng.choice([rng.random(), 1.0 - 10.0 ** rng.uniform(-12.9, -0.5),
-                            10.0 ** rng.uniform(-12.0, 0.0)])
+            x = rng.choice(
+                [
+                    rng.random(),
+                    1.0 - 10.0 ** rng.uniform(-12.9, -0.5),
+                    10.0 ** rng.uniform(-12.0, 0.0),
+                ]
+            )
             kappa = x * kc / eps
         if not (0.0 < kappa <= 1e6) or eps * kappa / kc >= 1.0 - 1e-13:
             continue

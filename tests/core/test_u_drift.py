@@ -25,6 +25,7 @@ absolute law divided by |U(0)|, which vanishes like 1 - d/d_crit at the separatr
 ~0.03 rtol M), and it grows linearly with the number of oscillations (7e3 rtol after
 1478 oscillations at b/a = 1.25, eps = 0, d = 0.9 d_crit).
 """
+
 from __future__ import annotations
 
 import math
@@ -83,8 +84,11 @@ def drift(p: Params, d: float, rtol: float, t_end: float | None) -> Drift:
     V = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(phi)))])
     lnvo = math.log(p.vo) if p.vo > 0.0 else 0.0
     up = np.flatnonzero((phi[:-1] < lnvo) & (phi[1:] >= lnvo)) if p.vo > 0.0 else np.empty(0, int)
-    at = {k: float(np.max(dU[: up[k] + 1]) / (rtol * M[up[k]]))
-          for k in (1, 10, 100, 1000) if len(up) > k}
+    at = {
+        k: float(np.max(dU[: up[k] + 1]) / (rtol * M[up[k]]))
+        for k in (1, 10, 100, 1000)
+        if len(up) > k
+    }
     return Drift(
         ratio=float(np.max(dU / (rtol * M * (1.0 + Y) * (1.0 + V)))),
         n_osc=len(up),
@@ -126,7 +130,7 @@ def test_relative_drift_near_separatrix() -> None:
     p = Params(ba, ba - 1.0, eps, 1.0)
     out = {}
     for k in (2, 6, 8):
-        f = 1.0 - 10.0 ** -k
+        f = 1.0 - 10.0**-k
         out[k] = drift(p, f * _dc(ba, eps), 1e-10, 300.0)
         assert out[k].ratio <= A_LAW
     rel1 = {k: o.abs_at[1] * o.M / abs(o.U0) for k, o in out.items()}
@@ -176,15 +180,30 @@ def test_drift_law_vo0(
 #: (d/d_crit, rtol) pairs of the sweep: loose tolerances only away from the separatrix,
 #: where the drift cannot reach |U(0)| (at (1 - 1e-8) d_crit and rtol 1e-6 the computed
 #: path crosses U = 0, as the law allows, and then runs away: 30-40 s each, not useful)
-_SWEEP_KCRIT = [(0.3, 1e-6), (0.9, 1e-6), (0.3, 1e-12), (0.9, 1e-12), (0.9999, 1e-9),
-                (0.9999, 1e-12), (1 - 1e-8, 1e-12)]
+_SWEEP_KCRIT = [
+    (0.3, 1e-6),
+    (0.9, 1e-6),
+    (0.3, 1e-12),
+    (0.9, 1e-12),
+    (0.9999, 1e-9),
+    (0.9999, 1e-12),
+    (1 - 1e-8, 1e-12),
+]
 
 
 @pytest.mark.slow
 def test_drift_law_sweep() -> None:
     worst = 0.0
-    cases = [(1.001, 0.5), (1.25, 0.0), (1.25, 0.9), (2.0, 0.3), (10.0, 0.5), (100.0, 0.5),
-             (1.25, 1.0), (2.0, 1.0)]
+    cases = [
+        (1.001, 0.5),
+        (1.25, 0.0),
+        (1.25, 0.9),
+        (2.0, 0.3),
+        (10.0, 0.5),
+        (100.0, 0.5),
+        (1.25, 1.0),
+        (2.0, 1.0),
+    ]
     for ba, eps in cases:
         aging = [(f, r) for f in (0.3, 2.0, 5.0) for r in (1e-6, 1e-12)]
         pairs = _SWEEP_KCRIT if eps < 1.0 else aging
@@ -199,8 +218,13 @@ def test_drift_law_sweep() -> None:
                 assert not r.crossed or frac > 0.999, (ba, eps, frac, vo, rtol)
                 assert r.ratio <= A_LAW, (ba, eps, frac, vo, rtol, r)
                 worst = max(worst, r.ratio)
-    for ba, kappa, eps in [(2.0, 0.5, 0.0), (2.0, 1.5, 0.3), (1.25, 0.2, 0.9), (10.0, 30.0, 0.2),
-                           (1e3, 1e4, 0.05)]:
+    for ba, kappa, eps in [
+        (2.0, 0.5, 0.0),
+        (2.0, 1.5, 0.3),
+        (1.25, 0.2, 0.9),
+        (10.0, 30.0, 0.2),
+        (1e3, 1e4, 0.05),
+    ]:
         Ls = L_star_acc(kappa, ba - 1.0, eps)[0]
         for frac in (0.3, 0.9, 0.9999, 1 - 1e-6):
             for rtol in (1e-6, 1e-12):
