@@ -28,7 +28,7 @@ import httpx
 import pytest
 from sqlalchemy import create_engine, text
 
-from tests.conftest import ROOT, Postgres, Proc, Redis, Server, Worker, free_port, service_env
+from tests.conftest import ROOT, Postgres, Proc, Redis, Worker, free_port, service_env
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -50,7 +50,7 @@ def wait_for(pred: Callable[[], Any], timeout: float, what: str, dt: float = 0.1
 class Stack:
     pg: Postgres
     redis: Redis
-    api: Server
+    api: Proc  # `rsf api`, as docker-compose.yml runs it
     workers: dict[str, Worker]
     client: httpx.Client
 
@@ -82,8 +82,15 @@ def stack(
             "RSF_RETRY_AFTER_S": "2",
             "RSF_DB_RETRY_S": "1",
         }
-        api = Server(dirs["api"], red.url, RSF_NODE="api-host", **env)
+        api, url = _rsf_api(
+            dirs["api"], dirs["api"] / "api.log", red.url, RSF_NODE="api-host", **env
+        )
         started.append(api)
+        wait_for(
+            lambda: (r := _get(url + "/health")) is not None and r.status_code == 200,
+            60,
+            "rsf api to be healthy",
+        )
         workers = {}
         for node in ("host-a", "host-b"):
             workers[node] = Worker(
@@ -95,7 +102,7 @@ def stack(
                 **env,
             )
             started.append(workers[node])
-        with httpx.Client(base_url=api.url, timeout=10) as c:
+        with httpx.Client(base_url=url, timeout=10) as c:
             yield Stack(pg, red, api, workers, c)
     finally:
         for p in reversed(started):
@@ -247,10 +254,11 @@ def test_sigkill_one_host_mid_sweep_completes_on_the_other(stack: Stack) -> None
     assert h["workers"]["hosts"] == ["host-b"], h
 
 
-def _rsf_api(data: Path, log: Path) -> tuple[Proc, str]:
+def _rsf_api(data: Path, log: Path, broker_url: str = "", **extra: str) -> tuple[Proc, str]:
+    """`rsf api` (HTTP only) on a free port; (process, base URL)."""
     port = free_port()
     cmd = [sys.executable, "-m", "rsfcli.main", "api", "--port", str(port), "--wait-db", "0"]
-    return Proc(cmd, service_env(data), log), f"http://127.0.0.1:{port}"
+    return Proc(cmd, service_env(data, broker_url, **extra), log), f"http://127.0.0.1:{port}"
 
 
 def test_damaged_sqlite_health_503_and_startup_says_how_to_recover(tmp_path: Path) -> None:
