@@ -31,8 +31,6 @@ from fastapi import APIRouter, Path, Query
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response, StreamingResponse
 
-from rsfcore.critical import KINDS
-
 from rsfapp import sweepdata
 from rsfapp.adapter import numerics_version
 from rsfapp.grid import SweepSpec, expand, plan_chunks
@@ -40,6 +38,7 @@ from rsfapp.keys import cache_key
 from rsfapp.queue import Queue
 from rsfapp.requests import SweepRequest
 from rsfapp.store import SweepStore
+from rsfcore.critical import KINDS
 
 from .. import images
 from ..auth import PrincipalDep, admit_sweep, check_owner, sweep_submitted

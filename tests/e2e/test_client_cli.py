@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from tests.conftest import ROOT, Server, Worker, service_env
 
 pytestmark = pytest.mark.timeout(180)

@@ -9,12 +9,14 @@ import io
 import math
 import sqlite3
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import httpx
 import numpy as np
 import pytest
+
 from tests.conftest import Redis, Server, Worker
 
 pytestmark = pytest.mark.timeout(180)
