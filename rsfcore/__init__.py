@@ -6,8 +6,9 @@ Pure numerical core (numpy/scipy/numba); no web or I/O code.  The public surface
 is the one documented in docs/core-api.md; tests/core/test_public_api.py pins it.
 
 Layout: ``params`` / ``limits`` / ``errors`` (inputs, valid ranges, exceptions),
-``trajectory`` (classify, simulate), ``critical`` and ``separatrix`` (critical
-perturbation sizes), ``diagram``, ``boundaries``, ``analytic``, ``protocols``,
+``trajectory`` (classify, simulate), ``phase`` (classify_points), ``critical`` and
+``separatrix`` (critical perturbation sizes), ``diagram``, ``boundaries``, ``analytic``,
+``protocols``,
 ``stiffness``, ``laws``, ``engine`` with the shared ODE kernels in ``ode``, and
 ``_version`` (NUMERICS_VERSION).
 """
@@ -25,6 +26,7 @@ from . import (
     limits,
     ode,
     params,
+    phase,
     protocols,
     separatrix,
     stiffness,
@@ -47,6 +49,7 @@ from .engine import EngineResult
 from .errors import BudgetExceeded, IntegrationBudgetError, ParameterError, UndecidedError
 from .limits import DEFAULT_RTOL, RTOL_RANGE, Limit
 from .params import Params, PhysicalParams
+from .phase import PointsResult, classify_points
 from .protocols import (
     ProtocolResult,
     SlideHoldSlideResult,
@@ -87,6 +90,9 @@ __all__ = [
     "classify",
     "simulate",
     "start_point",
+    # many start points of one parameter set
+    "PointsResult",
+    "classify_points",
     # critical perturbations
     "CriticalResult",
     "KINDS",
@@ -136,6 +142,7 @@ __all__ = [
     "limits",
     "ode",
     "params",
+    "phase",
     "protocols",
     "separatrix",
     "stiffness",
