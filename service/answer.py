@@ -19,6 +19,8 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import weakref
+from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any
 
@@ -36,8 +38,59 @@ from rsfcore.params import ParameterError
 from .deps import Inflight
 from .errors import ProblemError
 
-__all__ = ["answer", "body", "deferred"]
+__all__ = ["HotResults", "answer", "body", "deferred", "hot_for"]
 log = logging.getLogger("rsf.service")
+
+
+class HotResults:
+    """The most recently used results of this process, in memory (bounded LRU).
+
+    A stored result never changes (its key includes the canonical request and the
+    numerics version; the first write wins), so serving it from memory is exact and
+    holds no state another process needs: a cached lookup then costs no database read
+    and no thread hop.  Used from the event loop only (no lock).
+
+    Args:
+        max_entries: entries kept, >= 1.
+        max_bytes: total result text kept [bytes], >= 1.
+    """
+
+    def __init__(self, max_entries: int = 4096, max_bytes: int = 32 << 20) -> None:
+        self.max_entries, self.max_bytes = max_entries, max_bytes
+        self._d: OrderedDict[str, str] = OrderedDict()
+        self._bytes = 0
+        self.hits = 0
+
+    def get(self, key: str) -> str | None:
+        """The result text of ``key`` if held (counts a hit)."""
+        text = self._d.get(key)
+        if text is not None:
+            self._d.move_to_end(key)
+            self.hits += 1
+        return text
+
+    def put(self, key: str, text: str) -> None:
+        """Hold ``text`` for ``key`` (results larger than an eighth of the budget are not
+        held), forgetting the least recently used beyond the bounds."""
+        if key in self._d or len(text) > self.max_bytes // 8:
+            return
+        self._d[key] = text
+        self._bytes += len(text)
+        while len(self._d) > self.max_entries or self._bytes > self.max_bytes:
+            _k, old = self._d.popitem(last=False)
+            self._bytes -= len(old)
+
+
+_hot: weakref.WeakKeyDictionary[Any, HotResults] = weakref.WeakKeyDictionary()
+
+
+def hot_for(stores: Stores) -> HotResults:
+    """This process's hot results of the database of ``stores`` (hits are added to
+    /v1/cache/stats)."""
+    h = _hot.get(stores.db)
+    if h is None:
+        h = _hot[stores.db] = HotResults()
+    return h
 
 
 def body(result_json: str, key: str, hit: bool) -> bytes:
@@ -99,6 +152,7 @@ async def _compute(
         await _failed(stores, inflight, key, str(exc))
         raise ProblemError(422, "Could not be computed", f"unserialisable result: {exc}") from None
     await run_in_threadpool(stores.results.put, key, kind, version, request, json.loads(text))
+    hot_for(stores).put(key, text)
     return text
 
 
@@ -116,7 +170,12 @@ async def answer(
     request = req.model_dump(mode="json")
     version = numerics_version()
     key = cache_key(kind, request, version)
-    hit = await run_in_threadpool(stores.results.get_text, key)
+    hot = hot_for(stores)
+    hit = hot.get(key)
+    if hit is None:
+        hit = await run_in_threadpool(stores.results.get_text, key)
+        if hit is not None:
+            hot.put(key, hit)
     if hit is not None:
         return Response(
             body(hit, key, True), media_type="application/json", headers={"X-Cache": "hit"}

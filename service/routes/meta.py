@@ -13,7 +13,7 @@ from rsfapp.adapter import numerics_version
 from rsfapp.health import health_report
 from rsfapp.store import JobState
 
-from ..answer import body
+from ..answer import body, hot_for
 from ..deps import InflightDep, SettingsDep, StoresDep
 from ..errors import ProblemError
 
@@ -63,8 +63,12 @@ async def live() -> Response:
 
 @router.get("/v1/cache/stats", summary="Cache statistics")
 async def stats(stores: StoresDep) -> Response:
-    """Entries (total and per kind) and this API process's hits, misses and hit ratio."""
+    """Entries (total and per kind) and this API process's hits, misses and hit ratio
+    (hits from the store plus those served from memory, :class:`service.answer.HotResults`)."""
     st = await run_in_threadpool(stores.results.stats)
+    st["hits"] += hot_for(stores).hits
+    n = st["hits"] + st["misses"]
+    st["hit_ratio"] = st["hits"] / n if n else None
     st["numerics_version"] = numerics_version()
     return Response(json.dumps(st), media_type="application/json")
 
