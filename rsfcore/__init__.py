@@ -8,9 +8,8 @@ is the one documented in docs/core-api.md; tests/core/test_public_api.py pins it
 Layout: ``params`` / ``limits`` / ``errors`` (inputs, valid ranges, exceptions),
 ``trajectory`` (classify, simulate), ``phase`` (classify_points), ``critical`` and
 ``separatrix`` (critical perturbation sizes), ``diagram``, ``boundaries``, ``analytic``,
-``protocols``,
-``stiffness``, ``laws``, ``engine`` with the shared ODE kernels in ``ode``, and
-``_version`` (NUMERICS_VERSION).
+``protocols``, ``stiffness``, ``laws``, ``engine`` with the shared ODE kernels in
+``ode``, and ``_version`` (NUMERICS_VERSION).
 """
 
 from __future__ import annotations
