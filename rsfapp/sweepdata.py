@@ -9,6 +9,8 @@ Per point (arrays of the chunk / of the whole sweep in flat-index order):
 * ``outcome`` (int8): 0 stable, 1 unstable, -1 missing, failed or not asked (no size);
 * ``rel_accuracy`` (float64): estimated relative accuracy of critical_size, NaN missing;
 * ``failed`` (bool): the point could not be computed (message in the side table);
+* ``method`` (int8): index into ``rsfcore.critical.METHODS``, -1 missing or failed;
+* ``outcome_uncertain`` (bool): the outcome is within the accuracy of the critical size;
 * ``computed`` (bool, assembled arrays only): the point's chunk is stored.
 
 Nothing here knows about HTTP; I/O is only through a :class:`~rsfapp.store.SweepStore`.
@@ -26,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsfcore import batch
-from rsfcore.critical import KINDS
+from rsfcore.critical import KINDS, METHODS
 
 from .grid import SpecError, SweepSpec
 from .store.sweeps import SweepStore
@@ -35,7 +37,8 @@ __all__ = ["VARIABLES", "compute_chunk", "assemble", "to_dataset", "netcdf_bytes
            "csv_rows", "json_chunks", "diagram", "parse_slice"]
 
 #: Result variables of every point (NetCDF / CSV / JSON).
-VARIABLES: tuple[str, ...] = ("critical_size", "kind", "outcome", "rel_accuracy", "failed")
+VARIABLES: tuple[str, ...] = ("critical_size", "kind", "outcome", "rel_accuracy", "failed",
+                               "method", "outcome_uncertain")
 _OUTCOMES = ("stable", "unstable")
 
 
@@ -108,7 +111,8 @@ def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[
 def _empty(n: int) -> dict[str, NDArray[Any]]:
     return {"critical_size": np.full(n, math.nan), "kind": np.full(n, -1, np.int8),
             "outcome": np.full(n, -1, np.int8), "rel_accuracy": np.full(n, math.nan),
-            "failed": np.zeros(n, np.bool_), "computed": np.zeros(n, np.bool_)}
+            "failed": np.zeros(n, np.bool_), "computed": np.zeros(n, np.bool_),
+            "method": np.full(n, -1, np.int8), "outcome_uncertain": np.zeros(n, np.bool_)}
 
 
 def assemble(store: SweepStore, sweep_id: str, n_total: int) -> dict[str, NDArray[Any]]:
@@ -116,10 +120,11 @@ def assemble(store: SweepStore, sweep_id: str, n_total: int) -> dict[str, NDArra
     out = _empty(n_total)
     for b in store.blocks(sweep_id):
         sl = slice(b.i0, b.i1)
-        for k in ("critical_size", "kind", "rel_accuracy", "failed"):
+        for k in ("critical_size", "kind", "rel_accuracy", "failed", "method"):
             out[k][sl] = b.arrays[k]
-        if "outcome" in b.arrays:
-            out["outcome"][sl] = b.arrays["outcome"]
+        for k in ("outcome", "outcome_uncertain"):
+            if k in b.arrays:
+                out[k][sl] = b.arrays[k]
         out["computed"][sl] = True
     return out
 
@@ -135,7 +140,11 @@ def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArra
                "failed": "1 = could not be computed (see the status failures)",
                "critical_size": "0 for kind zero, inf for infinite, NaN where missing or "
                                 "failed (d for a velocity jump, dv/v_o for a load-point jump)",
-               "rel_accuracy": "estimated relative accuracy of critical_size"}
+               "rel_accuracy": "estimated relative accuracy of critical_size",
+               "method": "-1 missing/failed, else index into: " + " | ".join(
+                   f"{k} {m.split(':')[0]}" for k, m in enumerate(METHODS)),
+               "outcome_uncertain": "1 = |size/critical size - 1| within the accuracy (or "
+                                    "kappa = kappa_crit up to rounding): the outcome may flip"}
     if spec.mode == "grid":
         dims = tuple(a.name for a in spec.axes)
         coords: dict[str, Any] = {a.name: a.all() for a in spec.axes}
@@ -147,7 +156,7 @@ def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArra
     data: dict[str, Any] = {}
     for v in VARIABLES:
         a = arrays[v]
-        if v == "failed":
+        if a.dtype == np.bool_:
             a = a.astype(np.int8)
         data[v] = (dims, a.reshape(shape), {"description": legends[v]})
     if spec.mode == "points":
@@ -170,6 +179,10 @@ def netcdf_bytes(ds: Any) -> bytes:
     return bytes(ds.to_netcdf(engine="scipy", format="NETCDF3_64BIT"))
 
 
+def _method(m: int) -> str:
+    return METHODS[m].split(":")[0] if m >= 0 else ""
+
+
 def _fmt(v: float) -> str:
     return "" if math.isnan(v) else repr(float(v))
 
@@ -177,13 +190,14 @@ def _fmt(v: float) -> str:
 def csv_rows(store: SweepStore, spec: SweepSpec, sweep_id: str,
              batch_rows: int = 50_000) -> Iterator[str]:
     """CSV text in pieces: a header, then one row per point in flat-index order:
-    idx, the swept parameters, kind, critical_size, outcome, rel_accuracy, failed, error.
+    idx, the swept parameters, kind, critical_size, outcome, rel_accuracy, method (short
+    name), failed, error.
     Missing points have empty result fields."""
     names = spec.swept
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["idx", *names, "kind", "critical_size", "outcome", "rel_accuracy",
-                "failed", "error"])
+                "method", "failed", "error"])
     yield buf.getvalue()
     blocks = store.blocks(sweep_id)
     nxt = next(blocks, None)
@@ -201,12 +215,13 @@ def csv_rows(store: SweepStore, spec: SweepSpec, sweep_id: str,
         for k in range(j - i):
             row: list[Any] = [i + k, *(repr(float(vals[m][k])) for m in names)]
             if b is None:
-                row += ["", "", "", "", "", ""]
+                row += ["", "", "", "", "", "", ""]
             else:
                 kd = int(b.arrays["kind"][k])
                 oc = int(b.arrays["outcome"][k]) if "outcome" in b.arrays else -1
                 row += [KINDS[kd] if kd >= 0 else "", _fmt(b.arrays["critical_size"][k]),
                         _OUTCOMES[oc] if oc >= 0 else "", _fmt(b.arrays["rel_accuracy"][k]),
+                        _method(int(b.arrays["method"][k])),
                         int(bool(b.arrays["failed"][k])), b.errors.get(k, "")]
             w.writerow(row)
         yield buf.getvalue()
@@ -232,6 +247,7 @@ def json_chunks(spec: SweepSpec, status: dict[str, Any],
     head["shape"] = list(spec.shape)
     head["kind_legend"] = list(KINDS)
     head["outcome_legend"] = list(_OUTCOMES)
+    head["method_legend"] = list(METHODS)
     yield json.dumps(head)[:-1] + ', "coords": {'
     for n, (name, vals) in enumerate(spec.coords().items()):
         yield ("," if n else "") + json.dumps(name) + ":" + _jlist(vals, "f")

@@ -38,7 +38,7 @@ from rsfapp.keys import cache_key
 from rsfapp.queue import Queue
 from rsfapp.requests import SweepRequest
 from rsfapp.store import SweepStore
-from rsfcore.critical import KINDS
+from rsfcore.critical import KINDS, METHODS
 
 from .. import images
 from ..auth import PrincipalDep, admit_sweep, check_owner, sweep_submitted
@@ -175,7 +175,7 @@ async def get_points(sweep_id: SweepId, stores: StoresDep,
     """Points ``offset`` .. ``offset + limit - 1`` in flat-index order (C order over the
     axes), available while running.  Each point: idx, index (grid), the swept parameter
     values, computed, kind, critical_size (null if infinite or missing), outcome,
-    rel_accuracy, failed, error."""
+    rel_accuracy, method, failed, error."""
     st = await _status(stores, sweep_id)
     spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
     assert spec is not None
@@ -190,7 +190,7 @@ async def get_points(sweep_id: SweepId, stores: StoresDep,
                 p["index"] = [int(v) for v in np.unravel_index(k, spec.shape)]
             p.update({n: float(v[k - i0]) for n, v in vals.items()})
             p.update(computed=False, kind=None, critical_size=None, outcome=None,
-                     rel_accuracy=None, failed=None, error=None)
+                     rel_accuracy=None, method=None, failed=None, error=None)
             pts.append(p)
         for b in stores.sweeps.blocks(sweep_id, i0, i1):
             for k in range(max(b.i0, i0), min(b.i1, i1)):
@@ -204,6 +204,7 @@ async def get_points(sweep_id: SweepId, stores: StoresDep,
                     critical_size=cs if np.isfinite(cs) else None,
                     outcome=("stable", "unstable")[oc] if oc >= 0 else None,
                     rel_accuracy=ra if np.isfinite(ra) else None,
+                    method=METHODS[int(a["method"][o])] if a["method"][o] >= 0 else None,
                     failed=bool(a["failed"][o]), error=b.errors.get(o))
         return pts
 
@@ -233,7 +234,8 @@ async def get_data(sweep_id: SweepId, stores: StoresDep,
     """The whole result, streamed, also while the sweep runs (points not computed yet are
     NaN / -1 / empty).  Variables per point: ``critical_size`` (0 zero, inf infinite),
     ``kind`` (0 zero, 1 finite, 2 infinite, -1 missing/failed), ``outcome`` (0 stable,
-    1 unstable, -1 missing or no size asked), ``rel_accuracy``, ``failed``.  Headers
+    1 unstable, -1 missing or no size asked), ``rel_accuracy``, ``failed``, ``method``
+    (index into rsfcore.critical.METHODS), ``outcome_uncertain``.  Headers
     ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``."""
     fmt = choice(format, _DATA_FORMATS, "format")
     st = await _status(stores, sweep_id)

@@ -70,6 +70,7 @@ def test_3d_grid_with_vo_axis_matches_rsfcore(c: TestClient) -> None:
         ref = ref_critical(2.5, p["kappa_ratio"] * 1.5, p["eps"], p["vo"])
         kinds.add(ref.kind)
         assert p["kind"] == ref.kind
+        assert p["method"] == ref.method
         if ref.kind == "finite":
             # same compiled kernel: equal to 1e-12 relative (in fact identical)
             assert p["critical_size"] == pytest.approx(ref.critical_size, rel=1e-12)
@@ -95,7 +96,8 @@ def test_scattered_points_and_data_formats(c: TestClient) -> None:
     assert r.status_code == 200 and r.headers["x-sweep-progress"] == f"{n}/{n}"
     ds = xr.open_dataset(io.BytesIO(r.content), engine="scipy")
     assert ds["critical_size"].dims == ("point",)
-    for v in ("critical_size", "kind", "outcome", "rel_accuracy", "failed", "ba", "eps"):
+    for v in ("critical_size", "kind", "outcome", "rel_accuracy", "failed", "method",
+              "outcome_uncertain", "ba", "eps"):
         assert v in ds
     for i in range(n):
         ref = ref_critical(pts["ba"][i], pts["kappa"][i], pts["eps"][i], 2.0,
@@ -109,7 +111,7 @@ def test_scattered_points_and_data_formats(c: TestClient) -> None:
         else:
             assert got == 0.0
     csv = c.get(f"/v1/sweeps/{sid}/data", params={"format": "csv"}).text.splitlines()
-    assert csv[0] == "idx,ba,kappa,eps,kind,critical_size,outcome,rel_accuracy,failed,error"
+    assert csv[0] == "idx,ba,kappa,eps,kind,critical_size,outcome,rel_accuracy,method,failed,error"
     assert len(csv) == n + 1
     js = c.get(f"/v1/sweeps/{sid}/data", params={"format": "json"}).json()
     assert len(js["data"]["critical_size"]) == n and js["coords"]["ba"] == pts["ba"]
