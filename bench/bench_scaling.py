@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -143,6 +144,7 @@ def main() -> int:
         for p in reversed(procs):
             p.stop()
         pg.destroy()
+        shutil.rmtree(base, ignore_errors=True)
     return 0
 
 
