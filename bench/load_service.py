@@ -28,6 +28,7 @@ import json
 import multiprocessing as mp
 import os
 import random
+import shutil
 import signal
 import socket
 import subprocess
@@ -228,6 +229,7 @@ def api_scaling(clients: int, max_req: int, secs: float) -> list[dict]:
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
         rows.append({"api_processes": n, "trivial": triv, "cached": cached})
+    shutil.rmtree(tmp, ignore_errors=True)
     return rows
 
 
