@@ -48,7 +48,8 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
     stored = False
     if not sweeps.has_block(sweep_id, idx):
         spec = sweeps.get_spec(sweep_id)
-        if spec is None:  # deleted meanwhile
+        if spec is None:  # deleted meanwhile, or stored in the pre-array layout
+            sweeps.finish_chunk(sweep_id, idx, complete=False)
             return {"skipped": True}
         # the lease is renewed while the chunk computes (rsfapp.reaper)
         with Lease(lambda: sweeps.heartbeat(sweep_id, idx), s.heartbeat_s):

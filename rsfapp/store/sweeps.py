@@ -48,7 +48,7 @@ from sqlalchemy import Connection, Row, and_, delete, func, select, update
 
 from ..db.engine import Database, insert_ignore
 from ..db.tables import chunks, points, sweep_blocks, sweep_inputs, sweeps
-from ..grid import SweepSpec
+from ..grid import SPEC_VERSION, SweepSpec
 
 __all__ = ["Block", "ChunkRange", "Created", "SweepStore", "decode_block", "encode_block",
            "iso", "owner_id"]
@@ -206,7 +206,9 @@ class SweepStore:
             return self._dispatch(conn, sweep_id, window)
 
     def get_spec(self, sweep_id: str) -> SweepSpec | None:
-        """The stored spec of a sweep (None if unknown); cached per process (immutable)."""
+        """The stored spec of a sweep; cached per process (immutable).  None if unknown or
+        stored in the pre-array layout (before N-D sweeps; its points are in
+        ``sweep_points`` and it cannot be computed further: re-submit it)."""
         sp = self._specs.get(sweep_id)
         if sp is not None:
             return sp
@@ -215,6 +217,8 @@ class SweepStore:
             if row is None:
                 return None
             d = json.loads(row[0])
+            if d.get("v") != SPEC_VERSION:
+                return None
             pts = None
             if d.get("mode") == "points":
                 blob = conn.execute(select(sweep_inputs.c.data).where(

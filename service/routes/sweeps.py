@@ -74,6 +74,15 @@ def _enqueue(queue: Queue, sweep_id: str, chunk_ids: list[int]) -> str | None:
     return None
 
 
+async def _spec(stores: Any, sweep_id: str) -> SweepSpec:
+    """The spec of an existing sweep; 410 for a sweep stored in the pre-array layout."""
+    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
+    if spec is None:
+        raise ProblemError(410, "Gone", f"sweep {sweep_id} was stored in the layout before "
+                           "N-D sweeps; submit it again to compute it with this version")
+    return spec  # type: ignore[no-any-return]
+
+
 def _failures(sweeps: SweepStore, spec: SweepSpec | None, sweep_id: str,
               limit: int = 100) -> list[dict[str, Any]]:
     out: list[dict[str, Any]] = []
@@ -162,9 +171,8 @@ async def get_spec(sweep_id: SweepId, stores: StoresDep) -> Response:
     """The stored spec: axes (``start/stop/n/log`` or explicit ``values``), fixed values,
     perturbation, rtol, output; scattered sweeps give their parameter names and digest
     (the points themselves are in ``/data``)."""
-    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
-    if spec is None:
-        raise _unknown(sweep_id)
+    await _status(stores, sweep_id)
+    spec = await _spec(stores, sweep_id)
     return _json(spec.to_json())
 
 
@@ -177,8 +185,7 @@ async def get_points(sweep_id: SweepId, stores: StoresDep,
     values, computed, kind, critical_size (null if infinite or missing), outcome,
     rel_accuracy, method, failed, error."""
     st = await _status(stores, sweep_id)
-    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
-    assert spec is not None
+    spec = await _spec(stores, sweep_id)
     i0, i1 = min(offset, spec.n_total), min(offset + limit, spec.n_total)
 
     def page() -> list[dict[str, Any]]:
@@ -239,8 +246,7 @@ async def get_data(sweep_id: SweepId, stores: StoresDep,
     ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``."""
     fmt = choice(format, _DATA_FORMATS, "format")
     st = await _status(stores, sweep_id)
-    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
-    assert spec is not None
+    spec = await _spec(stores, sweep_id)
     h = {"X-Sweep-Status": st["status"], "X-Sweep-Progress": f"{st['n_done']}/{st['n_total']}",
          "Content-Disposition": f'attachment; filename="sweep-{sweep_id}.'
                                 f'{ {"netcdf": "nc"}.get(fmt, fmt)}"'}
@@ -297,8 +303,7 @@ async def get_diagram(sweep_id: SweepId, stores: StoresDep,
     sweeps are cached."""
     fmt = choice(format, _JSON_OR_PNG, "format")
     st = await _status(stores, sweep_id)
-    spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
-    assert spec is not None
+    spec = await _spec(stores, sweep_id)
     fixed_idx = sweepdata.parse_slice(spec, slice)
     arrays = await run_in_threadpool(sweepdata.assemble, stores.sweeps, sweep_id, spec.n_total)
     d = sweepdata.diagram(spec, st, arrays, fixed_idx)

@@ -233,3 +233,26 @@ def test_huge_sweep_is_accepted_lazily(c: TestClient, api_stack) -> None:
     assert len(q.chunks) - before == min(64, st["n_chunks"])
     r = c.delete(f"/v1/sweeps/{st['id']}", params={"purge": "true"})
     assert r.status_code == 204
+
+
+def test_sweep_of_the_pre_array_layout_is_410(c: TestClient, api_stack) -> None:
+    """A sweep stored before N-D sweeps (2-D spec, points as rows) keeps its status; its
+    data endpoints say 410 Gone (re-submit), never 500."""
+    sid = "0123456789abcdef" * 2
+    con = sqlite3.connect(api_stack[1] / "cache.sqlite3")
+    try:
+        con.execute("INSERT INTO sweeps (id, spec, status, n_total, n_chunks, numerics_version,"
+                    " created_at) VALUES (?, ?, 'done', 4, 1, '1', 0)",
+                    (sid, '{"x": {"name": "eps", "values": [0.1, 0.2]}, "y": {"name": "ba", '
+                          '"values": [2.0, 3.0]}, "fixed": {}, "perturbation": '
+                          '"velocity-jump", "rtol": 1e-10}'))
+        con.commit()
+    finally:
+        con.close()
+    st = c.get(f"/v1/sweeps/{sid}")
+    assert st.status_code == 200 and st.json()["status"] == "done"
+    for path in ("data", "points", "diagram", "spec"):
+        r = c.get(f"/v1/sweeps/{sid}/{path}")
+        assert r.status_code == 410, (path, r.text)
+        assert r.headers["content-type"].startswith("application/problem+json")
+    assert c.delete(f"/v1/sweeps/{sid}", params={"purge": "true"}).status_code == 204
