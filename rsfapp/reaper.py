@@ -5,9 +5,10 @@
 * :class:`Reaper`: a thread in every worker's main process.  Every
   :func:`scan_interval` seconds it refreshes this worker's row in the worker registry
   (for /health), requeues the running chunks whose lease expired (their worker died,
-  lost its host, or lost the database), and closes sweeps whose chunks are all done
-  (self-repair).  Several reapers may run at once: a chunk is taken back by one atomic
-  conditional update, so it is requeued once.
+  lost its host, or lost the database), closes sweeps whose chunks are all done
+  (self-repair), and sends again queued chunks whose message the broker lost (its
+  queue empty for a whole lease while they wait).  Several reapers may run at once:
+  a chunk is taken back by one atomic conditional update, so it is requeued once.
 
 Worst case from a worker's death to its chunk being sent again: ``RSF_LEASE_S`` (the
 last renewal happened before the death) plus one scan interval; the chunk then takes
@@ -21,12 +22,16 @@ import contextlib
 import logging
 import os
 import threading
+import time
 from collections.abc import Callable
 from types import TracebackType
 from typing import NamedTuple
 
+from sqlalchemy import select
+
 from .config import Settings
-from .health import register_worker, unregister_worker
+from .db.tables import chunks, sweeps
+from .health import check_broker, register_worker, unregister_worker
 from .store import stores_for
 
 __all__ = ["Lease", "Reaper", "TickResult", "scan_interval"]
@@ -103,6 +108,7 @@ class Reaper(threading.Thread):
         )
         self._stop = threading.Event()
         self._failing = False
+        self._queued_since: dict[tuple[str, int], float] = {}
 
     def tick(self) -> TickResult:
         """One scan (raises on database errors)."""
@@ -132,7 +138,37 @@ class Reaper(threading.Thread):
             log.warning(
                 "self-repair: closed %d finished sweep(s), dispatched %d chunk(s)", closed, len(nxt)
             )
-        return TickResult(len(expired) + len(nxt), closed)
+        lost = self._lost_messages()
+        for sweep_id, idx in lost:
+            self.send(sweep_id, idx)
+        if lost:
+            log.warning(
+                "broker queue empty but %d chunk(s) queued for a lease: sent again", len(lost)
+            )
+        return TickResult(len(expired) + len(nxt) + len(lost), closed)
+
+    def _lost_messages(self) -> list[tuple[str, int]]:
+        """Queued chunks whose message the broker lost (e.g. Redis restarted without its
+        last writes): the broker's queue has been empty while they stayed ``queued`` for
+        a whole lease.  A message merely reserved by a live worker is started well within
+        a lease, and a duplicate is harmless (exactly-once storage)."""
+        s = self.settings
+        if check_broker(s).get("queue_length") != 0:
+            self._queued_since.clear()
+            return []
+        with stores_for(s).db.read() as conn:
+            rows = conn.execute(
+                select(chunks.c.sweep_id, chunks.c.idx)
+                .join(sweeps, sweeps.c.id == chunks.c.sweep_id)
+                .where(sweeps.c.status.in_(("queued", "running")), chunks.c.status == "queued")
+            ).all()
+        now = time.monotonic()
+        queued = {(str(a), int(b)) for a, b in rows}
+        self._queued_since = {p: self._queued_since.get(p, now) for p in queued}
+        lost = sorted(p for p, t in self._queued_since.items() if now - t >= s.lease_s)
+        for p in lost:
+            self._queued_since[p] = now
+        return lost
 
     def run(self) -> None:
         dt = scan_interval(self.settings.lease_s)

@@ -222,6 +222,22 @@ def test_postgres_restart_mid_sweep_503_then_resumes(stack: Stack) -> None:
     assert stack.client.get("/health").status_code == 200
 
 
+def test_messages_lost_by_the_broker_are_sent_again(stack: Stack) -> None:
+    """Redis loses the waiting messages (as after a crash without its last writes): the
+    reapers see the queue empty while chunks stay queued for a lease, and send them
+    again; the sweep completes, every point once."""
+    import redis
+
+    sid = submit(stack, 40, 59, chunk=59)  # 2360 points, 40 chunks
+    wait_for(lambda: 0 < status(stack, sid)["n_done"] < 1000, 30, "progress")
+    r = redis.Redis(port=stack.redis.port)
+    keys = r.keys("rsf*")
+    assert keys and r.delete(*keys) >= 1
+    s = wait_done(stack, sid, 60)
+    assert s["n_done"] == 2360
+    check_exactly_once(stack, sid, 2360)
+
+
 def test_sigkill_one_host_mid_sweep_completes_on_the_other(stack: Stack) -> None:
     sid = submit(stack, 40, 80, chunk=80)  # 3200 points, 40 chunks
     held = wait_for(
