@@ -13,6 +13,7 @@ postgres extras) into it and compile rsfcore's kernels once (numba cache in
 API in process) and ``pytest -m e2e`` (real uvicorn, Celery workers, redis-server,
 PostgreSQL, chromium).  Extra arguments go to both pytest stages.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -37,8 +38,6 @@ def _env() -> dict[str, str]:
 
 
 def _ensure_env() -> None:
-    if sys.version_info < (3, 11):
-        sys.exit("Python >= 3.11 is required (found %s)" % sys.version.split()[0])
     if not PY.exists():
         print("[dev] creating virtual environment in .venv", flush=True)
         venv.EnvBuilder(with_pip=True).create(VENV)
@@ -47,13 +46,18 @@ def _ensure_env() -> None:
         return
     print("[dev] installing the project and its test dependencies", flush=True)
     subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "--upgrade", "pip"])
-    subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "-e",
-                           f"{ROOT}[test,dev,postgres]"])
-    print("[dev] compiling rsfcore's kernels into .numba_cache (first time on a machine: "
-          "a few minutes; later starts load them in about a second)", flush=True)
+    subprocess.check_call(
+        [str(PY), "-m", "pip", "install", "-q", "-e", f"{ROOT}[test,dev,postgres]"]
+    )
+    print(
+        "[dev] compiling rsfcore's kernels into .numba_cache (first time on a machine: "
+        "a few minutes; later starts load them in about a second)",
+        flush=True,
+    )
     t0 = time.monotonic()
-    subprocess.check_call([str(PY), "-c", "from rsfapp.warmup import warm_up; warm_up()"],
-                          env=_env(), cwd=ROOT)
+    subprocess.check_call(
+        [str(PY), "-c", "from rsfapp.warmup import warm_up; warm_up()"], env=_env(), cwd=ROOT
+    )
     print(f"[dev] kernels ready in {time.monotonic() - t0:.0f} s", flush=True)
     STAMP.write_text(digest)
 

@@ -7,6 +7,7 @@ reports it as 422 problem+json naming the field); a numerical failure (e.g.
 recorded per point by sweeps); a single query that runs out of the quick step budget
 raises :class:`NeedsQueue`.  Nothing here does I/O or knows about HTTP.
 """
+
 from __future__ import annotations
 
 import math
@@ -47,13 +48,37 @@ from .requests import (
 from .requests.fits import FIT_LAWS, FitRequest
 from .requests.protocols import LoadHistoryRequest, SlideHoldSlideRequest, VelocityStepRequest
 
-__all__ = ["ComputeError", "NeedsQueue", "QUICK_STEPS", "SAMPLING_NOTE", "numerics_version",
-           "classify", "trajectory", "critical", "resolve_params", "resolve_size", "si_inputs",
-           "classify_batch", "critical_batch", "item_error", "validate_items",
-           "protocol_velocity_step", "protocol_slide_hold_slide", "protocol_load_history",
-           "protocol_table", "PROTOCOL_COLUMNS", "fit", "fit_key_request", "fit_record_of",
-           "fit_table", "FIT_COLUMNS", "analytic_u",
-           "boundaries", "stiffness", "guard"]
+__all__ = [
+    "ComputeError",
+    "NeedsQueue",
+    "QUICK_STEPS",
+    "SAMPLING_NOTE",
+    "numerics_version",
+    "classify",
+    "trajectory",
+    "critical",
+    "resolve_params",
+    "resolve_size",
+    "si_inputs",
+    "classify_batch",
+    "critical_batch",
+    "item_error",
+    "validate_items",
+    "protocol_velocity_step",
+    "protocol_slide_hold_slide",
+    "protocol_load_history",
+    "protocol_table",
+    "PROTOCOL_COLUMNS",
+    "fit",
+    "fit_key_request",
+    "fit_record_of",
+    "fit_table",
+    "FIT_COLUMNS",
+    "analytic_u",
+    "boundaries",
+    "stiffness",
+    "guard",
+]
 
 
 class ComputeError(RuntimeError):
@@ -132,15 +157,18 @@ def resolve_size(req: Any, phys: PhysicalInputs | None) -> float:
     try:
         if req.perturbation == "velocity-jump":
             if "new_load_point_velocity_m_s" in given:
-                raise ParameterError("new_load_point_velocity_m_s",
-                                     given["new_load_point_velocity_m_s"],
-                                     "not used by a velocity jump (give factor or "
-                                     "new_slip_rate_m_s)")
+                raise ParameterError(
+                    "new_load_point_velocity_m_s",
+                    given["new_load_point_velocity_m_s"],
+                    "not used by a velocity jump (give factor or new_slip_rate_m_s)",
+                )
             return float(velocity_jump_size(phys, **given))
         if "new_slip_rate_m_s" in given:
-            raise ParameterError("new_slip_rate_m_s", given["new_slip_rate_m_s"],
-                                 "not used by a load-point jump (give factor or "
-                                 "new_load_point_velocity_m_s)")
+            raise ParameterError(
+                "new_slip_rate_m_s",
+                given["new_slip_rate_m_s"],
+                "not used by a load-point jump (give factor or new_load_point_velocity_m_s)",
+            )
         return float(load_point_jump_size(phys, **given))
     except ParameterError as exc:  # name the request's field, not units' dotted one
         field = exc.field.removeprefix("perturbation.")
@@ -162,15 +190,21 @@ def _jump_si(phys: PhysicalInputs, perturbation: str, size: float | None) -> dic
 
 
 def _scales_si(phys: PhysicalInputs) -> dict[str, Any]:
-    return {"inputs": phys.to_dict(), "kappa": phys.kappa, "kappa_crit": phys.kappa_crit,
-            "k_crit_Pa_per_m": phys.k_crit_Pa_per_m, "time_scale_s": phys.time_scale_s,
-            "stress_scale_Pa": phys.stress_scale_Pa,
-            "slip_rate_before_m_s": phys.slip_rate_before_m_s}
+    return {
+        "inputs": phys.to_dict(),
+        "kappa": phys.kappa,
+        "kappa_crit": phys.kappa_crit,
+        "k_crit_Pa_per_m": phys.k_crit_Pa_per_m,
+        "time_scale_s": phys.time_scale_s,
+        "stress_scale_Pa": phys.stress_scale_Pa,
+        "slip_rate_before_m_s": phys.slip_rate_before_m_s,
+    }
 
 
 def _outcome_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
     """The ``si`` block of a classify/trajectory answer: times [s], peak slip rate [m/s],
     start shear-stress change [Pa] and friction change, the perturbation in SI."""
+
     def ts(T: Any) -> float | None:
         return None if T is None else phys.time_s(float(T))
 
@@ -202,8 +236,7 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
     size = resolve_size(req, phys)
     start = None if req.start is None else (req.start.phi, req.start.psi)
     kw = {} if max_steps is None else {"max_steps": max_steps}
-    res = guard(_traj.classify, p, req.perturbation, size, start=start,
-                rtol=req.rtol, **kw)
+    res = guard(_traj.classify, p, req.perturbation, size, start=start, rtol=req.rtol, **kw)
     out = _json(res.to_dict())
     if phys is not None:
         out["si"] = jsonsafe(_outcome_si(phys, out))
@@ -213,7 +246,7 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
 #: Meaning of each ``sampling`` value of a trajectory request (said in the answer).
 SAMPLING_NOTE = {
     "tau": "evenly spaced in the integrator's bounded time tau (dense where the motion is "
-           "fast); T is unevenly spaced",
+    "fast); T is unevenly spaced",
     "T": "evenly spaced in T = V_* t/Dc",
     "seconds": "evenly spaced in t [s] (t = T Dc/V_*: evenly in T as well)",
 }
@@ -231,18 +264,38 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
         physical = guard(phys.to_physical_params, req.eps, req.f_star)
     elif req.scales is not None:
         s = req.scales
-        physical = guard(PhysicalParams.from_dimensionless, p, a=s.a, Dc=s.Dc, sigma=s.sigma,
-                         V_star=s.V_star, f_star=s.f_star)
+        physical = guard(
+            PhysicalParams.from_dimensionless,
+            p,
+            a=s.a,
+            Dc=s.Dc,
+            sigma=s.sigma,
+            V_star=s.V_star,
+            f_star=s.f_star,
+        )
     t_end = req.t_end
     if req.t_end_s is not None and phys is not None:
         t_end = phys.T_from_time(req.t_end_s)
     kw = {} if max_steps is None else {"max_steps": max_steps}
-    res = guard(_traj.simulate, p, req.perturbation, size, start=start, rtol=req.rtol,
-                t_end=t_end, n_points=req.n_points, physical=physical,
-                sampling="tau" if req.sampling == "tau" else "time", **kw)
+    res = guard(
+        _traj.simulate,
+        p,
+        req.perturbation,
+        size,
+        start=start,
+        rtol=req.rtol,
+        t_end=t_end,
+        n_points=req.n_points,
+        physical=physical,
+        sampling="tau" if req.sampling == "tau" else "time",
+        **kw,
+    )
     out = _json(res.to_dict())
-    out["sampling"] = {"kind": req.sampling, "n_points": req.n_points,
-                       "description": SAMPLING_NOTE[req.sampling]}
+    out["sampling"] = {
+        "kind": req.sampling,
+        "n_points": req.n_points,
+        "description": SAMPLING_NOTE[req.sampling],
+    }
     if phys is not None:
         out["si"] = jsonsafe(_outcome_si(phys, out))
     return out
@@ -261,8 +314,10 @@ def critical(req: CriticalRequest) -> dict[str, Any]:
 
 
 def _critical_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
-    return {**_scales_si(phys), **_jump_si(phys, str(out["perturbation"]),
-                                            out.get("critical_size"))}
+    return {
+        **_scales_si(phys),
+        **_jump_si(phys, str(out["perturbation"]), out.get("critical_size")),
+    }
 
 
 def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
@@ -291,6 +346,7 @@ def boundaries(req: BoundariesRequest) -> dict[str, Any]:
     """kappa_crit, eps_crit, (a/b)_crit, acceleration possibility and line; with
     ``physical`` (BoundariesSIRequest) b/a and kappa from the SI machine, plus an ``si``
     block (k_crit [Pa/m], kappa/kappa_crit)."""
+
     def soft(fn: Callable[..., Any], *a: Any) -> Any:
         try:
             return guard(fn, *a)
@@ -300,7 +356,9 @@ def boundaries(req: BoundariesRequest) -> dict[str, Any]:
     phys = si_inputs(req)
     ba, kappa = (req.ba, req.kappa) if phys is None else (phys.ba, phys.kappa)
     out: dict[str, Any] = {
-        "ba": ba, "kappa": kappa, "eps": req.eps,
+        "ba": ba,
+        "kappa": kappa,
+        "eps": req.eps,
         "kappa_crit": guard(_bounds.kappa_crit, ba),
         "eps_crit": soft(_bounds.eps_crit, ba, kappa),
         "ab_crit": soft(_bounds.ab_crit, kappa, req.eps),
@@ -339,8 +397,9 @@ def _loc_field(loc: tuple[Any, ...]) -> str:
     return out or "item"
 
 
-def item_error(index: int, field: str | None, message: str,
-               valid: str | None = None) -> dict[str, Any]:
+def item_error(
+    index: int, field: str | None, message: str, valid: str | None = None
+) -> dict[str, Any]:
     """The result entry of an item that could not be answered."""
     return {"index": index, "error": {"field": field, "message": message, "valid": valid}}
 
@@ -348,8 +407,9 @@ def item_error(index: int, field: str | None, message: str,
 _ADAPTERS: dict[type, TypeAdapter[Any]] = {}
 
 
-def validate_items(model: type[BaseModel], items: list[dict[str, Any]]
-                   ) -> tuple[list[Any], dict[int, dict[str, Any]]]:
+def validate_items(
+    model: type[BaseModel], items: list[dict[str, Any]]
+) -> tuple[list[Any], dict[int, dict[str, Any]]]:
     """Validate every item as ``model``: (validated models with None at invalid items,
     {index: error entry}).  The error names the item's first invalid field and its range
     (as the single endpoint's 422 would)."""
@@ -364,8 +424,9 @@ def validate_items(model: type[BaseModel], items: list[dict[str, Any]]
             loc = tuple(e.get("loc", ()))
             if not loc or not isinstance(loc[0], int) or loc[0] in errs:
                 continue
-            valid = next((VALID[p] for p in reversed(loc[1:]) if isinstance(p, str)
-                          and p in VALID), None)
+            valid = next(
+                (VALID[p] for p in reversed(loc[1:]) if isinstance(p, str) and p in VALID), None
+            )
             errs[loc[0]] = item_error(loc[0], _loc_field(loc[1:]), str(e.get("msg")), valid)
     ok = [i for i in range(len(items)) if i not in errs]
     models: list[Any] = [None] * len(items)
@@ -404,8 +465,11 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                 pd = p.as_dict()
             pert = _critical.PERTURBATIONS.index(m.perturbation)
             if pert == 1 and pd["vo"] == 0.0:
-                raise ParameterError("vo", pd["vo"], "> 0 for a load-point jump (relative "
-                                     "jump of a moving load point)")
+                raise ParameterError(
+                    "vo",
+                    pd["vo"],
+                    "> 0 for a load-point jump (relative jump of a moving load point)",
+                )
         except ParameterError as exc:
             errs[i] = _param_error(i, exc)
             continue
@@ -417,11 +481,18 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
         pds = [pd for pd in (pdicts[i] for i in idx) if pd is not None]  # all set above
         name = _critical.PERTURBATIONS[pert]
         res = _batch.critical_points(
-            np.array([p["ba"] for p in pds]), np.array([p["kappa"] for p in pds]),
-            np.array([p["eps"] for p in pds]), np.array([p["vo"] for p in pds]),
-            perturbation=name, rtol=rtol)
-        kind_l, value_l, acc_l = res.kind.tolist(), res.critical_size.tolist(), \
-            res.rel_accuracy.tolist()
+            np.array([p["ba"] for p in pds]),
+            np.array([p["kappa"] for p in pds]),
+            np.array([p["eps"] for p in pds]),
+            np.array([p["vo"] for p in pds]),
+            perturbation=name,
+            rtol=rtol,
+        )
+        kind_l, value_l, acc_l = (
+            res.kind.tolist(),
+            res.critical_size.tolist(),
+            res.rel_accuracy.tolist(),
+        )
         meth_l, onb_l = res.method.tolist(), res.on_boundary.tolist()
         for j, i in enumerate(idx):
             if j in res.errors:
@@ -433,8 +504,9 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                 # settled by bisection (rare): the single path's own result, so that the
                 # method text (which may carry a note) is exactly the single answer's
                 try:
-                    r = guard(_critical.critical_perturbation, guard(Params, **pds[j]), name,
-                              rtol=rtol)
+                    r = guard(
+                        _critical.critical_perturbation, guard(Params, **pds[j]), name, rtol=rtol
+                    )
                 except (ParameterError, ComputeError) as exc:
                     results[i] = item_error(i, getattr(exc, "field", None), str(exc))
                     continue
@@ -443,10 +515,16 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                 # the layout of rsfcore.critical.CriticalResult.to_dict (tested equal to the
                 # single endpoint's answer item by item)
                 out = {
-                    "kind": kinds[k], "critical_size": None if k == _critical.KIND_INFINITE
+                    "kind": kinds[k],
+                    "critical_size": None
+                    if k == _critical.KIND_INFINITE
                     else (0.0 if k == _critical.KIND_ZERO else value_l[j]),
-                    "rel_accuracy": acc_l[j], "method": methods[meth_l[j]],
-                    "perturbation": name, "params": pds[j], "on_boundary": bool(onb_l[j])}
+                    "rel_accuracy": acc_l[j],
+                    "method": methods[meth_l[j]],
+                    "perturbation": name,
+                    "params": pds[j],
+                    "on_boundary": bool(onb_l[j]),
+                }
             ph = physs[i]
             if ph is not None:
                 out["si"] = _json(_critical_si(ph, out))
@@ -457,12 +535,17 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
 
 def _batch_summary(results: list[dict[str, Any] | None]) -> dict[str, Any]:
     n_failed = sum(1 for r in results if r is None or "error" in r)
-    return {"results": results, "n_items": len(results), "n_ok": len(results) - n_failed,
-            "n_failed": n_failed}
+    return {
+        "results": results,
+        "n_items": len(results),
+        "n_ok": len(results) - n_failed,
+        "n_failed": n_failed,
+    }
 
 
-def classify_batch(items: list[dict[str, Any]], max_steps: int | None = QUICK_STEPS
-                   ) -> dict[str, Any]:
+def classify_batch(
+    items: list[dict[str, Any]], max_steps: int | None = QUICK_STEPS
+) -> dict[str, Any]:
     """Outcomes of many items, each answered exactly as :func:`classify` (rsfcore has no
     vectorised classify: one compiled integration per item).  An item needing more than
     the quick step budget is reported as an error entry (ask it alone at /v1/classify,
@@ -478,8 +561,12 @@ def classify_batch(items: list[dict[str, Any]], max_steps: int | None = QUICK_ST
             results[i] = _param_error(i, exc)
             continue
         except NeedsQueue as exc:
-            results[i] = item_error(i, None, f"a long integration ({exc}); send this item "
-                                    "alone to POST /v1/classify, which queues it")
+            results[i] = item_error(
+                i,
+                None,
+                f"a long integration ({exc}); send this item "
+                "alone to POST /v1/classify, which queues it",
+            )
             continue
         except ComputeError as exc:
             results[i] = item_error(i, None, str(exc))
@@ -508,22 +595,33 @@ def _segment_changes(res: Any, phys: PhysicalParams) -> list[dict[str, Any]]:
     f = np.asarray(res.friction)
     prev_v = None
     for s in res.segments:
-        row: dict[str, Any] = {"index": s.index, "V_load_m_s": s.Vo_m_s, "status": s.status,
-                               "steady_state_delta_f": None, "steady_state_delta_tau_Pa": None,
-                               "peak_friction": s.peak_friction, "peak_delta_f": None,
-                               "peak_delta_tau_Pa": None, "peak_time_s": s.peak_friction_time_s,
-                               "peak_V_m_s": s.peak_V_m_s, "f_start": None}
+        row: dict[str, Any] = {
+            "index": s.index,
+            "V_load_m_s": s.Vo_m_s,
+            "status": s.status,
+            "steady_state_delta_f": None,
+            "steady_state_delta_tau_Pa": None,
+            "peak_friction": s.peak_friction,
+            "peak_delta_f": None,
+            "peak_delta_tau_Pa": None,
+            "peak_time_s": s.peak_friction_time_s,
+            "peak_V_m_s": s.peak_V_m_s,
+            "f_start": None,
+        }
         if prev_v is not None and prev_v > 0 and s.Vo_m_s > 0:
-            dss = (_protocols.steady_state_friction(phys, s.Vo_m_s)
-                   - _protocols.steady_state_friction(phys, prev_v))
+            dss = _protocols.steady_state_friction(
+                phys, s.Vo_m_s
+            ) - _protocols.steady_state_friction(phys, prev_v)
             row.update(steady_state_delta_f=dss, steady_state_delta_tau_Pa=dss * phys.sigma)
         if s.status != "not_run" and t.size:
             k = int(np.searchsorted(t, s.t_start_s, side="right")) - 1
             f0 = float(f[max(k, 0)])
             row["f_start"] = f0
             if s.peak_friction is not None:
-                row.update(peak_delta_f=s.peak_friction - f0,
-                           peak_delta_tau_Pa=(s.peak_friction - f0) * phys.sigma)
+                row.update(
+                    peak_delta_f=s.peak_friction - f0,
+                    peak_delta_tau_Pa=(s.peak_friction - f0) * phys.sigma,
+                )
         prev_v = s.Vo_m_s
         out.append(row)
     return out
@@ -533,21 +631,34 @@ def protocol_velocity_step(req: VelocityStepRequest) -> dict[str, Any]:
     """rsfcore.protocols.velocity_step, plus the lab's friction changes: steady state
     (a - b) ln(V2/V1) and peak (true peak minus f_ss(V1)), as friction and in Pa."""
     ph = _machine(req)
-    res = guard(_protocols.velocity_step, ph, req.V1_m_s, req.V2_m_s,
-                slip_after_m=req.slip_after_m, slip_total_m=req.slip_total_m,
-                n_points=req.n_points, rtol=req.rtol)
+    res = guard(
+        _protocols.velocity_step,
+        ph,
+        req.V1_m_s,
+        req.V2_m_s,
+        slip_after_m=req.slip_after_m,
+        slip_total_m=req.slip_total_m,
+        n_points=req.n_points,
+        rtol=req.rtol,
+    )
     out = _json(res.to_dict())
     f1 = _protocols.steady_state_friction(ph, req.V1_m_s)
     f2 = _protocols.steady_state_friction(ph, req.V2_m_s)
     seg = res.protocol.segments[0]
     pk = seg.peak_friction
-    out["friction_changes"] = jsonsafe({
-        "f_ss_before": f1, "f_ss_after": f2, "steady_state_delta_f": f2 - f1,
-        "steady_state_delta_tau_Pa": (f2 - f1) * ph.sigma,
-        "peak_friction": pk, "peak_time_s": seg.peak_friction_time_s,
-        "peak_delta_f": None if pk is None else pk - f1,
-        "peak_delta_tau_Pa": None if pk is None else (pk - f1) * ph.sigma,
-        "peak_V_m_s": seg.peak_V_m_s})
+    out["friction_changes"] = jsonsafe(
+        {
+            "f_ss_before": f1,
+            "f_ss_after": f2,
+            "steady_state_delta_f": f2 - f1,
+            "steady_state_delta_tau_Pa": (f2 - f1) * ph.sigma,
+            "peak_friction": pk,
+            "peak_time_s": seg.peak_friction_time_s,
+            "peak_delta_f": None if pk is None else pk - f1,
+            "peak_delta_tau_Pa": None if pk is None else (pk - f1) * ph.sigma,
+            "peak_V_m_s": seg.peak_V_m_s,
+        }
+    )
     out["kind"] = "velocity-step"
     return out
 
@@ -556,16 +667,27 @@ def protocol_slide_hold_slide(req: SlideHoldSlideRequest) -> dict[str, Any]:
     """rsfcore.protocols.slide_hold_slide: healing (peak on reslide - f_ss) and relaxation
     (f_ss - friction at the end of the hold), as friction and in Pa, plus segment peaks."""
     ph = _machine(req)
-    res = guard(_protocols.slide_hold_slide, ph, req.V_m_s, req.hold_s,
-                slide_before_s=req.slide_before_s, slide_after_s=req.slide_after_s,
-                n_points_per_segment=req.n_points_per_segment, rtol=req.rtol)
+    res = guard(
+        _protocols.slide_hold_slide,
+        ph,
+        req.V_m_s,
+        req.hold_s,
+        slide_before_s=req.slide_before_s,
+        slide_after_s=req.slide_after_s,
+        n_points_per_segment=req.n_points_per_segment,
+        rtol=req.rtol,
+    )
     out = _json(res.to_dict())
     heal, relax = res.healing_delta_f, res.relaxation_delta_f
-    out["friction_changes"] = jsonsafe({
-        "healing_delta_f": heal, "healing_delta_tau_Pa": None if heal is None
-        else heal * ph.sigma, "relaxation_delta_f": relax,
-        "relaxation_delta_tau_Pa": None if relax is None else relax * ph.sigma,
-        "segments": _segment_changes(res.protocol, ph)})
+    out["friction_changes"] = jsonsafe(
+        {
+            "healing_delta_f": heal,
+            "healing_delta_tau_Pa": None if heal is None else heal * ph.sigma,
+            "relaxation_delta_f": relax,
+            "relaxation_delta_tau_Pa": None if relax is None else relax * ph.sigma,
+            "segments": _segment_changes(res.protocol, ph),
+        }
+    )
     out["kind"] = "slide-hold-slide"
     return out
 
@@ -576,9 +698,14 @@ def protocol_load_history(req: LoadHistoryRequest) -> dict[str, Any]:
     ph = _machine(req)
     st = req.start_state
     start: Any = "steady" if st == "steady" else (st.V_m_s, st.theta_s)
-    res = guard(_protocols.load_history, ph,
-                [(s.duration_s, s.V_load_m_s) for s in req.segments],
-                n_points_per_segment=req.n_points_per_segment, rtol=req.rtol, start=start)
+    res = guard(
+        _protocols.load_history,
+        ph,
+        [(s.duration_s, s.V_load_m_s) for s in req.segments],
+        n_points_per_segment=req.n_points_per_segment,
+        rtol=req.rtol,
+        start=start,
+    )
     out = _json(res.to_dict())
     out["friction_changes"] = jsonsafe({"segments": _segment_changes(res, ph)})
     out["kind"] = "load-history"
@@ -586,8 +713,17 @@ def protocol_load_history(req: LoadHistoryRequest) -> dict[str, Any]:
 
 
 #: Columns of a protocol's CSV (the sampled history), in order.
-PROTOCOL_COLUMNS = ("t_s", "friction", "tau_change_Pa", "V_m_s", "theta_s", "slip_m",
-                    "load_point_m", "segment", "Vo_m_s")
+PROTOCOL_COLUMNS = (
+    "t_s",
+    "friction",
+    "tau_change_Pa",
+    "V_m_s",
+    "theta_s",
+    "slip_m",
+    "load_point_m",
+    "segment",
+    "Vo_m_s",
+)
 
 
 def protocol_table(result: dict[str, Any]) -> dict[str, list[Any]]:
@@ -633,9 +769,14 @@ def fit(req: FitRequest, progress: Callable[[str], None] | None = None) -> dict[
 
     stage("reading the record")
     rec = fit_record_of(req)
-    opts: dict[str, Any] = {"stiffness": req.stiffness_per_m, "fit_stiffness": req.fit_stiffness,
-                            "nagata_c": req.nagata_c, "rtol": req.rtol,
-                            "uncertainty_samples": req.uncertainty_samples, "seed": req.seed}
+    opts: dict[str, Any] = {
+        "stiffness": req.stiffness_per_m,
+        "fit_stiffness": req.fit_stiffness,
+        "nagata_c": req.nagata_c,
+        "rtol": req.rtol,
+        "uncertainty_samples": req.uncertainty_samples,
+        "seed": req.seed,
+    }
     comparison: dict[str, Any] | None = None
     if req.compare:
         stage(f"fitting {rec.n} samples with each law ({', '.join(FIT_LAWS)})")
@@ -644,13 +785,20 @@ def fit(req: FitRequest, progress: Callable[[str], None] | None = None) -> dict[
         res = cmp.fits[law]
         if res.ok and res.stability is None:
             stage("stability answer with uncertainty")
-            guard(_fit.attach_stability, res, uncertainty_samples=req.uncertainty_samples,
-                  seed=req.seed)
-        comparison = {"best": cmp.best, "misfit_floor": cmp.misfit_floor,
-                      "scores": [s.to_dict() for s in cmp.scores],
-                      "params": {k: f.params for k, f in cmp.fits.items()},
-                      "stderr": {k: f.stderr for k, f in cmp.fits.items()},
-                      "status": {k: f.status.value for k, f in cmp.fits.items()}}
+            guard(
+                _fit.attach_stability,
+                res,
+                uncertainty_samples=req.uncertainty_samples,
+                seed=req.seed,
+            )
+        comparison = {
+            "best": cmp.best,
+            "misfit_floor": cmp.misfit_floor,
+            "scores": [s.to_dict() for s in cmp.scores],
+            "params": {k: f.params for k, f in cmp.fits.items()},
+            "stderr": {k: f.stderr for k, f in cmp.fits.items()},
+            "status": {k: f.status.value for k, f in cmp.fits.items()},
+        }
     else:
         assert req.law is not None
         stage(f"fitting {rec.n} samples ({req.law} law) and the stability answer")
@@ -661,9 +809,16 @@ def fit(req: FitRequest, progress: Callable[[str], None] | None = None) -> dict[
         po = req.posterior
         stage(f"posterior: {po.n_walkers} walkers x {po.n_steps} steps (emcee)")
         try:
-            post = guard(_fit.sample_posterior, res, n_walkers=po.n_walkers, n_steps=po.n_steps,
-                         burn=po.burn, thin=po.thin, seed=req.seed,
-                         stability_samples=req.uncertainty_samples)
+            post = guard(
+                _fit.sample_posterior,
+                res,
+                n_walkers=po.n_walkers,
+                n_steps=po.n_steps,
+                burn=po.burn,
+                thin=po.thin,
+                seed=req.seed,
+                stability_samples=req.uncertainty_samples,
+            )
             out["posterior"] = post.to_dict()
         except (ParameterError, ComputeError, ImportError) as exc:
             out["posterior"] = {"error": str(exc)}

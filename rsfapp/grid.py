@@ -11,6 +11,7 @@ Errors are :class:`SpecError` (an ``rsfcore.ParameterError``, reported as 422
 problem+json) naming the field (``axes[2].stop``, ``points.eps[17]``, ``x.values[3]`` for
 the 2-D form) and its valid range; they are raised before anything is written.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -26,8 +27,7 @@ from rsfcore.params import ParameterError
 from .config import Settings
 from .requests import AXIS_RANGES, SweepAxis, SweepRequest
 
-__all__ = ["Axis", "SpecError", "SweepSpec", "expand", "plan_chunks", "PARAM_NAMES",
-           "SPEC_VERSION"]
+__all__ = ["Axis", "SpecError", "SweepSpec", "expand", "plan_chunks", "PARAM_NAMES", "SPEC_VERSION"]
 
 #: Every parameter a point has (kappa is given either directly or as kappa_ratio).
 PARAM_NAMES: tuple[str, ...] = ("ba", "kappa", "kappa_ratio", "eps", "vo", "size")
@@ -102,16 +102,22 @@ class Axis:
         """Compact JSON form (values only if explicit)."""
         if self.values is not None:
             return {"name": self.name, "n": self.n, "values": list(self.values)}
-        return {"name": self.name, "n": self.n, "start": self.start, "stop": self.stop,
-                "log": self.log}
+        return {
+            "name": self.name,
+            "n": self.n,
+            "start": self.start,
+            "stop": self.stop,
+            "log": self.log,
+        }
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> Axis:
         """Inverse of :meth:`to_json`."""
         if "values" in d:
             return cls(d["name"], int(d["n"]), tuple(float(v) for v in d["values"]))
-        return cls(d["name"], int(d["n"]), None, float(d["start"]), float(d["stop"]),
-                   bool(d["log"]))
+        return cls(
+            d["name"], int(d["n"]), None, float(d["start"]), float(d["stop"]), bool(d["log"])
+        )
 
 
 @dataclass
@@ -177,9 +183,13 @@ class SweepSpec:
                 vals[name] = np.full(n, float(v))
         if self.kappa_param == "kappa_ratio":
             vals["kappa"] = vals["kappa_ratio"] * (vals["ba"] - 1.0)
-        return {"ba": vals["ba"], "kappa": vals["kappa"], "eps": vals["eps"],
-                "vo": vals["vo"], "size": vals.get("size") if self.output == "outcome"
-                else None}
+        return {
+            "ba": vals["ba"],
+            "kappa": vals["kappa"],
+            "eps": vals["eps"],
+            "vo": vals["vo"],
+            "size": vals.get("size") if self.output == "outcome" else None,
+        }
 
     def swept_values(self, i0: int, i1: int) -> dict[str, F64]:
         """Values of the swept parameters at flat indices [i0, i1)."""
@@ -204,15 +214,20 @@ class SweepSpec:
 
     def to_json(self) -> dict[str, Any]:
         """Canonical JSON (small: no point arrays; scattered points by their digest)."""
-        d: dict[str, Any] = {"v": SPEC_VERSION, "mode": self.mode,
-                             "fixed": self.fixed, "kappa_param": self.kappa_param,
-                             "perturbation": self.perturbation, "rtol": self.rtol,
-                             "output": self.output, "n_total": self.n_total}
+        d: dict[str, Any] = {
+            "v": SPEC_VERSION,
+            "mode": self.mode,
+            "fixed": self.fixed,
+            "kappa_param": self.kappa_param,
+            "perturbation": self.perturbation,
+            "rtol": self.rtol,
+            "output": self.output,
+            "n_total": self.n_total,
+        }
         if self.mode == "grid":
             d["axes"] = [a.to_json() for a in self.axes]
         else:
-            d["points"] = {"names": self.swept, "n": self.n_total,
-                           "sha256": self.points_sha256}
+            d["points"] = {"names": self.swept, "n": self.n_total, "sha256": self.points_sha256}
         return d
 
     def summary(self) -> dict[str, Any]:
@@ -221,9 +236,14 @@ class SweepSpec:
             dims = [{"name": a.name, "n": a.n} for a in self.axes]
         else:
             dims = [{"name": "point", "n": self.n_total, "parameters": self.swept}]
-        return {"mode": self.mode, "dims": dims, "output": self.output,
-                "fixed": {k: v for k, v in self.fixed.items() if v is not None},
-                "perturbation": self.perturbation, "rtol": self.rtol}
+        return {
+            "mode": self.mode,
+            "dims": dims,
+            "output": self.output,
+            "fixed": {k: v for k, v in self.fixed.items() if v is not None},
+            "perturbation": self.perturbation,
+            "rtol": self.rtol,
+        }
 
     @classmethod
     def from_json(cls, d: dict[str, Any], points: dict[str, F64] | None = None) -> SweepSpec:
@@ -231,9 +251,19 @@ class SweepSpec:
         axes = [Axis.from_json(a) for a in d.get("axes", [])]
         sha = d["points"]["sha256"] if d["mode"] == "points" else ""
         names = tuple(d["points"]["names"]) if d["mode"] == "points" else ()
-        return cls(d["mode"], axes, points, dict(d["fixed"]), d["kappa_param"],
-                   d["perturbation"], float(d["rtol"]), d["output"], sha,
-                   int(d.get("n_total", 0)), names)
+        return cls(
+            d["mode"],
+            axes,
+            points,
+            dict(d["fixed"]),
+            d["kappa_param"],
+            d["perturbation"],
+            float(d["rtol"]),
+            d["output"],
+            sha,
+            int(d.get("n_total", 0)),
+            names,
+        )
 
 
 def _axis(ax: SweepAxis, where: str, pert: str) -> Axis:
@@ -245,21 +275,26 @@ def _axis(ax: SweepAxis, where: str, pert: str) -> Axis:
         bad = _bad_mask(ax.name, v, pert)
         if bad.any():
             k = int(np.argmax(bad))
-            raise SpecError(f"{where}.values[{k}]", f"{v[k]!r} out of range for {ax.name}",
-                            valid)
+            raise SpecError(f"{where}.values[{k}]", f"{v[k]!r} out of range for {ax.name}", valid)
         return Axis(ax.name, int(v.size), tuple(float(x) for x in v))
     for f in ("start", "stop", "n"):
         if getattr(ax, f) is None:
-            raise SpecError(f"{where}.{f}", "required when values is not given",
-                            "an integer >= 1" if f == "n" else valid)
+            raise SpecError(
+                f"{where}.{f}",
+                "required when values is not given",
+                "an integer >= 1" if f == "n" else valid,
+            )
     for f in ("start", "stop"):
         x = float(getattr(ax, f))
         if _bad_mask(ax.name, np.array([x]), pert)[0]:
             raise SpecError(f"{where}.{f}", f"{x!r} out of range for {ax.name}", valid)
     assert ax.start is not None and ax.stop is not None and ax.n is not None
     if ax.log and (ax.start <= 0 or ax.stop <= 0):
-        raise SpecError(f"{where}.start" if ax.start <= 0 else f"{where}.stop",
-                        "log spacing needs start, stop > 0", "> 0")
+        raise SpecError(
+            f"{where}.start" if ax.start <= 0 else f"{where}.stop",
+            "log spacing needs start, stop > 0",
+            "> 0",
+        )
     return Axis(ax.name, int(ax.n), None, float(ax.start), float(ax.stop), bool(ax.log))
 
 
@@ -280,21 +315,30 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
         max_scattered: largest number of scattered points (RSF_SWEEP_MAX_SCATTERED).
     """
     pert = req.perturbation
-    forms = [f for f, given in (("axes", req.axes is not None),
-                                ("points", req.points is not None),
-                                ("x", req.x is not None or req.y is not None)) if given]
+    forms = [
+        f
+        for f, given in (
+            ("axes", req.axes is not None),
+            ("points", req.points is not None),
+            ("x", req.x is not None or req.y is not None),
+        )
+        if given
+    ]
     if len(forms) != 1:
-        raise SpecError(forms[1] if len(forms) > 1 else "axes",
-                        "give exactly one of axes, points or x/y",
-                        "one of: axes (1-5 grid axes), points (scattered), x and y (2-D)")
+        raise SpecError(
+            forms[1] if len(forms) > 1 else "axes",
+            "give exactly one of axes, points or x/y",
+            "one of: axes (1-5 grid axes), points (scattered), x and y (2-D)",
+        )
     form = forms[0]
     axes: list[Axis] = []
     points: dict[str, F64] | None = None
     where: dict[str, str] = {}  # parameter -> field prefix of its source
     if form == "x":
         if req.x is None or req.y is None:
-            raise SpecError("y" if req.x is not None else "x", "the 2-D form needs x and y",
-                            "an axis object")
+            raise SpecError(
+                "y" if req.x is not None else "x", "the 2-D form needs x and y", "an axis object"
+            )
         srcs: list[tuple[SweepAxis, str]] = [(req.x, "x"), (req.y, "y")]
     elif form == "axes":
         assert req.axes is not None
@@ -303,9 +347,11 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
         srcs = []
     for ax, w in srcs:
         if ax.name in where:
-            raise SpecError(f"{w}.name", f"{ax.name} is already swept",
-                            "a parameter not already swept (ba, kappa, kappa_ratio, eps, "
-                            "vo, size)")
+            raise SpecError(
+                f"{w}.name",
+                f"{ax.name} is already swept",
+                "a parameter not already swept (ba, kappa, kappa_ratio, eps, vo, size)",
+            )
         axes.append(_axis(ax, w, pert))
         where[ax.name] = w
     if form == "points":
@@ -323,16 +369,21 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
                 if n0 == 0:
                     raise SpecError(f"points.{name}", "empty", "at least one point")
                 if max_scattered is not None and n0 > max_scattered:
-                    raise SpecError(f"points.{name}", f"{n0} points exceed the limit",
-                                    f"<= {max_scattered} points (RSF_SWEEP_MAX_SCATTERED)")
+                    raise SpecError(
+                        f"points.{name}",
+                        f"{n0} points exceed the limit",
+                        f"<= {max_scattered} points (RSF_SWEEP_MAX_SCATTERED)",
+                    )
             elif v.size != n0:
-                raise SpecError(f"points.{name}", f"length {v.size}",
-                                f"length {n0}, as points.{first}")
+                raise SpecError(
+                    f"points.{name}", f"length {v.size}", f"length {n0}, as points.{first}"
+                )
             bad = _bad_mask(name, v, pert)
             if bad.any():
                 k = int(np.argmax(bad))
-                raise SpecError(f"points.{name}[{k}]", f"{v[k]!r} out of range for {name}",
-                                _valid(name, pert))
+                raise SpecError(
+                    f"points.{name}[{k}]", f"{v[k]!r} out of range for {name}", _valid(name, pert)
+                )
             points[name] = v
             where[name] = f"points.{name}"
 
@@ -340,30 +391,51 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
     fx = req.fixed
     uses_kappa = "kappa" in where or (fx.kappa is not None and "kappa_ratio" not in where)
     if "kappa" in where and "kappa_ratio" in where:
-        raise SpecError(f"{where['kappa_ratio']}" + (".name" if form != "points" else ""),
-                        "kappa and kappa_ratio cannot both be swept",
-                        "one of kappa or kappa_ratio")
+        raise SpecError(
+            f"{where['kappa_ratio']}" + (".name" if form != "points" else ""),
+            "kappa and kappa_ratio cannot both be swept",
+            "one of kappa or kappa_ratio",
+        )
     if uses_kappa and fx.kappa_ratio is not None and "kappa_ratio" not in where:
-        raise SpecError("fixed.kappa_ratio", "give kappa or kappa_ratio, not both",
-                        "null when kappa is given or swept")
+        raise SpecError(
+            "fixed.kappa_ratio",
+            "give kappa or kappa_ratio, not both",
+            "null when kappa is given or swept",
+        )
     kappa_param = "kappa" if uses_kappa else "kappa_ratio"
     fixed: dict[str, float | None] = {
-        "ba": fx.ba, "eps": fx.eps, "vo": fx.vo, "size": fx.size,
-        kappa_param: (fx.kappa if uses_kappa else
-                      (1.0 if fx.kappa_ratio is None else fx.kappa_ratio))}
+        "ba": fx.ba,
+        "eps": fx.eps,
+        "vo": fx.vo,
+        "size": fx.size,
+        kappa_param: (
+            fx.kappa if uses_kappa else (1.0 if fx.kappa_ratio is None else fx.kappa_ratio)
+        ),
+    }
     for name in where:
         fixed.pop(name, None)
     output = "outcome" if ("size" in where or fixed.get("size") is not None) else "critical"
     if output == "critical":
         fixed.pop("size", None)
 
-    spec = SweepSpec("grid" if points is None else "points", axes, points, fixed,
-                     kappa_param, pert, float(req.rtol), output,
-                     _digest(points) if points is not None else "")
+    spec = SweepSpec(
+        "grid" if points is None else "points",
+        axes,
+        points,
+        fixed,
+        kappa_param,
+        pert,
+        float(req.rtol),
+        output,
+        _digest(points) if points is not None else "",
+    )
     if spec.n_total > max_points:
         fld = "y.values" if form == "x" else ("axes" if form == "axes" else "points")
-        raise SpecError(fld, f"{spec.n_total} points exceed the limit",
-                        f"<= {max_points} points (RSF_SWEEP_MAX_POINTS)")
+        raise SpecError(
+            fld,
+            f"{spec.n_total} points exceed the limit",
+            f"<= {max_points} points (RSF_SWEEP_MAX_POINTS)",
+        )
     _check_combinations(spec, where)
     return spec
 
@@ -372,8 +444,7 @@ def _extremes(spec: SweepSpec, name: str) -> F64:
     if spec.mode == "grid":
         for a in spec.axes:
             if a.name == name:
-                vals = np.asarray(a.values) if a.values is not None else np.array(
-                    [a.start, a.stop])
+                vals = np.asarray(a.values) if a.values is not None else np.array([a.start, a.stop])
                 return np.array([vals.min(), vals.max()])
     v = spec.fixed.get(name)
     return np.array([0.0 if v is None else float(v)])
@@ -398,8 +469,7 @@ def _check_combinations(spec: SweepSpec, where: dict[str, str]) -> None:
         if bad.any():
             k = int(np.argmax(bad))
             name = "kappa_ratio" if "kappa_ratio" in where else "ba"
-            raise SpecError(f"points.{name}[{k}]", "kappa = kappa_ratio*(ba-1) exceeds 1e6",
-                            valid)
+            raise SpecError(f"points.{name}[{k}]", "kappa = kappa_ratio*(ba-1) exceeds 1e6", valid)
         return
     kr = _extremes(spec, "kappa_ratio").max()
     ba = _extremes(spec, "ba").max()
@@ -407,8 +477,11 @@ def _check_combinations(spec: SweepSpec, where: dict[str, str]) -> None:
         if "kappa_ratio" in where:
             w = where["kappa_ratio"]
             ax = next(a for a in spec.axes if a.name == "kappa_ratio")
-            fld = f"{w}.values" if ax.values is not None else (
-                f"{w}.stop" if ax.stop >= ax.start else f"{w}.start")
+            fld = (
+                f"{w}.values"
+                if ax.values is not None
+                else (f"{w}.stop" if ax.stop >= ax.start else f"{w}.start")
+            )
         elif "ba" in where:
             fld = "fixed.kappa_ratio"
         else:
@@ -438,13 +511,27 @@ def plan_chunks(spec: SweepSpec, settings: Settings, requested: int | None = Non
     else:
         per = _COST_S["critical"]
         if spec.output == "outcome":
-            neg = (spec.fixed.get("size") or 0.0) < 0 or any(
-                a.name == "size" and min(a.start, a.stop, *(a.values or ())) < 0
-                for a in spec.axes) or (spec.points is not None and "size" in spec.points
-                                        and bool((spec.points["size"] < 0).any()))
+            neg = (
+                (spec.fixed.get("size") or 0.0) < 0
+                or any(
+                    a.name == "size" and min(a.start, a.stop, *(a.values or ())) < 0
+                    for a in spec.axes
+                )
+                or (
+                    spec.points is not None
+                    and "size" in spec.points
+                    and bool((spec.points["size"] < 0).any())
+                )
+            )
             per = _COST_S["classify"] if neg else per
-        chunk = max(1, min(int(settings.chunk_seconds / per), -(-n // _MIN_CHUNKS),
-                           max(_BALANCE_POINTS, -(-n // 64))))
+        chunk = max(
+            1,
+            min(
+                int(settings.chunk_seconds / per),
+                -(-n // _MIN_CHUNKS),
+                max(_BALANCE_POINTS, -(-n // 64)),
+            ),
+        )
     chunk = min(chunk, MAX_CHUNK)
     max_chunks = getattr(settings, "sweep_max_chunks", 100_000)
     return max(chunk, -(-n // max_chunks), 1)

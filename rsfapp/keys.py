@@ -1,4 +1,5 @@
 """Canonical JSON and cache keys: one request, one key, whatever process computes it."""
+
 from __future__ import annotations
 
 import hashlib

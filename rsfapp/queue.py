@@ -6,6 +6,7 @@ Celery: every result lands in the application database.  Tasks are acknowledged 
 prefetched one at a time.  Task names are explicit strings (``worker.tasks.*``), so the
 producer needs no import of the worker package and queued messages survive code moves.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -41,8 +42,12 @@ def make_app(settings: Settings | None = None) -> Celery:
         worker_prefetch_multiplier=1,
         worker_enable_remote_control=not fs,
         worker_send_task_events=False,
-        task_publish_retry_policy={"max_retries": 3, "interval_start": 0.2,
-                                   "interval_step": 0.5, "interval_max": 1.0},
+        task_publish_retry_policy={
+            "max_retries": 3,
+            "interval_start": 0.2,
+            "interval_step": 0.5,
+            "interval_max": 1.0,
+        },
     )
     return a
 
@@ -60,8 +65,9 @@ class Queue:
 
     def send_single(self, kind: str, request: dict[str, Any], key: str, version: str) -> None:
         """Enqueue a long single query (see :mod:`rsfapp.store.jobs`)."""
-        self.app.send_task(COMPUTE_SINGLE, args=[kind, request, key, version],
-                           queue=self.settings.queue)
+        self.app.send_task(
+            COMPUTE_SINGLE, args=[kind, request, key, version], queue=self.settings.queue
+        )
 
     def send_fit(self, request: dict[str, Any], key: str, version: str) -> None:
         """Enqueue the fit of a lab record (``request``: a FitRequest as JSON)."""

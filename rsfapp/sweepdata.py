@@ -15,6 +15,7 @@ Per point (arrays of the chunk / of the whole sweep in flat-index order):
 
 Nothing here knows about HTTP; I/O is only through a :class:`~rsfapp.store.SweepStore`.
 """
+
 from __future__ import annotations
 
 import csv
@@ -33,20 +34,40 @@ from rsfcore.critical import KINDS, METHODS
 from .grid import SpecError, SweepSpec
 from .store.sweeps import SweepStore
 
-__all__ = ["VARIABLES", "compute_chunk", "assemble", "to_dataset", "netcdf_bytes",
-           "csv_rows", "json_chunks", "diagram", "parse_slice"]
+__all__ = [
+    "VARIABLES",
+    "compute_chunk",
+    "assemble",
+    "to_dataset",
+    "netcdf_bytes",
+    "csv_rows",
+    "json_chunks",
+    "diagram",
+    "parse_slice",
+]
 
 #: Result variables of every point (NetCDF / CSV / JSON).
-VARIABLES: tuple[str, ...] = ("critical_size", "kind", "outcome", "rel_accuracy", "failed",
-                               "method", "outcome_uncertain")
+VARIABLES: tuple[str, ...] = (
+    "critical_size",
+    "kind",
+    "outcome",
+    "rel_accuracy",
+    "failed",
+    "method",
+    "outcome_uncertain",
+)
 _OUTCOMES = ("stable", "unstable")
 
 
 def _failed_arrays(n: int, outcome: bool) -> dict[str, NDArray[Any]]:
     out: dict[str, NDArray[Any]] = {
-        "critical_size": np.full(n, math.nan), "rel_accuracy": np.full(n, math.nan),
-        "kind": np.full(n, -1, np.int8), "method": np.full(n, -1, np.int8),
-        "failed": np.ones(n, np.bool_), "on_boundary": np.zeros(n, np.bool_)}
+        "critical_size": np.full(n, math.nan),
+        "rel_accuracy": np.full(n, math.nan),
+        "kind": np.full(n, -1, np.int8),
+        "method": np.full(n, -1, np.int8),
+        "failed": np.ones(n, np.bool_),
+        "on_boundary": np.zeros(n, np.bool_),
+    }
     if outcome:
         out["outcome"] = np.full(n, -1, np.int8)
         out["outcome_uncertain"] = np.zeros(n, np.bool_)
@@ -55,16 +76,22 @@ def _failed_arrays(n: int, outcome: bool) -> dict[str, NDArray[Any]]:
 
 def _arrays(r: batch.BatchResult) -> dict[str, NDArray[Any]]:
     arrays: dict[str, NDArray[Any]] = {
-        "critical_size": r.critical_size, "rel_accuracy": r.rel_accuracy, "kind": r.kind,
-        "method": r.method, "failed": r.failed, "on_boundary": r.on_boundary}
+        "critical_size": r.critical_size,
+        "rel_accuracy": r.rel_accuracy,
+        "kind": r.kind,
+        "method": r.method,
+        "failed": r.failed,
+        "on_boundary": r.on_boundary,
+    }
     if r.outcome is not None and r.outcome_uncertain is not None:
         arrays["outcome"] = r.outcome
         arrays["outcome_uncertain"] = r.outcome_uncertain
     return arrays
 
 
-def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[Any]],
-                                                              dict[int, str]]:
+def compute_chunk(
+    spec: SweepSpec, i0: int, i1: int
+) -> tuple[dict[str, NDArray[Any]], dict[int, str]]:
     """Results of flat indices [i0, i1): one :func:`rsfcore.batch.critical_points` call.
 
     Returns (arrays, errors): the per-point arrays of the module docstring (plus
@@ -94,8 +121,9 @@ def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[
     for k in range(n):
         sl = slice(k, k + 1)
         try:
-            r = batch.critical_points(ba[sl], kappa[sl], eps[sl], vo[sl],
-                                      size=None if size is None else size[sl], **kw)
+            r = batch.critical_points(
+                ba[sl], kappa[sl], eps[sl], vo[sl], size=None if size is None else size[sl], **kw
+            )
         except MemoryError:
             raise
         except Exception as exc:  # noqa: BLE001 - recorded per point, the chunk goes on
@@ -109,10 +137,16 @@ def compute_chunk(spec: SweepSpec, i0: int, i1: int) -> tuple[dict[str, NDArray[
 
 
 def _empty(n: int) -> dict[str, NDArray[Any]]:
-    return {"critical_size": np.full(n, math.nan), "kind": np.full(n, -1, np.int8),
-            "outcome": np.full(n, -1, np.int8), "rel_accuracy": np.full(n, math.nan),
-            "failed": np.zeros(n, np.bool_), "computed": np.zeros(n, np.bool_),
-            "method": np.full(n, -1, np.int8), "outcome_uncertain": np.zeros(n, np.bool_)}
+    return {
+        "critical_size": np.full(n, math.nan),
+        "kind": np.full(n, -1, np.int8),
+        "outcome": np.full(n, -1, np.int8),
+        "rel_accuracy": np.full(n, math.nan),
+        "failed": np.zeros(n, np.bool_),
+        "computed": np.zeros(n, np.bool_),
+        "method": np.full(n, -1, np.int8),
+        "outcome_uncertain": np.zeros(n, np.bool_),
+    }
 
 
 def assemble(store: SweepStore, sweep_id: str, n_total: int) -> dict[str, NDArray[Any]]:
@@ -135,16 +169,18 @@ def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArra
     parameters and sweep metadata as attributes."""
     import xarray as xr
 
-    legends = {"kind": "-1 missing/failed, 0 zero, 1 finite, 2 infinite",
-               "outcome": "-1 missing/failed/not asked, 0 stable, 1 unstable",
-               "failed": "1 = could not be computed (see the status failures)",
-               "critical_size": "0 for kind zero, inf for infinite, NaN where missing or "
-                                "failed (d for a velocity jump, dv/v_o for a load-point jump)",
-               "rel_accuracy": "estimated relative accuracy of critical_size",
-               "method": "-1 missing/failed, else index into: " + " | ".join(
-                   f"{k} {m.split(':')[0]}" for k, m in enumerate(METHODS)),
-               "outcome_uncertain": "1 = |size/critical size - 1| within the accuracy (or "
-                                    "kappa = kappa_crit up to rounding): the outcome may flip"}
+    legends = {
+        "kind": "-1 missing/failed, 0 zero, 1 finite, 2 infinite",
+        "outcome": "-1 missing/failed/not asked, 0 stable, 1 unstable",
+        "failed": "1 = could not be computed (see the status failures)",
+        "critical_size": "0 for kind zero, inf for infinite, NaN where missing or "
+        "failed (d for a velocity jump, dv/v_o for a load-point jump)",
+        "rel_accuracy": "estimated relative accuracy of critical_size",
+        "method": "-1 missing/failed, else index into: "
+        + " | ".join(f"{k} {m.split(':')[0]}" for k, m in enumerate(METHODS)),
+        "outcome_uncertain": "1 = |size/critical size - 1| within the accuracy (or "
+        "kappa = kappa_crit up to rounding): the outcome may flip",
+    }
     if spec.mode == "grid":
         dims = tuple(a.name for a in spec.axes)
         coords: dict[str, Any] = {a.name: a.all() for a in spec.axes}
@@ -162,12 +198,17 @@ def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArra
     if spec.mode == "points":
         for name, vals in spec.coords().items():
             data[name] = (("point",), vals, {"description": f"swept parameter {name}"})
-    attrs: dict[str, Any] = {"sweep_id": status.get("id", ""), "status": status.get("status", ""),
-                             "perturbation": spec.perturbation, "rtol": spec.rtol,
-                             "output": spec.output, "n_total": spec.n_total,
-                             "n_done": int(status.get("n_done", 0)),
-                             "n_failed": int(status.get("n_failed", 0)),
-                             "numerics_version": str(status.get("numerics_version", ""))}
+    attrs: dict[str, Any] = {
+        "sweep_id": status.get("id", ""),
+        "status": status.get("status", ""),
+        "perturbation": spec.perturbation,
+        "rtol": spec.rtol,
+        "output": spec.output,
+        "n_total": spec.n_total,
+        "n_done": int(status.get("n_done", 0)),
+        "n_failed": int(status.get("n_failed", 0)),
+        "numerics_version": str(status.get("numerics_version", "")),
+    }
     for name, fv in spec.fixed.items():
         if fv is not None:
             attrs[f"fixed_{name}"] = float(fv)
@@ -187,8 +228,9 @@ def _fmt(v: float) -> str:
     return "" if math.isnan(v) else repr(float(v))
 
 
-def csv_rows(store: SweepStore, spec: SweepSpec, sweep_id: str,
-             batch_rows: int = 50_000) -> Iterator[str]:
+def csv_rows(
+    store: SweepStore, spec: SweepSpec, sweep_id: str, batch_rows: int = 50_000
+) -> Iterator[str]:
     """CSV text in pieces: a header, then one row per point in flat-index order:
     idx, the swept parameters, kind, critical_size, outcome, rel_accuracy, method (short
     name), failed, error.
@@ -196,8 +238,19 @@ def csv_rows(store: SweepStore, spec: SweepSpec, sweep_id: str,
     names = spec.swept
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["idx", *names, "kind", "critical_size", "outcome", "rel_accuracy",
-                "method", "failed", "error"])
+    w.writerow(
+        [
+            "idx",
+            *names,
+            "kind",
+            "critical_size",
+            "outcome",
+            "rel_accuracy",
+            "method",
+            "failed",
+            "error",
+        ]
+    )
     yield buf.getvalue()
     blocks = store.blocks(sweep_id)
     nxt = next(blocks, None)
@@ -219,10 +272,15 @@ def csv_rows(store: SweepStore, spec: SweepSpec, sweep_id: str,
             else:
                 kd = int(b.arrays["kind"][k])
                 oc = int(b.arrays["outcome"][k]) if "outcome" in b.arrays else -1
-                row += [KINDS[kd] if kd >= 0 else "", _fmt(b.arrays["critical_size"][k]),
-                        _OUTCOMES[oc] if oc >= 0 else "", _fmt(b.arrays["rel_accuracy"][k]),
-                        _method(int(b.arrays["method"][k])),
-                        int(bool(b.arrays["failed"][k])), b.errors.get(k, "")]
+                row += [
+                    KINDS[kd] if kd >= 0 else "",
+                    _fmt(b.arrays["critical_size"][k]),
+                    _OUTCOMES[oc] if oc >= 0 else "",
+                    _fmt(b.arrays["rel_accuracy"][k]),
+                    _method(int(b.arrays["method"][k])),
+                    int(bool(b.arrays["failed"][k])),
+                    b.errors.get(k, ""),
+                ]
             w.writerow(row)
         yield buf.getvalue()
         i = j
@@ -230,19 +288,27 @@ def csv_rows(store: SweepStore, spec: SweepSpec, sweep_id: str,
 
 def _jlist(a: NDArray[Any], kind: str) -> str:
     if kind == "f":
-        return "[" + ",".join(repr(float(x)) if math.isfinite(x) else "null"
-                              for x in a.tolist()) + "]"
+        return (
+            "[" + ",".join(repr(float(x)) if math.isfinite(x) else "null" for x in a.tolist()) + "]"
+        )
     return json.dumps(a.astype(int).tolist())
 
 
-def json_chunks(spec: SweepSpec, status: dict[str, Any],
-                arrays: dict[str, NDArray[Any]], failures: list[tuple[int, str]]) -> Iterator[str]:
+def json_chunks(
+    spec: SweepSpec,
+    status: dict[str, Any],
+    arrays: dict[str, NDArray[Any]],
+    failures: list[tuple[int, str]],
+) -> Iterator[str]:
     """JSON document in pieces: status fields, ``coords`` (axis values, or the swept
     parameters of each point), and one flat list per variable in flat-index order
     (non-finite numbers and missing points are null; ``kind`` tells infinite from
     missing), ``computed``, and ``failures`` [{idx, error}] (first 100)."""
-    head: dict[str, Any] = {k: status[k] for k in ("id", "status", "n_total", "n_done", "n_failed",
-                                   "numerics_version") if k in status}
+    head: dict[str, Any] = {
+        k: status[k]
+        for k in ("id", "status", "n_total", "n_done", "n_failed", "numerics_version")
+        if k in status
+    }
     head.update(spec.summary())
     head["shape"] = list(spec.shape)
     head["kind_legend"] = list(KINDS)
@@ -269,8 +335,11 @@ def parse_slice(spec: SweepSpec, text: str | None) -> dict[str, int]:
         name, sep, val = part.partition(":")
         name = name.strip()
         if not sep or name not in names:
-            raise SpecError("slice", f"{part!r} is not <axis>:<value>",
-                            "comma-separated <axis>:<value> with axes " + ", ".join(names))
+            raise SpecError(
+                "slice",
+                f"{part!r} is not <axis>:<value>",
+                "comma-separated <axis>:<value> with axes " + ", ".join(names),
+            )
         try:
             x = float(val)
         except ValueError:
@@ -282,15 +351,22 @@ def parse_slice(spec: SweepSpec, text: str | None) -> dict[str, int]:
         if a.n == 1 and a.name not in fixed and len(spec.axes) - len(fixed) > 2:
             fixed[a.name] = 0
     if len(spec.axes) - len(fixed) != 2:
-        raise SpecError("slice", f"{len(spec.axes) - len(fixed)} axes left free",
-                        "values for all but two axes, e.g. slice=" +
-                        ",".join(f"{n}:<value>" for n in names[2:]) if len(names) > 2
-                        else "a 2-D grid")
+        raise SpecError(
+            "slice",
+            f"{len(spec.axes) - len(fixed)} axes left free",
+            "values for all but two axes, e.g. slice=" + ",".join(f"{n}:<value>" for n in names[2:])
+            if len(names) > 2
+            else "a 2-D grid",
+        )
     return fixed
 
 
-def diagram(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArray[Any]],
-            fixed_idx: dict[str, int]) -> dict[str, Any]:
+def diagram(
+    spec: SweepSpec,
+    status: dict[str, Any],
+    arrays: dict[str, NDArray[Any]],
+    fixed_idx: dict[str, int],
+) -> dict[str, Any]:
     """A 2-D slice as a stability diagram, laid out like
     ``rsfcore.diagram.DiagramResult.to_dict()``: critical_size[i][j] at (x[i], y[j]) (null
     where infinite or missing), kind codes 0 zero / 1 finite / 2 infinite, outcome codes 0
@@ -310,15 +386,32 @@ def diagram(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArray[A
     csl = [[(float(v) if math.isfinite(v) else None) for v in row] for row in cs.tolist()]
     kl = np.where(kind >= 0, kind, 1).astype(int).tolist()
     ol = [[(float(v) if v >= 0 else None) for v in row] for row in oc.tolist()]
-    sl_vals = {a.name: float(a.at(np.array([fixed_idx[a.name]]))[0])
-               for a in spec.axes if a.name in fixed_idx}
+    sl_vals = {
+        a.name: float(a.at(np.array([fixed_idx[a.name]]))[0])
+        for a in spec.axes
+        if a.name in fixed_idx
+    }
     fixed = {k: v for k, v in spec.fixed.items() if v is not None}
     fixed.update(sl_vals)
-    return {"x_name": free[0].name, "x": free[0].all().tolist(), "y_name": free[1].name,
-            "y": free[1].all().tolist(), "critical_size": csl, "kind": kl,
-            "kind_legend": list(KINDS), "outcome": ol if outcome_mode else None,
-            "outcome_legend": list(_OUTCOMES), "present": present.tolist(),
-            "perturbation": spec.perturbation, "rtol": spec.rtol, "fixed": fixed,
-            "slice": sl_vals, "id": status["id"], "status": status["status"],
-            "n_done": status["n_done"], "n_total": status["n_total"],
-            "n_failed": status["n_failed"], "numerics_version": status.get("numerics_version")}
+    return {
+        "x_name": free[0].name,
+        "x": free[0].all().tolist(),
+        "y_name": free[1].name,
+        "y": free[1].all().tolist(),
+        "critical_size": csl,
+        "kind": kl,
+        "kind_legend": list(KINDS),
+        "outcome": ol if outcome_mode else None,
+        "outcome_legend": list(_OUTCOMES),
+        "present": present.tolist(),
+        "perturbation": spec.perturbation,
+        "rtol": spec.rtol,
+        "fixed": fixed,
+        "slice": sl_vals,
+        "id": status["id"],
+        "status": status["status"],
+        "n_done": status["n_done"],
+        "n_total": status["n_total"],
+        "n_failed": status["n_failed"],
+        "numerics_version": status.get("numerics_version"),
+    }

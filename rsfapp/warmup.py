@@ -1,6 +1,7 @@
 """Load (or compile, on a fresh checkout) rsfcore's kernels once per process, so the
 first queries are not delayed by JIT compilation.  Used by the API's lifespan and the
 Celery ``worker_init`` signal (before the pool forks)."""
+
 from __future__ import annotations
 
 import logging

@@ -5,6 +5,7 @@ The keys live in the application database of the deployment (``--data-dir`` or t
 ``RSF_*`` settings, exactly as `rsf serve` finds it), stored only as SHA-256 hashes.
 A new key is printed once, on stdout (alone, so ``KEY=$(rsf keys create ...)`` works).
 """
+
 from __future__ import annotations
 
 import ipaddress
@@ -19,11 +20,16 @@ import typer
 
 __all__ = ["app", "check_bind", "is_loopback"]
 
-app = typer.Typer(name="keys", help="API keys: create (shown once), list, revoke.",
-                  no_args_is_help=True)
+app = typer.Typer(
+    name="keys", help="API keys: create (shown once), list, revoke.", no_args_is_help=True
+)
 
-DATA_DIR = typer.Option(None, "--data-dir", help="Data directory of the deployment (default: "
-                        "RSF_DATA_DIR, else ./rsf-data); RSF_CACHE_URL selects another database.")
+DATA_DIR = typer.Option(
+    None,
+    "--data-dir",
+    help="Data directory of the deployment (default: "
+    "RSF_DATA_DIR, else ./rsf-data); RSF_CACHE_URL selects another database.",
+)
 
 
 def _store(data_dir: Path | None) -> Any:
@@ -43,18 +49,33 @@ def _fail(msg: str) -> None:
 
 @app.command()
 def create(
-    name: str = typer.Option(..., "--name", help="Unique name of the key (1-64 of letters, "
-                             "digits, '.', '_', '-'); never reused."),
-    scope: str = typer.Option("read", "--scope", help="read (every single query, cached "
-                              "results, sweeps), submit (+ submit sweeps, batch, long jobs, "
-                              "cancel its own sweeps) or admin (everything)."),
-    quota: list[str] = typer.Option([], "--quota", help="Per-key quota NAME=VALUE, repeatable: "
-                                    "concurrent_sweeps, points_per_day, fresh_per_s, "
-                                    "concurrent_requests, trajectory_points."),
-    from_env: str | None = typer.Option(None, "--from-env", help="Store the key held in "
-                                           "this environment variable instead of a random "
-                                           "one (replaces the key of that name; for "
-                                           "containers)."),
+    name: str = typer.Option(
+        ...,
+        "--name",
+        help="Unique name of the key (1-64 of letters, digits, '.', '_', '-'); never reused.",
+    ),
+    scope: str = typer.Option(
+        "read",
+        "--scope",
+        help="read (every single query, cached "
+        "results, sweeps), submit (+ submit sweeps, batch, long jobs, "
+        "cancel its own sweeps) or admin (everything).",
+    ),
+    quota: list[str] = typer.Option(
+        [],
+        "--quota",
+        help="Per-key quota NAME=VALUE, repeatable: "
+        "concurrent_sweeps, points_per_day, fresh_per_s, "
+        "concurrent_requests, trajectory_points.",
+    ),
+    from_env: str | None = typer.Option(
+        None,
+        "--from-env",
+        help="Store the key held in "
+        "this environment variable instead of a random "
+        "one (replaces the key of that name; for "
+        "containers).",
+    ),
     data_dir: Path | None = DATA_DIR,
 ) -> None:
     """Create an API key and print it (once: only its hash is stored)."""
@@ -80,15 +101,21 @@ def create(
             if not key:
                 _fail(f"--from-env: environment variable {from_env} is empty or unset")
             changed = ks.put(name, key, sc)
-            typer.echo(f"key {name!r} ({sc.value}) {'stored' if changed else 'unchanged'} "
-                       f"from ${from_env}", err=True)
+            typer.echo(
+                f"key {name!r} ({sc.value}) {'stored' if changed else 'unchanged'} "
+                f"from ${from_env}",
+                err=True,
+            )
             return
         key = ks.create(name, sc, quotas)
     except KeyStoreError as exc:
         _fail(str(exc))
     typer.echo(key)
-    typer.echo(f"key {name!r} ({sc.value}) created: shown once, keep it; send it as "
-               "'Authorization: Bearer <key>' (RSF_API_KEY for the client).", err=True)
+    typer.echo(
+        f"key {name!r} ({sc.value}) created: shown once, keep it; send it as "
+        "'Authorization: Bearer <key>' (RSF_API_KEY for the client).",
+        err=True,
+    )
 
 
 @app.command("list")
@@ -98,9 +125,17 @@ def list_keys(
 ) -> None:
     """List the keys: name, scope, created, revoked, quota overrides (never the keys)."""
     keys = _store(data_dir).list_keys()
-    rows = [{"name": k.name, "scope": k.scope.value, "created_at": k.created_at,
-             "revoked_at": k.revoked_at, "active": k.active, "quotas": k.quotas}
-            for k in keys]
+    rows = [
+        {
+            "name": k.name,
+            "scope": k.scope.value,
+            "created_at": k.created_at,
+            "revoked_at": k.revoked_at,
+            "active": k.active,
+            "quotas": k.quotas,
+        }
+        for k in keys
+    ]
     if as_json:
         typer.echo(json.dumps({"keys": rows}))
         return
@@ -110,11 +145,13 @@ def list_keys(
 
     def t(x: float | None) -> str:
         return "-" if x is None else time.strftime("%Y-%m-%d %H:%M", time.gmtime(x))
+
     typer.echo(f"{'NAME':24} {'SCOPE':7} {'CREATED (UTC)':17} {'REVOKED':17} QUOTAS")
     for r in rows:
         q = ",".join(f"{k}={v}" for k, v in sorted(r["quotas"].items())) or "-"
-        typer.echo(f"{r['name']:24} {r['scope']:7} {t(r['created_at']):17} "
-                   f"{t(r['revoked_at']):17} {q}")
+        typer.echo(
+            f"{r['name']:24} {r['scope']:7} {t(r['created_at']):17} {t(r['revoked_at']):17} {q}"
+        )
 
 
 @app.command()
@@ -151,26 +188,38 @@ def check_bind(host: str, what: str = "rsf serve") -> None:
 
     def say(m: str) -> None:
         print(f"[{what}] {m}", file=sys.stderr)
+
     if s.auth == "off":
-        say("RSF_AUTH=off (--insecure): no API keys; anyone who can reach this port may "
-            "submit and cancel sweeps and read every result")
+        say(
+            "RSF_AUTH=off (--insecure): no API keys; anyone who can reach this port may "
+            "submit and cancel sweeps and read every result"
+        )
         return
     loop = is_loopback(host)
     n = sum(k.active for k in _store(None).list_keys())
     if n:
-        say(f"API keys required ({n} active): send 'Authorization: Bearer <key>'; "
-            "the dashboard asks for the key once per browser session")
+        say(
+            f"API keys required ({n} active): send 'Authorization: Bearer <key>'; "
+            "the dashboard asks for the key once per browser session"
+        )
         return
     if loop:
-        say("no API key: serving requests without a key on loopback only "
-            + ("(RSF_AUTH=on: every request will be refused until a key exists; "
-               "'rsf keys create --name NAME')" if s.auth == "on" else
-               "('rsf keys create --name NAME' to require keys)"))
+        say(
+            "no API key: serving requests without a key on loopback only "
+            + (
+                "(RSF_AUTH=on: every request will be refused until a key exists; "
+                "'rsf keys create --name NAME')"
+                if s.auth == "on"
+                else "('rsf keys create --name NAME' to require keys)"
+            )
+        )
         return
     typer.echo(
         f"error: refusing to serve on {host}, a non-loopback interface, without an API "
         "key: anyone on the network could submit sweeps, cancel them and read every "
         "result.  Create one with 'rsf keys create --name NAME --scope admin' (same "
         "--data-dir / RSF_* settings), or pass --insecure (RSF_AUTH=off) to serve "
-        "without keys.", err=True)
+        "without keys.",
+        err=True,
+    )
     raise typer.Exit(code=2)

@@ -9,6 +9,7 @@ field and its valid range.
 SI machine options (all commands of ``si`` and ``protocol``): --a, --b, --dc-m,
 --sigma-pa, --k-pa-per-m, --v-star-m-s, --v-load-m-s (default V_*), --eps.
 """
+
 from __future__ import annotations
 
 import csv
@@ -23,12 +24,20 @@ import typer
 
 __all__ = ["si_app", "protocol_app", "fit_command"]
 
-si_app = typer.Typer(name="si", no_args_is_help=True, help="Queries in SI units: the "
-                     "machine as a, b, Dc [m], sigma [Pa], k [Pa/m], V_* and V_load [m/s]; "
-                     "answers also in s, m/s and Pa.")
-protocol_app = typer.Typer(name="protocol", no_args_is_help=True, help="Lab protocols in SI "
-                           "units: velocity step, slide-hold-slide, any load history (true "
-                           "peaks, steady-state and peak friction changes; JSON, CSV, PNG).")
+si_app = typer.Typer(
+    name="si",
+    no_args_is_help=True,
+    help="Queries in SI units: the "
+    "machine as a, b, Dc [m], sigma [Pa], k [Pa/m], V_* and V_load [m/s]; "
+    "answers also in s, m/s and Pa.",
+)
+protocol_app = typer.Typer(
+    name="protocol",
+    no_args_is_help=True,
+    help="Lab protocols in SI "
+    "units: velocity step, slide-hold-slide, any load history (true "
+    "peaks, steady-state and peak friction changes; JSON, CSV, PNG).",
+)
 
 
 class Pert(str, Enum):  # noqa: UP042 (typer choices)
@@ -53,17 +62,19 @@ A = typer.Option(..., "--a", help="Direct-effect coefficient a, (0, 1].")
 B = typer.Option(..., "--b", help="Evolution-effect coefficient b, (a, 1e6 a].")
 DC = typer.Option(..., "--dc-m", help="Characteristic slip distance Dc [m], (0, 1e3].")
 SIGMA = typer.Option(..., "--sigma-pa", help="Effective normal stress [Pa], (0, 1e12].")
-K = typer.Option(..., "--k-pa-per-m", help="Machine stiffness k [Pa/m], >= 0 "
-                 "(kappa = k Dc/(a sigma) <= 1e6).")
+K = typer.Option(
+    ..., "--k-pa-per-m", help="Machine stiffness k [Pa/m], >= 0 (kappa = k Dc/(a sigma) <= 1e6)."
+)
 VSTAR = typer.Option(..., "--v-star-m-s", help="Reference slip rate V_* [m/s], (0, 1e3].")
-VLOAD = typer.Option(None, "--v-load-m-s", help="Load-point velocity [m/s], [0, 1e3] "
-                     "(default V_*).")
+VLOAD = typer.Option(
+    None, "--v-load-m-s", help="Load-point velocity [m/s], [0, 1e3] (default V_*)."
+)
 EPS = typer.Option(1.0, "--eps", help="Evolution law, [0, 1]: 0 slip law, 1 aging law.")
-RTOL = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator, "
-                    "[1e-13, 1e-3].")
+RTOL = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator, [1e-13, 1e-3].")
 JSON_OUT = typer.Option(False, "--json", help="Print one JSON object.")
-OUT = typer.Option(None, "--out", help="Also write the result: .json, .csv (the samples) "
-                   "or .png (plot).")
+OUT = typer.Option(
+    None, "--out", help="Also write the result: .json, .csv (the samples) or .png (plot)."
+)
 
 
 def _fail(msg: str) -> None:
@@ -97,10 +108,17 @@ def _run(model: Any, body: dict[str, Any], fn: Callable[[Any], dict[str, Any]]) 
     raise AssertionError("unreachable")
 
 
-def _physical(a: float, b: float, dc: float, sigma: float, k: float, vs: float,
-              vl: float | None) -> dict[str, Any]:
-    d: dict[str, Any] = {"a": a, "b": b, "Dc_m": dc, "sigma_Pa": sigma, "k_Pa_per_m": k,
-                         "V_star_m_s": vs}
+def _physical(
+    a: float, b: float, dc: float, sigma: float, k: float, vs: float, vl: float | None
+) -> dict[str, Any]:
+    d: dict[str, Any] = {
+        "a": a,
+        "b": b,
+        "Dc_m": dc,
+        "sigma_Pa": sigma,
+        "k_Pa_per_m": k,
+        "V_star_m_s": vs,
+    }
     if vl is not None:
         d["V_load_m_s"] = vl
     return d
@@ -123,9 +141,12 @@ def _csv(columns: dict[str, list[Any]]) -> str:
     return buf.getvalue()
 
 
-def _write(out: Path | None, result: dict[str, Any],
-           table: Callable[[dict[str, Any]], dict[str, list[Any]]],
-           plot: Callable[[dict[str, Any]], bytes]) -> None:
+def _write(
+    out: Path | None,
+    result: dict[str, Any],
+    table: Callable[[dict[str, Any]], dict[str, list[Any]]],
+    plot: Callable[[dict[str, Any]], bytes],
+) -> None:
     if out is None:
         return
     if out.suffix == ".json":
@@ -143,100 +164,172 @@ def _g(x: Any) -> str:
 
 
 # --------------------------------------------------------------------------- rsf si
-def _si_body(a: float, b: float, dc: float, sigma: float, k: float, vs: float,
-             vl: float | None, eps: float, rtol: float, pert: Pert) -> dict[str, Any]:
-    return {"physical": _physical(a, b, dc, sigma, k, vs, vl), "eps": eps, "rtol": rtol,
-            "perturbation": pert.value}
+def _si_body(
+    a: float,
+    b: float,
+    dc: float,
+    sigma: float,
+    k: float,
+    vs: float,
+    vl: float | None,
+    eps: float,
+    rtol: float,
+    pert: Pert,
+) -> dict[str, Any]:
+    return {
+        "physical": _physical(a, b, dc, sigma, k, vs, vl),
+        "eps": eps,
+        "rtol": rtol,
+        "perturbation": pert.value,
+    }
 
 
-def _perturbation(body: dict[str, Any], size: float | None, factor: float | None,
-                  new_v: float | None, new_vlp: float | None) -> dict[str, Any]:
-    for name, v in (("size", size), ("factor", factor), ("new_slip_rate_m_s", new_v),
-                    ("new_load_point_velocity_m_s", new_vlp)):
+def _perturbation(
+    body: dict[str, Any],
+    size: float | None,
+    factor: float | None,
+    new_v: float | None,
+    new_vlp: float | None,
+) -> dict[str, Any]:
+    for name, v in (
+        ("size", size),
+        ("factor", factor),
+        ("new_slip_rate_m_s", new_v),
+        ("new_load_point_velocity_m_s", new_vlp),
+    ):
         if v is not None:
             body[name] = v
     return body
 
 
-SIZE = typer.Option(None, "--size", help="Dimensionless size (d = ln(V_new/V_before) or "
-                    "dv = V_new/V_load - 1).")
-FACTOR = typer.Option(None, "--factor", help="V_new/V_before (velocity jump) or "
-                      "V_new/V_load (load-point jump).")
+SIZE = typer.Option(
+    None, "--size", help="Dimensionless size (d = ln(V_new/V_before) or dv = V_new/V_load - 1)."
+)
+FACTOR = typer.Option(
+    None, "--factor", help="V_new/V_before (velocity jump) or V_new/V_load (load-point jump)."
+)
 NEWV = typer.Option(None, "--new-slip-rate-m-s", help="Velocity jump to this slip rate [m/s].")
-NEWVLP = typer.Option(None, "--new-load-point-velocity-m-s", help="Load-point jump to this "
-                      "velocity [m/s].")
+NEWVLP = typer.Option(
+    None, "--new-load-point-velocity-m-s", help="Load-point jump to this velocity [m/s]."
+)
 PERT = typer.Option(Pert.velocity_jump, "--perturbation", help="Kind of perturbation.")
 
 
 @si_app.command("classify")
-def si_classify(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
-                k_pa_per_m: float = K, v_star_m_s: float = VSTAR,
-                v_load_m_s: float | None = VLOAD, eps: float = EPS,
-                perturbation: Pert = PERT, size: float | None = SIZE,
-                factor: float | None = FACTOR, new_slip_rate_m_s: float | None = NEWV,
-                new_load_point_velocity_m_s: float | None = NEWVLP, rtol: float = RTOL,
-                as_json: bool = JSON_OUT) -> None:
+def si_classify(
+    a: float = A,
+    b: float = B,
+    dc_m: float = DC,
+    sigma_pa: float = SIGMA,
+    k_pa_per_m: float = K,
+    v_star_m_s: float = VSTAR,
+    v_load_m_s: float | None = VLOAD,
+    eps: float = EPS,
+    perturbation: Pert = PERT,
+    size: float | None = SIZE,
+    factor: float | None = FACTOR,
+    new_slip_rate_m_s: float | None = NEWV,
+    new_load_point_velocity_m_s: float | None = NEWVLP,
+    rtol: float = RTOL,
+    as_json: bool = JSON_OUT,
+) -> None:
     """Stable or unstable, for a perturbation stated in SI; times in s, peak in m/s."""
     from rsfapp import adapter
     from rsfapp.requests import ClassifyRequest
 
-    body = _perturbation(_si_body(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s,
-                                  eps, rtol, perturbation), size, factor, new_slip_rate_m_s,
-                         new_load_point_velocity_m_s)
+    body = _perturbation(
+        _si_body(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s, eps, rtol, perturbation),
+        size,
+        factor,
+        new_slip_rate_m_s,
+        new_load_point_velocity_m_s,
+    )
     d = _run(ClassifyRequest, body, lambda r: adapter.classify(r, max_steps=None))
     si = d["si"]
-    _emit(d, as_json, [
-        f"outcome            {d['outcome']}  (certificate: {d['certificate']})",
-        f"kappa/kappa_crit   {_g(si['kappa'] / si['kappa_crit'])}",
-        f"blowup_time_s      {_g(si['blowup_time_s'])}",
-        f"return_time_s      {_g(si['return_time_s'])}",
-        f"peak_slip_rate_m_s {_g(si['peak_slip_rate_m_s'])}  at t = {_g(si['peak_time_s'])} s",
-        f"rel_accuracy       {d['rel_accuracy']:.2e}"])
+    _emit(
+        d,
+        as_json,
+        [
+            f"outcome            {d['outcome']}  (certificate: {d['certificate']})",
+            f"kappa/kappa_crit   {_g(si['kappa'] / si['kappa_crit'])}",
+            f"blowup_time_s      {_g(si['blowup_time_s'])}",
+            f"return_time_s      {_g(si['return_time_s'])}",
+            f"peak_slip_rate_m_s {_g(si['peak_slip_rate_m_s'])}  at t = {_g(si['peak_time_s'])} s",
+            f"rel_accuracy       {d['rel_accuracy']:.2e}",
+        ],
+    )
 
 
 @si_app.command("critical")
-def si_critical(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
-                k_pa_per_m: float = K, v_star_m_s: float = VSTAR,
-                v_load_m_s: float | None = VLOAD, eps: float = EPS,
-                perturbation: Pert = PERT, rtol: float = RTOL,
-                as_json: bool = JSON_OUT) -> None:
+def si_critical(
+    a: float = A,
+    b: float = B,
+    dc_m: float = DC,
+    sigma_pa: float = SIGMA,
+    k_pa_per_m: float = K,
+    v_star_m_s: float = VSTAR,
+    v_load_m_s: float | None = VLOAD,
+    eps: float = EPS,
+    perturbation: Pert = PERT,
+    rtol: float = RTOL,
+    as_json: bool = JSON_OUT,
+) -> None:
     """Critical perturbation in SI: the slip rate [m/s] (and stress jump [Pa]) of the
     critical velocity jump, or the critical load-point velocity [m/s]."""
     from rsfapp import adapter
     from rsfapp.requests import CriticalRequest
 
-    body = _si_body(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s, eps, rtol,
-                    perturbation)
+    body = _si_body(
+        a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s, eps, rtol, perturbation
+    )
     d = _run(CriticalRequest, body, adapter.critical)
     si = d["si"]
     jump = si.get("velocity_jump") or si.get("load_point_jump") or {}
-    lines = [f"kind              {d['kind']}", f"critical_size     {_g(d['critical_size'])}",
-             f"kappa/kappa_crit  {_g(si['kappa'] / si['kappa_crit'])}"]
+    lines = [
+        f"kind              {d['kind']}",
+        f"critical_size     {_g(d['critical_size'])}",
+        f"kappa/kappa_crit  {_g(si['kappa'] / si['kappa_crit'])}",
+    ]
     lines += [f"{k:<17} {_g(v)}" for k, v in jump.items()]
     lines.append(f"rel_accuracy      {d['rel_accuracy']:.2e}")
     _emit(d, as_json, lines)
 
 
 @si_app.command("trajectory")
-def si_trajectory(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
-                  k_pa_per_m: float = K, v_star_m_s: float = VSTAR,
-                  v_load_m_s: float | None = VLOAD, eps: float = EPS,
-                  perturbation: Pert = PERT, size: float | None = SIZE,
-                  factor: float | None = FACTOR, new_slip_rate_m_s: float | None = NEWV,
-                  new_load_point_velocity_m_s: float | None = NEWVLP, rtol: float = RTOL,
-                  n_points: int = typer.Option(200, "--n-points", help="Samples, [2, 10000]."),
-                  sampling: Sampling = typer.Option(Sampling.seconds, "--sampling",
-                                                    help="Evenly in tau, T or seconds."),
-                  t_end_s: float | None = typer.Option(None, "--t-end-s", help="Run to this "
-                                                          "time [s]."),
-                  out: Path | None = OUT, as_json: bool = JSON_OUT) -> None:
+def si_trajectory(
+    a: float = A,
+    b: float = B,
+    dc_m: float = DC,
+    sigma_pa: float = SIGMA,
+    k_pa_per_m: float = K,
+    v_star_m_s: float = VSTAR,
+    v_load_m_s: float | None = VLOAD,
+    eps: float = EPS,
+    perturbation: Pert = PERT,
+    size: float | None = SIZE,
+    factor: float | None = FACTOR,
+    new_slip_rate_m_s: float | None = NEWV,
+    new_load_point_velocity_m_s: float | None = NEWVLP,
+    rtol: float = RTOL,
+    n_points: int = typer.Option(200, "--n-points", help="Samples, [2, 10000]."),
+    sampling: Sampling = typer.Option(
+        Sampling.seconds, "--sampling", help="Evenly in tau, T or seconds."
+    ),
+    t_end_s: float | None = typer.Option(None, "--t-end-s", help="Run to this time [s]."),
+    out: Path | None = OUT,
+    as_json: bool = JSON_OUT,
+) -> None:
     """A trajectory with SI columns (t_s, V_m_s, tau_change_Pa, friction, ...)."""
     from rsfapp import adapter
     from rsfapp.requests import TrajectoryRequest
 
-    body = _perturbation(_si_body(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s,
-                                  eps, rtol, perturbation), size, factor, new_slip_rate_m_s,
-                         new_load_point_velocity_m_s)
+    body = _perturbation(
+        _si_body(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s, eps, rtol, perturbation),
+        size,
+        factor,
+        new_slip_rate_m_s,
+        new_load_point_velocity_m_s,
+    )
     body.update(n_points=n_points, sampling=sampling.value)
     if t_end_s is not None:
         body["t_end_s"] = t_end_s
@@ -244,22 +337,40 @@ def si_trajectory(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float 
 
     def plot(r: dict[str, Any]) -> bytes:
         from rsfplots import plot_trajectory
+
         return bytes(plot_trajectory(r, "png"))
 
     _write(out, d, lambda r: r["trajectory"], plot)
     tr = d["trajectory"]
-    lines = [f"outcome {d['outcome']}; sampling: {d['sampling']['description']}",
-             "t_s V_m_s tau_change_Pa"]
-    lines += [f"{t:.10g} {_g(v)} {_g(s)}" for t, v, s in zip(tr["t_s"], tr["V_m_s"],
-                                                             tr["tau_change_Pa"], strict=True)]
+    lines = [
+        f"outcome {d['outcome']}; sampling: {d['sampling']['description']}",
+        "t_s V_m_s tau_change_Pa",
+    ]
+    lines += [
+        f"{t:.10g} {_g(v)} {_g(s)}"
+        for t, v, s in zip(tr["t_s"], tr["V_m_s"], tr["tau_change_Pa"], strict=True)
+    ]
     _emit(d, as_json, lines)
 
 
 # --------------------------------------------------------------------------- rsf protocol
-def _machine(a: float, b: float, dc: float, sigma: float, k: float, vs: float, eps: float,
-             f_star: float, rtol: float) -> dict[str, Any]:
-    return {"physical": _physical(a, b, dc, sigma, k, vs, None), "eps": eps,
-            "f_star": f_star, "rtol": rtol}
+def _machine(
+    a: float,
+    b: float,
+    dc: float,
+    sigma: float,
+    k: float,
+    vs: float,
+    eps: float,
+    f_star: float,
+    rtol: float,
+) -> dict[str, Any]:
+    return {
+        "physical": _physical(a, b, dc, sigma, k, vs, None),
+        "eps": eps,
+        "f_star": f_star,
+        "rtol": rtol,
+    }
 
 
 FSTAR = typer.Option(0.6, "--f-star", help="Reference friction f_* at V_*, [-10, 10].")
@@ -270,6 +381,7 @@ def _protocol_out(d: dict[str, Any], out: Path | None, as_json: bool) -> None:
 
     def plot(r: dict[str, Any]) -> bytes:
         from rsfplots.lab import plot_protocol
+
         return plot_protocol(r, "png")
 
     _write(out, d, adapter.protocol_table, plot)
@@ -278,25 +390,34 @@ def _protocol_out(d: dict[str, Any], out: Path | None, as_json: bool) -> None:
     lines = [f"{d['kind']}: {'UNSTABLE (runaway)' if prot.get('unstable') else 'stable'}"]
     lines += [f"{k:<28} {_g(v)}" for k, v in fc.items() if k != "segments"]
     for s in fc.get("segments", []):
-        lines.append(f"segment {s['index']}: V_load {_g(s['V_load_m_s'])} m/s, df_ss "
-                     f"{_g(s['steady_state_delta_f'])}, peak f {_g(s['peak_friction'])} "
-                     f"(df_peak {_g(s['peak_delta_f'])}) at t = {_g(s['peak_time_s'])} s")
+        lines.append(
+            f"segment {s['index']}: V_load {_g(s['V_load_m_s'])} m/s, df_ss "
+            f"{_g(s['steady_state_delta_f'])}, peak f {_g(s['peak_friction'])} "
+            f"(df_peak {_g(s['peak_delta_f'])}) at t = {_g(s['peak_time_s'])} s"
+        )
     _emit(d, as_json, lines)
 
 
 @protocol_app.command("velocity-step")
-def protocol_velocity_step(a: float = A, b: float = B, dc_m: float = DC,
-                           sigma_pa: float = SIGMA, k_pa_per_m: float = K,
-                           v_star_m_s: float = VSTAR, eps: float = EPS, f_star: float = FSTAR,
-                           v1: float = typer.Option(..., "--v1-m-s", help="Velocity before [m/s]."),
-                           v2: float = typer.Option(..., "--v2-m-s", help="Velocity after [m/s]."),
-                           slip_total_m: float | None = typer.Option(
-                               None, "--slip-total-m", help="Displacement after the step [m] "
-                               "(default 10 Dc)."),
-                           n_points: int = typer.Option(400, "--n-points",
-                                                        help="Samples, [2, 10000]."),
-                           rtol: float = RTOL, out: Path | None = OUT,
-                           as_json: bool = JSON_OUT) -> None:
+def protocol_velocity_step(
+    a: float = A,
+    b: float = B,
+    dc_m: float = DC,
+    sigma_pa: float = SIGMA,
+    k_pa_per_m: float = K,
+    v_star_m_s: float = VSTAR,
+    eps: float = EPS,
+    f_star: float = FSTAR,
+    v1: float = typer.Option(..., "--v1-m-s", help="Velocity before [m/s]."),
+    v2: float = typer.Option(..., "--v2-m-s", help="Velocity after [m/s]."),
+    slip_total_m: float | None = typer.Option(
+        None, "--slip-total-m", help="Displacement after the step [m] (default 10 Dc)."
+    ),
+    n_points: int = typer.Option(400, "--n-points", help="Samples, [2, 10000]."),
+    rtol: float = RTOL,
+    out: Path | None = OUT,
+    as_json: bool = JSON_OUT,
+) -> None:
     """Load-point velocity step V1 -> V2 from steady state: true peak, steady-state and
     peak friction changes (also in Pa), deviation from `eq: delta tau`."""
     from rsfapp import adapter
@@ -310,39 +431,63 @@ def protocol_velocity_step(a: float = A, b: float = B, dc_m: float = DC,
 
 
 @protocol_app.command("slide-hold-slide")
-def protocol_shs(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
-                 k_pa_per_m: float = K, v_star_m_s: float = VSTAR, eps: float = EPS,
-                 f_star: float = FSTAR,
-                 v: float = typer.Option(..., "--v-m-s", help="Sliding velocity [m/s]."),
-                 hold_s: float = typer.Option(..., "--hold-s", help="Hold time [s]."),
-                 before_s: float = typer.Option(..., "--slide-before-s", help="Slide before [s]."),
-                 after_s: float = typer.Option(..., "--slide-after-s", help="Reslide [s]."),
-                 n_points: int = typer.Option(200, "--n-points-per-segment",
-                                              help="Samples per segment, [2, 100000]."),
-                 rtol: float = RTOL, out: Path | None = OUT,
-                 as_json: bool = JSON_OUT) -> None:
+def protocol_shs(
+    a: float = A,
+    b: float = B,
+    dc_m: float = DC,
+    sigma_pa: float = SIGMA,
+    k_pa_per_m: float = K,
+    v_star_m_s: float = VSTAR,
+    eps: float = EPS,
+    f_star: float = FSTAR,
+    v: float = typer.Option(..., "--v-m-s", help="Sliding velocity [m/s]."),
+    hold_s: float = typer.Option(..., "--hold-s", help="Hold time [s]."),
+    before_s: float = typer.Option(..., "--slide-before-s", help="Slide before [s]."),
+    after_s: float = typer.Option(..., "--slide-after-s", help="Reslide [s]."),
+    n_points: int = typer.Option(
+        200, "--n-points-per-segment", help="Samples per segment, [2, 100000]."
+    ),
+    rtol: float = RTOL,
+    out: Path | None = OUT,
+    as_json: bool = JSON_OUT,
+) -> None:
     """Slide, hold, reslide: healing (true peak on reslide minus f_ss) and relaxation."""
     from rsfapp import adapter
     from rsfapp.requests.protocols import SlideHoldSlideRequest
 
     body = _machine(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, eps, f_star, rtol)
-    body.update(V_m_s=v, hold_s=hold_s, slide_before_s=before_s, slide_after_s=after_s,
-                n_points_per_segment=n_points)
-    _protocol_out(_run(SlideHoldSlideRequest, body, adapter.protocol_slide_hold_slide), out,
-                  as_json)
+    body.update(
+        V_m_s=v,
+        hold_s=hold_s,
+        slide_before_s=before_s,
+        slide_after_s=after_s,
+        n_points_per_segment=n_points,
+    )
+    _protocol_out(
+        _run(SlideHoldSlideRequest, body, adapter.protocol_slide_hold_slide), out, as_json
+    )
 
 
 @protocol_app.command("load-history")
-def protocol_history(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: float = SIGMA,
-                     k_pa_per_m: float = K, v_star_m_s: float = VSTAR, eps: float = EPS,
-                     f_star: float = FSTAR,
-                     segment: list[str] = typer.Option(..., "--segment", help="DURATION_S:"
-                                                       "V_LOAD_M_S, repeated in order "
-                                                       "(V 0 = hold)."),
-                     n_points: int = typer.Option(200, "--n-points-per-segment",
-                                                  help="Samples per segment, [2, 100000]."),
-                     rtol: float = RTOL, out: Path | None = OUT,
-                     as_json: bool = JSON_OUT) -> None:
+def protocol_history(
+    a: float = A,
+    b: float = B,
+    dc_m: float = DC,
+    sigma_pa: float = SIGMA,
+    k_pa_per_m: float = K,
+    v_star_m_s: float = VSTAR,
+    eps: float = EPS,
+    f_star: float = FSTAR,
+    segment: list[str] = typer.Option(
+        ..., "--segment", help="DURATION_S:V_LOAD_M_S, repeated in order (V 0 = hold)."
+    ),
+    n_points: int = typer.Option(
+        200, "--n-points-per-segment", help="Samples per segment, [2, 100000]."
+    ),
+    rtol: float = RTOL,
+    out: Path | None = OUT,
+    as_json: bool = JSON_OUT,
+) -> None:
     """Any piecewise-constant load-point history (e.g. several velocity steps)."""
     from rsfapp import adapter
     from rsfapp.requests.protocols import LoadHistoryRequest
@@ -353,8 +498,9 @@ def protocol_history(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: flo
             d_s, v_s = s.split(":")
             segs.append({"duration_s": float(d_s), "V_load_m_s": float(v_s)})
         except ValueError:
-            _fail(f"segment[{i}]: {s!r} is invalid (valid range: DURATION_S:V_LOAD_M_S, "
-                  "e.g. 10:1e-6)")
+            _fail(
+                f"segment[{i}]: {s!r} is invalid (valid range: DURATION_S:V_LOAD_M_S, e.g. 10:1e-6)"
+            )
     body = _machine(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, eps, f_star, rtol)
     body.update(segments=segs, n_points_per_segment=n_points)
     _protocol_out(_run(LoadHistoryRequest, body, adapter.protocol_load_history), out, as_json)
@@ -362,26 +508,43 @@ def protocol_history(a: float = A, b: float = B, dc_m: float = DC, sigma_pa: flo
 
 # --------------------------------------------------------------------------- rsf fit
 def fit_command(
-    file: Path = typer.Argument(..., help="Lab record: CSV with header t_s (or x_lp_m), "
-                                "v_lp_m_s, mu; or JSON columns."),
-    law: FitLaw | None = typer.Option(None, "--law", help="Evolution law of the reported "
-                                         "fit (default: the best of the comparison)."),
-    stiffness: float | None = typer.Option(None, "--stiffness", help="Machine stiffness "
-                                              "K_PER_M in friction per metre of load-point "
-                                              "displacement [1/m] (default: infinitely stiff)."),
-    fit_stiffness: bool = typer.Option(False, "--fit-stiffness", help="Fit the machine "
-                                       "stiffness too."),
-    compare: bool = typer.Option(True, "--compare/--no-compare", help="Fit every law and "
-                                 "compare them (AIC/BIC)."),
-    samples: int = typer.Option(400, "--uncertainty-samples", help="Covariance samples for "
-                                "the stability uncertainty, [0, 100000]."),
-    series: bool = typer.Option(False, "--series", help="Include the data/model/residual "
-                                "series in --json output."),
-    posterior_steps: int | None = typer.Option(None, "--posterior-steps", help="Also sample "
-                                               "the posterior with emcee (32 walkers, this "
-                                               "many steps, a quarter burnt)."),
-    out: Path | None = typer.Option(None, "--out", help="Also write .json (all), .csv "
-                                       "(series) or .png (data, fit, residuals)."),
+    file: Path = typer.Argument(
+        ..., help="Lab record: CSV with header t_s (or x_lp_m), v_lp_m_s, mu; or JSON columns."
+    ),
+    law: FitLaw | None = typer.Option(
+        None,
+        "--law",
+        help="Evolution law of the reported fit (default: the best of the comparison).",
+    ),
+    stiffness: float | None = typer.Option(
+        None,
+        "--stiffness",
+        help="Machine stiffness "
+        "K_PER_M in friction per metre of load-point "
+        "displacement [1/m] (default: infinitely stiff).",
+    ),
+    fit_stiffness: bool = typer.Option(
+        False, "--fit-stiffness", help="Fit the machine stiffness too."
+    ),
+    compare: bool = typer.Option(
+        True, "--compare/--no-compare", help="Fit every law and compare them (AIC/BIC)."
+    ),
+    samples: int = typer.Option(
+        400,
+        "--uncertainty-samples",
+        help="Covariance samples for the stability uncertainty, [0, 100000].",
+    ),
+    series: bool = typer.Option(
+        False, "--series", help="Include the data/model/residual series in --json output."
+    ),
+    posterior_steps: int | None = typer.Option(
+        None,
+        "--posterior-steps",
+        help="Also sample the posterior with emcee (32 walkers, this many steps, a quarter burnt).",
+    ),
+    out: Path | None = typer.Option(
+        None, "--out", help="Also write .json (all), .csv (series) or .png (data, fit, residuals)."
+    ),
     as_json: bool = JSON_OUT,
 ) -> None:
     """Fit mu0, a, b, Dc (and eps, machine stiffness) to a velocity-step record; compare the
@@ -391,8 +554,12 @@ def fit_command(
 
     if not file.is_file():
         _fail(f"file: {str(file)!r} is not a readable file")
-    body: dict[str, Any] = {"record": file.read_text(encoding="utf-8-sig"), "compare": compare,
-                            "fit_stiffness": fit_stiffness, "uncertainty_samples": samples}
+    body: dict[str, Any] = {
+        "record": file.read_text(encoding="utf-8-sig"),
+        "compare": compare,
+        "fit_stiffness": fit_stiffness,
+        "uncertainty_samples": samples,
+    }
     if law is not None:
         body["law"] = law.value
     if stiffness is not None:
@@ -403,6 +570,7 @@ def fit_command(
 
     def plot(r: dict[str, Any]) -> bytes:
         from rsfplots.lab import plot_fit
+
         return plot_fit(r, "png")
 
     _write(out, d, adapter.fit_table, plot)
@@ -412,18 +580,31 @@ def fit_command(
     for k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m"):
         if k in p:
             err = se.get(k)
-            lines.append(f"  {k:<8} {_g(p[k])}" + (f" +- {_g(err)}" if err is not None else
-                                                   " (fixed)" if k not in d["fitted"] else ""))
+            lines.append(
+                f"  {k:<8} {_g(p[k])}"
+                + (
+                    f" +- {_g(err)}"
+                    if err is not None
+                    else " (fixed)"
+                    if k not in d["fitted"]
+                    else ""
+                )
+            )
     lines.append(f"  rms misfit {_g(d['misfit']['rms'])}, AIC {_g(d['misfit']['aic'])}")
     comp = d.get("law_comparison")
     if comp:
         lines.append(f"law comparison (best: {comp['best']}):")
-        lines += [f"  {s['law']:<7} rms {_g(s['rms'])}  dAIC {_g(s['delta_aic'])}  weight "
-                  f"{_g(s['akaike_weight'])}  ({s['status']})" for s in comp["scores"]]
+        lines += [
+            f"  {s['law']:<7} rms {_g(s['rms'])}  dAIC {_g(s['delta_aic'])}  weight "
+            f"{_g(s['akaike_weight'])}  ({s['status']})"
+            for s in comp["scores"]
+        ]
     st = d.get("stability")
     if st:
-        lines.append(f"stability: {st.get('regime')}; kappa/kappa_crit {_g(st.get('kappa_ratio'))}"
-                     f"; critical stiffness {_g(st.get('critical_stiffness_per_m'))} 1/m")
+        lines.append(
+            f"stability: {st.get('regime')}; kappa/kappa_crit {_g(st.get('kappa_ratio'))}"
+            f"; critical stiffness {_g(st.get('critical_stiffness_per_m'))} 1/m"
+        )
         if st.get("message"):
             lines.append(f"  {st['message']}")
     _emit(shown, as_json, lines)

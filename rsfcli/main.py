@@ -6,13 +6,13 @@ Dimensionless parameters follow the paper: --ba = b/a (> 1), --kappa = k Dc/(a s
 (absolute, kappa_crit = b/a - 1), --eps in [0, 1] (0 slip law, 1 aging law),
 --vo = V_o/V_* (0 = stationary load point).
 """
+
 from __future__ import annotations
 
 import json
-import sys
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
-from typing import Any, Optional, Tuple
+from typing import Any
 
 import typer
 
@@ -29,17 +29,17 @@ app = typer.Typer(
 )
 
 
-class PerturbationKind(str, Enum):
+class PerturbationKind(StrEnum):
     velocity_jump = "velocity-jump"
     load_point_jump = "load-point-jump"
 
 
-class Sampling(str, Enum):
+class Sampling(StrEnum):
     tau = "tau"
     time = "time"
 
 
-class Case(str, Enum):
+class Case(StrEnum):
     A = "A"
     B = "B"
     C = "C"
@@ -56,11 +56,16 @@ BA = _opt(limits.BA, "--ba")
 KAPPA = _opt(limits.KAPPA, "--kappa")
 EPS = _opt(limits.EPS, "--eps")
 VO = _opt(limits.VO, "--vo")
-PERT = typer.Option(PerturbationKind.velocity_jump, "--perturbation", help="Kind of perturbation from steady state.")
-SIZE = typer.Option(limits.VELOCITY_JUMP_SIZE.default, "--size",
-                    help="Perturbation size: velocity jump d (phi and psi jump by d), valid "
-                    f"range {limits.VELOCITY_JUMP_SIZE.text}; or load-point jump dv "
-                    f"(v_o -> v_o (1 + dv)), valid range {limits.LOAD_POINT_JUMP_SIZE.text}.")
+PERT = typer.Option(
+    PerturbationKind.velocity_jump, "--perturbation", help="Kind of perturbation from steady state."
+)
+SIZE = typer.Option(
+    limits.VELOCITY_JUMP_SIZE.default,
+    "--size",
+    help="Perturbation size: velocity jump d (phi and psi jump by d), valid "
+    f"range {limits.VELOCITY_JUMP_SIZE.text}; or load-point jump dv "
+    f"(v_o -> v_o (1 + dv)), valid range {limits.LOAD_POINT_JUMP_SIZE.text}.",
+)
 RTOL = _opt(limits.RTOL, "--rtol")
 JSON = typer.Option(False, "--json", help="Print one JSON object.")
 
@@ -77,7 +82,7 @@ def _emit(obj: dict[str, Any], as_json: bool, lines: list[str]) -> None:
         typer.echo("\n".join(lines))
 
 
-def _params(ba: float, kappa: float, eps: float, vo: float):  # noqa: ANN202
+def _params(ba: float, kappa: float, eps: float, vo: float) -> Any:
     from rsfcore import Params
 
     return Params(ba=ba, kappa=kappa, eps=eps, vo=vo)
@@ -126,17 +131,33 @@ def trajectory(
     perturbation: PerturbationKind = PERT,
     size: float = SIZE,
     rtol: float = RTOL,
-    n_points: int = typer.Option(limits.N_POINTS.default, "--n-points", help=limits.N_POINTS.help()),
-    t_end: Optional[float] = typer.Option(None, "--t-end", help="Run to this dimensionless time T (default: to the decision)."),
-    sampling: Sampling = typer.Option(Sampling.tau, "--sampling", help="Samples even in the engine's hybrid time (tau) or in T (time)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Also write the samples to .csv or .json."),
+    n_points: int = typer.Option(
+        limits.N_POINTS.default, "--n-points", help=limits.N_POINTS.help()
+    ),
+    t_end: float | None = typer.Option(
+        None, "--t-end", help="Run to this dimensionless time T (default: to the decision)."
+    ),
+    sampling: Sampling = typer.Option(
+        Sampling.tau,
+        "--sampling",
+        help="Samples even in the engine's hybrid time (tau) or in T (time).",
+    ),
+    out: Path | None = typer.Option(None, "--out", help="Also write the samples to .csv or .json."),
     as_json: bool = JSON,
 ) -> None:
     """A trajectory downsampled to --n-points, plus everything `classify` reports."""
     from rsfcore import ParameterError, UndecidedError, simulate
 
     try:
-        r = simulate(_params(ba, kappa, eps, vo), perturbation.value, size, rtol=rtol, n_points=n_points, t_end=t_end, sampling=sampling.value)
+        r = simulate(
+            _params(ba, kappa, eps, vo),
+            perturbation.value,
+            size,
+            rtol=rtol,
+            n_points=n_points,
+            t_end=t_end,
+            sampling=sampling.value,
+        )
     except (ParameterError, UndecidedError) as e:
         _fail(e)
     d = r.to_dict()
@@ -144,8 +165,11 @@ def trajectory(
         _write_table(out, d["trajectory"])
     t = r.trajectory
     assert t is not None
-    lines = [f"outcome {r.outcome} ({r.certificate}); peak_phi {r.peak_phi} at T = {r.peak_time}", "T phi psi"]
-    lines += [f"{a:.10g} {b:.10g} {c:.10g}" for a, b, c in zip(t.T, t.phi, t.psi)]
+    lines = [
+        f"outcome {r.outcome} ({r.certificate}); peak_phi {r.peak_phi} at T = {r.peak_time}",
+        "T phi psi",
+    ]
+    lines += [f"{a:.10g} {b:.10g} {c:.10g}" for a, b, c in zip(t.T, t.phi, t.psi, strict=True)]
     _emit(d, as_json, lines)
 
 
@@ -154,10 +178,16 @@ def _write_table(path: Path, columns: dict[str, list[float]]) -> None:
         path.write_text(json.dumps(columns, allow_nan=False))
     elif path.suffix == ".csv":
         keys = list(columns)
-        rows = zip(*(columns[k] for k in keys))
-        path.write_text(",".join(keys) + "\n" + "\n".join(",".join(repr(v) for v in row) for row in rows) + "\n")
+        rows = zip(*(columns[k] for k in keys), strict=True)
+        path.write_text(
+            ",".join(keys) + "\n" + "\n".join(",".join(repr(v) for v in row) for row in rows) + "\n"
+        )
     else:
-        _fail(ValueError(f"out={str(path)!r} is invalid: valid range is a path ending in .csv or .json"))
+        _fail(
+            ValueError(
+                f"out={str(path)!r} is invalid: valid range is a path ending in .csv or .json"
+            )
+        )
 
 
 @app.command()
@@ -193,16 +223,26 @@ def critical(
 
 @app.command()
 def diagram(
-    x: Tuple[str, float, float, int] = typer.Option(..., "--x", help="NAME START STOP N for the first axis (NAME: kappa_ratio, eps, ba, size)."),
-    y: Tuple[str, float, float, int] = typer.Option(..., "--y", help="NAME START STOP N for the second axis."),
+    x: tuple[str, float, float, int] = typer.Option(
+        ..., "--x", help="NAME START STOP N for the first axis (NAME: kappa_ratio, eps, ba, size)."
+    ),
+    y: tuple[str, float, float, int] = typer.Option(
+        ..., "--y", help="NAME START STOP N for the second axis."
+    ),
     ba: float = BA,
     kappa: float = KAPPA,
     eps: float = EPS,
     vo: float = VO,
     perturbation: PerturbationKind = PERT,
-    size: Optional[float] = typer.Option(None, "--size", help="If given, also classify this perturbation size at every point."),
+    size: float | None = typer.Option(
+        None, "--size", help="If given, also classify this perturbation size at every point."
+    ),
     rtol: float = RTOL,
-    out: Path = typer.Option(..., "--out", help="Output file: .npz (arrays x, y, critical_size[i, j] at x[i], y[j]; inf = infinite), .csv or .json."),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        help="Output file: .npz (arrays x, y, critical_size[i, j] at x[i], y[j]; inf = infinite), .csv or .json.",
+    ),
     as_json: bool = JSON,
 ) -> None:
     """Stability diagram on a 2-D grid of two of kappa_ratio, eps, ba, size (other parameters as in `critical`)."""
@@ -219,9 +259,17 @@ def diagram(
             raise ParameterError("out", str(out), "a path ending in .npz, .csv or .json")
         p = _params(ba, kappa, eps, vo)
         res = stability_diagram(
-            x[0], np.linspace(x[1], x[2], x[3]), y[0], np.linspace(y[1], y[2], y[3]),
-            ba=p.ba, kappa_ratio=p.kappa_ratio, eps=p.eps, vo=p.vo,
-            perturbation=perturbation.value, size=size, rtol=rtol,
+            x[0],
+            np.linspace(x[1], x[2], x[3]),
+            y[0],
+            np.linspace(y[1], y[2], y[3]),
+            ba=p.ba,
+            kappa_ratio=p.kappa_ratio,
+            eps=p.eps,
+            vo=p.vo,
+            perturbation=perturbation.value,
+            size=size,
+            rtol=rtol,
         )
     except ParameterError as e:
         _fail(e)
@@ -238,7 +286,9 @@ def diagram(
     }
     if getattr(res, "outcome", None) is not None:
         oc = np.asarray(res.outcome)
-        summary["n_unstable"] = int((oc == "unstable").sum()) if oc.dtype.kind in "US" else int(oc.sum())
+        summary["n_unstable"] = (
+            int((oc == "unstable").sum()) if oc.dtype.kind in "US" else int(oc.sum())
+        )
     _emit(summary, as_json, [f"{k} {v}" for k, v in summary.items()])
 
 
@@ -246,21 +296,33 @@ def diagram(
 def stiffness(
     case: Case = typer.Option(..., "--case", help="Continuum configuration of `tab: table` (A-E)."),
     mode: int = typer.Option(0, "--mode", help="Eigenmode index (0 = smallest; B, D, E only)."),
-    mu: Optional[float] = typer.Option(None, "--mu", help="Shear modulus mu [Pa] (> 0)."),
+    mu: float | None = typer.Option(None, "--mu", help="Shear modulus mu [Pa] (> 0)."),
     nu: float = typer.Option(0.25, "--nu", help="Poisson's ratio, [0, 0.5)."),
-    slip_mode: str = typer.Option("II", "--slip-mode", help="Mode of slip: II (in-plane) or III (anti-plane)."),
-    sigma: Optional[float] = typer.Option(None, "--sigma", help="Normal stress [Pa] (> 0)."),
-    a: Optional[float] = typer.Option(None, "--a", help="Direct-effect coefficient a (> 0)."),
-    b: Optional[float] = typer.Option(None, "--b", help="Evolution-effect coefficient b (> a)."),
-    dc: Optional[float] = typer.Option(None, "--dc", help="Characteristic slip distance Dc [m] (> 0)."),
-    h: Optional[float] = typer.Option(None, "--h", help="Depth of the interface below the free surface [m] (cases C, D)."),
+    slip_mode: str = typer.Option(
+        "II", "--slip-mode", help="Mode of slip: II (in-plane) or III (anti-plane)."
+    ),
+    sigma: float | None = typer.Option(None, "--sigma", help="Normal stress [Pa] (> 0)."),
+    a: float | None = typer.Option(None, "--a", help="Direct-effect coefficient a (> 0)."),
+    b: float | None = typer.Option(None, "--b", help="Evolution-effect coefficient b (> a)."),
+    dc: float | None = typer.Option(
+        None, "--dc", help="Characteristic slip distance Dc [m] (> 0)."
+    ),
+    h: float | None = typer.Option(
+        None, "--h", help="Depth of the interface below the free surface [m] (cases C, D)."
+    ),
     as_json: bool = JSON,
 ) -> None:
     """Continuum equivalent stiffness k/k_* (cases A-E) and, with physical parameters, the critical dimension."""
     from rsfcore import ParameterError
     from rsfcore.stiffness import stiffness_summary
 
-    phys = {k: v for k, v in dict(mu=mu, nu=nu, mode_of_slip=slip_mode, sigma=sigma, a=a, b=b, Dc=dc, h=h).items() if v is not None}
+    phys = {
+        k: v
+        for k, v in dict(
+            mu=mu, nu=nu, mode_of_slip=slip_mode, sigma=sigma, a=a, b=b, Dc=dc, h=h
+        ).items()
+        if v is not None
+    }
     if mu is None or sigma is None or a is None or b is None or dc is None:
         phys = {}
     try:
@@ -272,9 +334,11 @@ def stiffness(
 
 @app.command()
 def figure(
-    name: Optional[str] = typer.Argument(None, help="Figure name (see --list)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Output file, .png or .svg."),
-    list_: bool = typer.Option(False, "--list", help="List the figures with the caption each reproduces."),
+    name: str | None = typer.Argument(None, help="Figure name (see --list)."),
+    out: Path | None = typer.Option(None, "--out", help="Output file, .png or .svg."),
+    list_: bool = typer.Option(
+        False, "--list", help="List the figures with the caption each reproduces."
+    ),
 ) -> None:
     """Regenerate a figure of the paper from rsfcore (`rsf figure --list` names them)."""
     from rsfplots.cli import figure_command
@@ -284,7 +348,11 @@ def figure(
         raise typer.Exit(code=code)
 
 
-INSECURE = typer.Option(False, "--insecure", help="Serve without API keys (RSF_AUTH=off), even on a non-loopback interface.")
+INSECURE = typer.Option(
+    False,
+    "--insecure",
+    help="Serve without API keys (RSF_AUTH=off), even on a non-loopback interface.",
+)
 
 
 def _insecure(insecure: bool) -> None:
@@ -298,7 +366,11 @@ def _insecure(insecure: bool) -> None:
 def serve(
     host: str = typer.Option("127.0.0.1", "--host", help="Interface to bind."),
     port: int = typer.Option(8000, "--port", help="TCP port."),
-    data_dir: Path = typer.Option(Path("rsf-data"), "--data-dir", help="Directory for the SQLite cache, sweep store and the filesystem broker."),
+    data_dir: Path = typer.Option(
+        Path("rsf-data"),
+        "--data-dir",
+        help="Directory for the SQLite cache, sweep store and the filesystem broker.",
+    ),
     insecure: bool = INSECURE,
 ) -> None:
     """Start the HTTP API (uvicorn) and an embedded Celery worker (filesystem broker unless RSF_BROKER_URL is set)."""
@@ -364,4 +436,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    main()

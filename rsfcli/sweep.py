@@ -9,6 +9,7 @@ The spec file is the JSON body of ``POST /v1/sweeps`` (``axes``, ``points`` or `
 with ``fixed``, ``perturbation``, ``rtol``).  ``--url`` (or RSF_URL) names the service,
 ``--api-key`` (or RSF_API_KEY) its key when one is required.
 """
+
 from __future__ import annotations
 
 import json
@@ -20,13 +21,17 @@ import typer
 
 __all__ = ["app"]
 
-app = typer.Typer(help="Sweeps on a running service (rsf serve / rsf api): submit, follow, "
-                       "download.", no_args_is_help=True)
+app = typer.Typer(
+    help="Sweeps on a running service (rsf serve / rsf api): submit, follow, download.",
+    no_args_is_help=True,
+)
 
-_URL = typer.Option("http://127.0.0.1:8000", "--url", envvar="RSF_URL",
-                    help="Base URL of the service.")
-_KEY = typer.Option(None, "--api-key", envvar="RSF_API_KEY",
-                    help="API key (sent as 'Authorization: Bearer <key>').")
+_URL = typer.Option(
+    "http://127.0.0.1:8000", "--url", envvar="RSF_URL", help="Base URL of the service."
+)
+_KEY = typer.Option(
+    None, "--api-key", envvar="RSF_API_KEY", help="API key (sent as 'Authorization: Bearer <key>')."
+)
 
 
 def _client(url: str, key: str | None) -> Any:
@@ -41,11 +46,16 @@ def _fail(exc: Exception) -> None:
 
 
 @app.command("submit")
-def submit(spec: Path = typer.Argument(..., exists=True, dir_okay=False,
-                                       help="JSON file with the POST /v1/sweeps body."),
-           wait: bool = typer.Option(False, "--wait", help="Wait for the sweep to finish, "
-                                     "with a progress bar."),
-           url: str = _URL, api_key: str | None = _KEY) -> None:
+def submit(
+    spec: Path = typer.Argument(
+        ..., exists=True, dir_okay=False, help="JSON file with the POST /v1/sweeps body."
+    ),
+    wait: bool = typer.Option(
+        False, "--wait", help="Wait for the sweep to finish, with a progress bar."
+    ),
+    url: str = _URL,
+    api_key: str | None = _KEY,
+) -> None:
     """Submit the sweep in SPEC; prints its id (the same spec always gives the same id)."""
     from rsfclient import RsfError
 
@@ -56,11 +66,17 @@ def submit(spec: Path = typer.Argument(..., exists=True, dir_okay=False,
     with _client(url, api_key) as c:
         try:
             s = c.sweep(body)
-            what = ("resumed" if s.resumed else "created" if s.last.get("created")
-                    else s.last.get("status"))
+            what = (
+                "resumed"
+                if s.resumed
+                else "created"
+                if s.last.get("created")
+                else s.last.get("status")
+            )
             typer.echo(s.id)
-            typer.echo(f"{what}: {s.last['n_total']} points in {s.last['n_chunks']} chunks",
-                       err=True)
+            typer.echo(
+                f"{what}: {s.last['n_total']} points in {s.last['n_chunks']} chunks", err=True
+            )
             if wait:
                 st = s.wait(progress=True)
                 typer.echo(f"done: {st['n_done']} points, {st['n_failed']} failed", err=True)
@@ -69,9 +85,12 @@ def submit(spec: Path = typer.Argument(..., exists=True, dir_okay=False,
 
 
 @app.command("status")
-def status(sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
-           as_json: bool = typer.Option(False, "--json", help="Print the status JSON."),
-           url: str = _URL, api_key: str | None = _KEY) -> None:
+def status(
+    sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the status JSON."),
+    url: str = _URL,
+    api_key: str | None = _KEY,
+) -> None:
     """Status, progress, ETA and the first failures of a sweep."""
     from rsfclient import RsfError
 
@@ -85,20 +104,28 @@ def status(sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
         return
     eta = st.get("eta_s")
     dims = " x ".join(f"{d['name']}[{d['n']}]" for d in st.get("dims", []))
-    typer.echo(f"{st['id']}  {st['status']}  {st['n_done']}/{st['n_total']} points  "
-               f"{st['n_failed']} failed  eta {'-' if eta is None else f'{eta:.1f} s'}")
+    typer.echo(
+        f"{st['id']}  {st['status']}  {st['n_done']}/{st['n_total']} points  "
+        f"{st['n_failed']} failed  eta {'-' if eta is None else f'{eta:.1f} s'}"
+    )
     typer.echo(f"  {dims}  output={st.get('output')}  fixed={st.get('fixed')}")
-    typer.echo(f"  created {st.get('created_at')}  started {st.get('started_at')}  "
-               f"finished {st.get('finished_at')}")
+    typer.echo(
+        f"  created {st.get('created_at')}  started {st.get('started_at')}  "
+        f"finished {st.get('finished_at')}"
+    )
     for f in st.get("failures", [])[:10]:
         typer.echo(f"  failed idx {f['idx']} {f.get('params')}: {f['error']}")
 
 
 @app.command("download")
-def download(sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
-             output: Path = typer.Option(..., "-o", "--output",
-                                         help="File to write: .nc (NetCDF), .csv or .json."),
-             url: str = _URL, api_key: str | None = _KEY) -> None:
+def download(
+    sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
+    output: Path = typer.Option(
+        ..., "-o", "--output", help="File to write: .nc (NetCDF), .csv or .json."
+    ),
+    url: str = _URL,
+    api_key: str | None = _KEY,
+) -> None:
     """Download the whole result (also of a running sweep: missing points are NaN)."""
     from rsfclient import RsfError
 
@@ -111,9 +138,12 @@ def download(sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
 
 
 @app.command("cancel")
-def cancel(sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
-           purge: bool = typer.Option(False, "--purge", help="Delete the sweep and its data."),
-           url: str = _URL, api_key: str | None = _KEY) -> None:
+def cancel(
+    sweep_id: str = typer.Argument(..., help="Sweep id (32 hex)."),
+    purge: bool = typer.Option(False, "--purge", help="Delete the sweep and its data."),
+    url: str = _URL,
+    api_key: str | None = _KEY,
+) -> None:
     """Cancel a sweep (re-submitting resumes it), or delete it with --purge."""
     from rsfclient import RsfError
 

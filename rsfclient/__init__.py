@@ -14,10 +14,18 @@ exponential backoff, honouring ``Retry-After``; an error answer raises
 ``detail``, ``field``, ``valid``).  Needs only httpx; ``rich`` (progress bar) and
 ``xarray`` are used when installed.
 """
+
 from ._client import Client, Sweep
 from ._errors import ConnectionFailed, ProblemError, RsfError, SweepCancelled
 
-__all__ = ["Client", "ConnectionFailed", "ProblemError", "RsfError", "Sweep",
-           "SweepCancelled", "__version__"]
+__all__ = [
+    "Client",
+    "ConnectionFailed",
+    "ProblemError",
+    "RsfError",
+    "Sweep",
+    "SweepCancelled",
+    "__version__",
+]
 
 __version__ = "0.1.0"

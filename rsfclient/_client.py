@@ -1,4 +1,5 @@
 """The client: single queries, sweeps and their results over HTTP (httpx)."""
+
 from __future__ import annotations
 
 import io
@@ -35,14 +36,22 @@ class Client:
         transport: an httpx transport (tests: ``httpx.MockTransport``).
     """
 
-    def __init__(self, base_url: str = "http://127.0.0.1:8000", *, api_key: str | None = None,
-                 timeout: float = 60.0, retries: int = 5, backoff: float = 0.5,
-                 transport: httpx.BaseTransport | None = None) -> None:
+    def __init__(
+        self,
+        base_url: str = "http://127.0.0.1:8000",
+        *,
+        api_key: str | None = None,
+        timeout: float = 60.0,
+        retries: int = 5,
+        backoff: float = 0.5,
+        transport: httpx.BaseTransport | None = None,
+    ) -> None:
         if api_key is None:
             api_key = os.environ.get("RSF_API_KEY") or None
         headers = {"Authorization": f"Bearer {api_key}"} if api_key else {}
-        self._http = httpx.Client(base_url=base_url.rstrip("/"), timeout=timeout,
-                                  headers=headers, transport=transport)
+        self._http = httpx.Client(
+            base_url=base_url.rstrip("/"), timeout=timeout, headers=headers, transport=transport
+        )
         self.retries, self.backoff = retries, backoff
 
     # -- plumbing ----------------------------------------------------------------------------
@@ -79,8 +88,9 @@ class Client:
             if attempt < self.retries:
                 time.sleep(delay)
                 delay = min(delay * 2, 10.0)
-        raise ConnectionFailed(f"{method} {path}: no answer after {self.retries + 1} "
-                               f"attempts ({last})")
+        raise ConnectionFailed(
+            f"{method} {path}: no answer after {self.retries + 1} attempts ({last})"
+        )
 
     def _answer(self, path: str, body: dict[str, Any], poll: float = 0.5) -> dict[str, Any]:
         r = self.request("POST", path, json=body)
@@ -90,29 +100,53 @@ class Client:
         return dict(r.json())
 
     # -- single queries ----------------------------------------------------------------------
-    def critical(self, *, ba: float = 2.0, kappa: float = 2.0, eps: float = 0.25,
-                 vo: float = 1.0, perturbation: str = "velocity-jump", rtol: float = 1e-10,
-                 **extra: Any) -> dict[str, Any]:
+    def critical(
+        self,
+        *,
+        ba: float = 2.0,
+        kappa: float = 2.0,
+        eps: float = 0.25,
+        vo: float = 1.0,
+        perturbation: str = "velocity-jump",
+        rtol: float = 1e-10,
+        **extra: Any,
+    ) -> dict[str, Any]:
         """Critical perturbation size (POST /v1/critical): kind, critical_size,
         rel_accuracy, method, ... (dimensionless; ``extra`` passes other request fields)."""
         body = dict(ba=ba, kappa=kappa, eps=eps, vo=vo, perturbation=perturbation, rtol=rtol)
         return self._answer("/v1/critical", {**body, **extra})
 
-    def classify(self, *, ba: float = 2.0, kappa: float = 2.0, eps: float = 0.25,
-                 vo: float = 1.0, size: float = 1.0, perturbation: str = "velocity-jump",
-                 rtol: float = 1e-10, **extra: Any) -> dict[str, Any]:
+    def classify(
+        self,
+        *,
+        ba: float = 2.0,
+        kappa: float = 2.0,
+        eps: float = 0.25,
+        vo: float = 1.0,
+        size: float = 1.0,
+        perturbation: str = "velocity-jump",
+        rtol: float = 1e-10,
+        **extra: Any,
+    ) -> dict[str, Any]:
         """Certified outcome of one perturbation (POST /v1/classify); a long integration
         (202) is polled until it is done."""
-        body = dict(ba=ba, kappa=kappa, eps=eps, vo=vo, size=size, perturbation=perturbation,
-                    rtol=rtol)
+        body = dict(
+            ba=ba, kappa=kappa, eps=eps, vo=vo, size=size, perturbation=perturbation, rtol=rtol
+        )
         return self._answer("/v1/classify", {**body, **extra})
 
     # -- sweeps ----------------------------------------------------------------------------
-    def sweep(self, spec: dict[str, Any] | None = None, *,
-              axes: list[dict[str, Any]] | None = None,
-              points: dict[str, Any] | None = None, fixed: dict[str, Any] | None = None,
-              perturbation: str | None = None, rtol: float | None = None,
-              chunk_points: int | None = None) -> Sweep:
+    def sweep(
+        self,
+        spec: dict[str, Any] | None = None,
+        *,
+        axes: list[dict[str, Any]] | None = None,
+        points: dict[str, Any] | None = None,
+        fixed: dict[str, Any] | None = None,
+        perturbation: str | None = None,
+        rtol: float | None = None,
+        chunk_points: int | None = None,
+    ) -> Sweep:
         """Submit a sweep (POST /v1/sweeps) and return its handle.
 
         Give a whole request body as ``spec`` or its parts: ``axes`` (1-5 grid axes, each
@@ -121,8 +155,13 @@ class Client:
         Submitting a finished sweep returns it at once; a cancelled one is resumed.
         """
         body: dict[str, Any] = dict(spec or {})
-        for k, v in (("axes", axes), ("fixed", fixed), ("perturbation", perturbation),
-                     ("rtol", rtol), ("chunk_points", chunk_points)):
+        for k, v in (
+            ("axes", axes),
+            ("fixed", fixed),
+            ("perturbation", perturbation),
+            ("rtol", rtol),
+            ("chunk_points", chunk_points),
+        ):
             if v is not None:
                 body[k] = v
         if points is not None:
@@ -149,8 +188,10 @@ class Sweep:
         self.client, self.id, self.last = client, sweep_id, status
 
     def __repr__(self) -> str:
-        return (f"Sweep({self.id!r}, status={self.last.get('status')!r}, "
-                f"{self.last.get('n_done')}/{self.last.get('n_total')})")
+        return (
+            f"Sweep({self.id!r}, status={self.last.get('status')!r}, "
+            f"{self.last.get('n_done')}/{self.last.get('n_total')})"
+        )
 
     @property
     def resumed(self) -> bool:
@@ -162,8 +203,13 @@ class Sweep:
         self.last = dict(self.client.request("GET", f"/v1/sweeps/{self.id}").json())
         return self.last
 
-    def wait(self, progress: bool = False, poll: float = 0.5, timeout: float | None = None,
-             on_status: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+    def wait(
+        self,
+        progress: bool = False,
+        poll: float = 0.5,
+        timeout: float | None = None,
+        on_status: Callable[[dict[str, Any]], None] | None = None,
+    ) -> dict[str, Any]:
         """Poll until the sweep is done; returns the final status.
 
         Args:
@@ -186,8 +232,9 @@ class Sweep:
                 if st["status"] == "done":
                     return st
                 if st["status"] == "cancelled":
-                    raise SweepCancelled(f"sweep {self.id} was cancelled "
-                                         f"({st['n_done']}/{st['n_total']} points)")
+                    raise SweepCancelled(
+                        f"sweep {self.id} was cancelled ({st['n_done']}/{st['n_total']} points)"
+                    )
                 if timeout is not None and time.monotonic() - t0 > timeout:
                     raise TimeoutError(f"sweep {self.id} not done after {timeout} s")
                 time.sleep(poll)
@@ -206,17 +253,23 @@ class Sweep:
 
     def data(self, format: str = "netcdf") -> bytes:  # noqa: A002
         """The whole result (GET /data) as bytes: 'netcdf', 'csv' or 'json'."""
-        return self.client.request("GET", f"/v1/sweeps/{self.id}/data",
-                                   params={"format": format}).content
+        return self.client.request(
+            "GET", f"/v1/sweeps/{self.id}/data", params={"format": format}
+        ).content
 
-    def download(self, path: str | Path, format: str | None = None,  # noqa: A002
-                 progress: bool = False) -> Path:
+    def download(
+        self,
+        path: str | Path,
+        format: str | None = None,  # noqa: A002
+        progress: bool = False,
+    ) -> Path:
         """Stream the result to ``path`` (format from the suffix: .nc, .csv, .json)."""
         p = Path(path)
         fmt = format or {".csv": "csv", ".json": "json"}.get(p.suffix.lower(), "netcdf")
         bar = _Progress(f"{self.id} -> {p.name}", unit="bytes") if progress else None
-        with self.client._http.stream("GET", f"/v1/sweeps/{self.id}/data",
-                                      params={"format": fmt}) as r:
+        with self.client._http.stream(
+            "GET", f"/v1/sweeps/{self.id}/data", params={"format": fmt}
+        ) as r:
             if r.status_code >= 400:
                 r.read()
                 raise _problem(r)
@@ -256,10 +309,15 @@ class _Progress:
                 TimeRemainingColumn,
             )
 
-            self._rich = Progress(TextColumn("{task.description}"), BarColumn(),
-                                  MofNCompleteColumn(), TextColumn("{task.fields[status]}"),
-                                  TimeRemainingColumn(), transient=False,
-                                  console=Console(stderr=True))
+            self._rich = Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[status]}"),
+                TimeRemainingColumn(),
+                transient=False,
+                console=Console(stderr=True),
+            )
             self._rich.start()
             self._task = self._rich.add_task(label, total=None, status="")
         except ImportError:
@@ -270,8 +328,12 @@ class _Progress:
         if self._rich is not None:
             self._rich.update(self._task, completed=done, total=total, status=status)
         else:
-            print(f"\r{self.label}: {done}/{total or '?'} {self.unit} {status}   ",
-                  end="", file=sys.stderr, flush=True)
+            print(
+                f"\r{self.label}: {done}/{total or '?'} {self.unit} {status}   ",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def close(self) -> None:
         if self._rich is not None:

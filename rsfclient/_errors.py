@@ -5,6 +5,7 @@ RsfError
  +-- ConnectionFailed  no answer after every retry (connection refused, timeouts, 503s)
  +-- SweepCancelled    :meth:`rsfclient.Sweep.wait` on a sweep that was cancelled
 """
+
 from __future__ import annotations
 
 from typing import Any

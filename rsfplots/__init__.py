@@ -11,6 +11,7 @@ import this package.
 Qualities: 'draft' (coarse grids, a few seconds a figure; used by the tests) and 'paper'
 (the default; the gallery and ``rsf figure``).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -42,8 +43,9 @@ def list_figures() -> list[dict[str, str]]:
     return [{"name": s.name, "caption": f"{s.label}: {s.caption}"} for s in FIGURES.values()]
 
 
-def render(name: str, path_or_format: str | Path = "png", *, quality: str = "paper",
-           dpi: int | None = None) -> bytes | None:
+def render(
+    name: str, path_or_format: str | Path = "png", *, quality: str = "paper", dpi: int | None = None
+) -> bytes | None:
     """Render figure ``name``.
 
     ``path_or_format``: 'png' or 'svg' -> the encoded bytes are returned; a path ending in

@@ -3,6 +3,7 @@
 No pyplot anywhere: every figure is a :class:`matplotlib.figure.Figure` attached to an Agg
 canvas, so rendering is thread-safe and never touches a display or global state.
 """
+
 from __future__ import annotations
 
 import io
@@ -77,14 +78,17 @@ def thin(n: int, max_points: int = MAX_DATA_POINTS) -> np.ndarray:
     return idx
 
 
-def clip_to_window(phi: np.ndarray, psi: np.ndarray, window: tuple[float, float, float, float],
-                   margin: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+def clip_to_window(
+    phi: np.ndarray, psi: np.ndarray, window: tuple[float, float, float, float], margin: float = 0.5
+) -> tuple[np.ndarray, np.ndarray]:
     """Keep the leading part of a trajectory up to where it leaves the window (+ margin) for good.
 
     Runaway trajectories end at phi ~ 40+; only their part near the plotted window matters.
     """
     x0, x1, y0, y1 = window
-    inside = (phi >= x0 - margin) & (phi <= x1 + margin) & (psi >= y0 - margin) & (psi <= y1 + margin)
+    inside = (
+        (phi >= x0 - margin) & (phi <= x1 + margin) & (psi >= y0 - margin) & (psi <= y1 + margin)
+    )
     if not inside.any():
         return phi[:1], psi[:1]
     last = int(np.flatnonzero(inside)[-1])

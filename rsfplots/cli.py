@@ -2,6 +2,7 @@
 
 The typer command in rsfcli.main calls :func:`figure_command`; it returns the exit code.
 """
+
 from __future__ import annotations
 
 import sys
@@ -33,10 +34,15 @@ def figure_command(name: str | None, out: Path | None, list_: bool, quality: str
                     print(" " * (width + 2) + ln)
         return 0
     if not name:
-        print("error: give a figure NAME or --list (names: " + ", ".join(FIGURES) + ")", file=sys.stderr)
+        print(
+            "error: give a figure NAME or --list (names: " + ", ".join(FIGURES) + ")",
+            file=sys.stderr,
+        )
         return 2
     if name not in FIGURES:
-        print(f"error: unknown figure {name!r}; valid names: " + ", ".join(FIGURES), file=sys.stderr)
+        print(
+            f"error: unknown figure {name!r}; valid names: " + ", ".join(FIGURES), file=sys.stderr
+        )
         return 2
     target = Path(out) if out is not None else Path(f"{name}.png")
     if target.suffix.lower() not in (".png", ".svg"):

@@ -9,12 +9,14 @@ most 400 points and converted to JSON-safe lists (:func:`figure_data`).
 Parameter values are the paper's (captions and text of Ciardo & Viesca); where the
 printed caption contradicts itself the choice is stated in the spec's ``note``.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Callable
+from typing import Any
 
 import contourpy
 import numpy as np
@@ -66,7 +68,12 @@ class FigureSpec:
         return figure_data(self.name, quality)
 
     def summary(self) -> dict[str, str]:
-        return {"name": self.name, "label": self.label, "caption": f"{self.label}: {self.caption}", "note": self.note}
+        return {
+            "name": self.name,
+            "label": self.label,
+            "caption": f"{self.label}: {self.caption}",
+            "note": self.note,
+        }
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -114,12 +121,20 @@ def figure_data(name: str, quality: str = "paper") -> dict[str, Any]:
     spec = _spec(name)
     quality = check_quality(quality)
     d = _public(_raw(name, quality))
-    d = {"name": spec.name, "label": spec.label, "caption": spec.caption, "note": spec.note,
-         "quality": quality, **d}
+    d = {
+        "name": spec.name,
+        "label": spec.label,
+        "caption": spec.caption,
+        "note": spec.note,
+        "quality": quality,
+        **d,
+    }
     return jsonsafe(d)
 
 
-def _contours(phi1: np.ndarray, psi1: np.ndarray, U: np.ndarray, levels: list[float]) -> list[dict[str, Any]]:
+def _contours(
+    phi1: np.ndarray, psi1: np.ndarray, U: np.ndarray, levels: list[float]
+) -> list[dict[str, Any]]:
     """Contour lines of U (shape (n_phi, n_psi)) at the given levels, as vertex arrays."""
     z = np.ma.masked_invalid(U.T)
     gen = contourpy.contour_generator(x=phi1, y=psi1, z=z)
@@ -134,7 +149,9 @@ def _contours(phi1: np.ndarray, psi1: np.ndarray, U: np.ndarray, levels: list[fl
     return out
 
 
-def _cut_closed_orbit(phi: np.ndarray, psi: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+def _cut_closed_orbit(
+    phi: np.ndarray, psi: np.ndarray, *arrays: np.ndarray
+) -> tuple[np.ndarray, ...]:
     """Cut a sampled closed orbit after its first return to the start (one loop)."""
     d = np.hypot(phi - phi[0], psi - psi[0])
     far = int(np.argmax(d))
@@ -152,7 +169,9 @@ def _cut_closed_orbit(phi: np.ndarray, psi: np.ndarray, *arrays: np.ndarray) -> 
     return (phi[:end], psi[:end], *(a[:end] for a in arrays))
 
 
-def _grid(window: tuple[float, float, float, float], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _grid(
+    window: tuple[float, float, float, float], n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     x0, x1, y0, y1 = window
     phi1 = np.linspace(x0, x1, n)
     psi1 = np.linspace(y0, y1, n)
@@ -174,7 +193,7 @@ def _eps_label(eps: float) -> str:
 
 # ==================================================================== velocity-step
 VS_EPS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
-VS_RATIOS = tuple(10.0 ** k for k in (1, 2, 3, 4)) + tuple(10.0 ** -k for k in (1, 2, 3, 4))
+VS_RATIOS = tuple(10.0**k for k in (1, 2, 3, 4)) + tuple(10.0**-k for k in (1, 2, 3, 4))
 VS_SLIP_MAX = 15.0
 
 
@@ -183,10 +202,17 @@ def _compute_velocity_step(quality: str) -> dict[str, Any]:
     s = np.concatenate([[0.0], np.geomspace(1e-4, VS_SLIP_MAX, n - 1)])
     panels = []
     for eps in VS_EPS:
-        curves = [{"v2_over_v1": r, "slip": s, "dtau_over_bsigma": an.delta_tau(s, r, eps)} for r in VS_RATIOS]
+        curves = [
+            {"v2_over_v1": r, "slip": s, "dtau_over_bsigma": an.delta_tau(s, r, eps)}
+            for r in VS_RATIOS
+        ]
         panels.append({"eps": eps, "curves": curves})
-    return {"equation": "eq: delta tau", "x": "slip delta/Dc since the step", "y": "(tau - tau_2)/(b sigma)",
-            "panels": panels}
+    return {
+        "equation": "eq: delta tau",
+        "x": "slip delta/Dc since the step",
+        "y": "(tau - tau_2)/(b sigma)",
+        "panels": panels,
+    }
 
 
 def _draw_velocity_step(raw: dict[str, Any], fig: Figure) -> None:
@@ -197,7 +223,11 @@ def _draw_velocity_step(raw: dict[str, Any], fig: Figure) -> None:
             k = abs(round(math.log10(r)))
             up = r > 1
             shade = 0.35 + 0.15 * k
-            color = (0.55 * shade + 0.2, 0.0, 0.0) if up else (1.0, 0.45 + 0.1 * (4 - k), 0.45 + 0.1 * (4 - k))
+            color = (
+                (0.55 * shade + 0.2, 0.0, 0.0)
+                if up
+                else (1.0, 0.45 + 0.1 * (4 - k), 0.45 + 0.1 * (4 - k))
+            )
             ax.plot(c["slip"], c["dtau_over_bsigma"], color=color, lw=1.3)
         ax.axhline(0.0, color="0.5", lw=0.6)
         ax.set_title(_eps_label(panel["eps"]), fontsize=10)
@@ -206,8 +236,10 @@ def _draw_velocity_step(raw: dict[str, Any], fig: Figure) -> None:
         ax.set_xlabel(r"$\delta/D_c$")
     for ax in axs[:, 0]:
         ax.set_ylabel(r"$\Delta\tau / b\sigma$")
-    handles = [Line2D([], [], color=(0.75, 0, 0), label=r"$V_2/V_1 = 10^{+1..4}$"),
-               Line2D([], [], color=(1.0, 0.6, 0.6), label=r"$V_2/V_1 = 10^{-1..4}$")]
+    handles = [
+        Line2D([], [], color=(0.75, 0, 0), label=r"$V_2/V_1 = 10^{+1..4}$"),
+        Line2D([], [], color=(1.0, 0.6, 0.6), label=r"$V_2/V_1 = 10^{-1..4}$"),
+    ]
     axs[0, 0].legend(handles=handles, fontsize=8, loc="upper right")
     fig.suptitle("Stress response to velocity steps, eq. (delta tau)", fontsize=11)
 
@@ -246,8 +278,17 @@ def _compute_trajectories_kcrit(quality: str) -> dict[str, Any]:
                 ph, ps = clip_to_window(tr.phi, tr.psi, TK_WINDOW)
                 T = tr.T[: ph.size]
             U0 = float(an.U_kcrit(d, d, ba, eps))
-            trajs.append({"size": d, "outcome": r.outcome, "certificate": r.certificate, "U": U0,
-                          "T": T, "phi": ph, "psi": ps})
+            trajs.append(
+                {
+                    "size": d,
+                    "outcome": r.outcome,
+                    "certificate": r.certificate,
+                    "U": U0,
+                    "T": T,
+                    "phi": ph,
+                    "psi": ps,
+                }
+            )
         with np.errstate(all="ignore"):
             U = an.U_kcrit(PHI, PSI, ba, eps)
         U = np.where(np.isfinite(U), U, np.nan)
@@ -255,26 +296,41 @@ def _compute_trajectories_kcrit(quality: str) -> dict[str, Any]:
         levels = sorted({t["U"] for t in trajs} | {u for u in extra if math.isfinite(u)})
         levels = [lv for lv in levels if np.nanmin(U) < lv < np.nanmax(U)]
         panel: dict[str, Any] = {
-            "eps": eps, "kappa": kappa, "critical_size": dcrit, "critical_kind": crit.kind,
+            "eps": eps,
+            "kappa": kappa,
+            "critical_size": dcrit,
+            "critical_kind": crit.kind,
             "steady_state": {"phi": phi1[[0, -1]], "psi": (1.0 - ba) * phi1[[0, -1]]},
             "trajectories": trajs,
             "contours": _contours(phi1, psi1, U, levels),
-            "_grid": (phi1, psi1, U), "_levels": levels,
+            "_grid": (phi1, psi1, U),
+            "_levels": levels,
         }
         if eps < 1.0:
             phc = np.linspace(TK_WINDOW[0], TK_WINDOW[1], 4 * q["n_curve"])
-            panel["critical_trajectory"] = {"phi": phc, "psi": an.psi_crit_kcrit(phc, ba, eps), "U": 0.0}
+            panel["critical_trajectory"] = {
+                "phi": phc,
+                "psi": an.psi_crit_kcrit(phc, ba, eps),
+                "U": 0.0,
+            }
         panels.append(panel)
     return {"ba": ba, "kappa": kappa, "vo": 1.0, "window": TK_WINDOW, "panels": panels}
 
 
-def _draw_phase_common(ax, panel: dict[str, Any], window, *, ss=True) -> None:  # noqa: ANN001
+def _draw_phase_common(ax: Any, panel: dict[str, Any], window: Any, *, ss: bool = True) -> None:
     x0, x1, y0, y1 = window
     phi1, psi1, U = panel["_grid"]
     levels = panel["_levels"]
     if levels:
-        ax.contour(phi1, psi1, np.ma.masked_invalid(U.T), levels=levels, colors=C_U, linewidths=0.7,
-                   negative_linestyles="solid")
+        ax.contour(
+            phi1,
+            psi1,
+            np.ma.masked_invalid(U.T),
+            levels=levels,
+            colors=C_U,
+            linewidths=0.7,
+            negative_linestyles="solid",
+        )
     if ss:
         s = panel["steady_state"]
         ax.plot(s["phi"], s["psi"], "--", color=C_SS, lw=1.2)
@@ -304,12 +360,16 @@ def _draw_trajectories_kcrit(raw: dict[str, Any], fig: Figure) -> None:
         ax.set_xlabel(r"$\phi = \ln(V/V_*)$")
     for ax in axs[:, 0]:
         ax.set_ylabel(r"$\psi = (\tau - \tau_*)/a\sigma$")
-    fig.suptitle(rf"$U$ = const., $b/a = {raw['ba']:g}$, $\kappa = \kappa_{{crit}} = {raw['kappa']:g}$, $v_o = 1$",
-                 fontsize=11)
-    handles = [Line2D([], [], color=C_SS, ls="--", label="steady state"),
-               Line2D([], [], color=C_CRIT, label="critical trajectory U = 0"),
-               Line2D([], [], color=C_U, label="U = const."),
-               Line2D([], [], color=C_TRAJ, label="numerical, velocity jumps")]
+    fig.suptitle(
+        rf"$U$ = const., $b/a = {raw['ba']:g}$, $\kappa = \kappa_{{crit}} = {raw['kappa']:g}$, $v_o = 1$",
+        fontsize=11,
+    )
+    handles = [
+        Line2D([], [], color=C_SS, ls="--", label="steady state"),
+        Line2D([], [], color=C_CRIT, label="critical trajectory U = 0"),
+        Line2D([], [], color=C_U, label="U = const."),
+        Line2D([], [], color=C_TRAJ, label="numerical, velocity jumps"),
+    ]
     axs[0, 0].legend(handles=handles, fontsize=7, loc="lower left")
 
 
@@ -325,18 +385,42 @@ def _compute_critical_jump_kcrit(quality: str) -> dict[str, Any]:
     lo = np.geomspace(1e-4, 0.5, n // 2)
     hi = 1.0 - np.geomspace(0.5, 1e-4, n // 2)
     eps = np.unique(np.concatenate([[0.0], lo, hi, CJ_EXTRA_EPS]))
-    d = np.array([critical_perturbation(Params(ba, ba - 1.0, float(e)), "velocity-jump").critical_size for e in eps],
-                 dtype=float)
+    d = np.array(
+        [
+            critical_perturbation(Params(ba, ba - 1.0, float(e)), "velocity-jump").critical_size
+            for e in eps
+        ],
+        dtype=float,
+    )
     slip_asym = an.velocity_jump_crit_slip_law(ba)
     aging_asym = np.array([an.velocity_jump_crit_aging_asymptote(ba, float(e)) for e in eps])
     ab = np.unique(np.concatenate([np.geomspace(1e-4, 0.999, n), CJ_EXTRA_AB]))
-    dab = np.array([critical_perturbation(Params(1.0 / a, 1.0 / a - 1.0, 0.0), "velocity-jump").critical_size
-                    for a in ab], dtype=float)
+    dab = np.array(
+        [
+            critical_perturbation(
+                Params(1.0 / a, 1.0 / a - 1.0, 0.0), "velocity-jump"
+            ).critical_size
+            for a in ab
+        ],
+        dtype=float,
+    )
     return {
-        "panel_a": {"ba": ba, "kappa": ba - 1.0, "vo": 1.0, "eps": eps, "critical_size": d,
-                    "slip_law_asymptote": slip_asym, "aging_law_asymptote": aging_asym},
-        "panel_b": {"eps": 0.0, "a_over_b": ab, "critical_size": dab, "small_ab_scaling": np.sqrt(2.0 * ab),
-                    "excluded_point": {"a_over_b": 1.0, "critical_size": 1.0}},
+        "panel_a": {
+            "ba": ba,
+            "kappa": ba - 1.0,
+            "vo": 1.0,
+            "eps": eps,
+            "critical_size": d,
+            "slip_law_asymptote": slip_asym,
+            "aging_law_asymptote": aging_asym,
+        },
+        "panel_b": {
+            "eps": 0.0,
+            "a_over_b": ab,
+            "critical_size": dab,
+            "small_ab_scaling": np.sqrt(2.0 * ab),
+            "excluded_point": {"a_over_b": 1.0, "critical_size": 1.0},
+        },
     }
 
 
@@ -344,18 +428,51 @@ def _draw_critical_jump_kcrit(raw: dict[str, Any], fig: Figure) -> None:
     ax1, ax2 = fig.subplots(1, 2)
     a = raw["panel_a"]
     m = a["eps"] > 0
-    ax1.loglog(a["eps"][m], a["critical_size"][m], "k-", lw=1.6, label="numerical (eq. limiting trajectory 1, psi = phi)")
-    ax1.axhline(a["slip_law_asymptote"], color="tab:red", ls="--", lw=1.1, label=r"slip-law limit $1 + W((a/b-1)/e)$")
+    ax1.loglog(
+        a["eps"][m],
+        a["critical_size"][m],
+        "k-",
+        lw=1.6,
+        label="numerical (eq. limiting trajectory 1, psi = phi)",
+    )
+    ax1.axhline(
+        a["slip_law_asymptote"],
+        color="tab:red",
+        ls="--",
+        lw=1.1,
+        label=r"slip-law limit $1 + W((a/b-1)/e)$",
+    )
     mm = m & (a["eps"] > 0.3)
-    ax1.loglog(a["eps"][mm], a["aging_law_asymptote"][mm], "--", color="tab:red", lw=1.1,
-               label=r"aging-law limit $\ln(2 - b/a + 1/(1-\epsilon))$")
+    ax1.loglog(
+        a["eps"][mm],
+        a["aging_law_asymptote"][mm],
+        "--",
+        color="tab:red",
+        lw=1.1,
+        label=r"aging-law limit $\ln(2 - b/a + 1/(1-\epsilon))$",
+    )
     ax1.set_xlabel(r"$\epsilon$")
     ax1.set_ylabel(r"$\Delta\phi_{crit} = \ln(1 + \Delta V_{crit}/V_*)$")
-    ax1.set_title(rf"(a) $b/a = {a['ba']:g}$, $\kappa = \kappa_{{crit}} = {a['kappa']:g}$", fontsize=10)
+    ax1.set_title(
+        rf"(a) $b/a = {a['ba']:g}$, $\kappa = \kappa_{{crit}} = {a['kappa']:g}$", fontsize=10
+    )
     ax1.legend(fontsize=7, loc="upper left")
     b = raw["panel_b"]
-    ax2.loglog(b["a_over_b"], b["critical_size"], "k-", lw=1.6, label="slip law, $\\kappa = \\kappa_{crit}$")
-    ax2.loglog(b["a_over_b"], b["small_ab_scaling"], "--", color="tab:red", lw=1.1, label=r"$\sqrt{2\,a/b}$")
+    ax2.loglog(
+        b["a_over_b"],
+        b["critical_size"],
+        "k-",
+        lw=1.6,
+        label="slip law, $\\kappa = \\kappa_{crit}$",
+    )
+    ax2.loglog(
+        b["a_over_b"],
+        b["small_ab_scaling"],
+        "--",
+        color="tab:red",
+        lw=1.1,
+        label=r"$\sqrt{2\,a/b}$",
+    )
     ax2.plot([1.0], [1.0], "o", mfc="white", mec="k", ms=7)
     ax2.set_xlabel(r"$a/b$")
     ax2.set_ylabel(r"$\Delta\phi_{crit}$")
@@ -371,8 +488,15 @@ def _compute_rate_neutral(quality: str) -> dict[str, Any]:
     p = Params(RN_BA, 1.0, 0.01, 1.0)
     s = simulate(p, "velocity-jump", 1.0, t_end=40.0, n_points=_Q[quality]["n_traj"])
     tr = s.trajectory
-    return {"ba": RN_BA, "ba_paper": 1.0, "kappa": 1.0, "eps": 0.01, "size": 1.0, "outcome": s.outcome,
-            "trajectory": {"T": tr.T, "phi": tr.phi, "psi": tr.psi}}
+    return {
+        "ba": RN_BA,
+        "ba_paper": 1.0,
+        "kappa": 1.0,
+        "eps": 0.01,
+        "size": 1.0,
+        "outcome": s.outcome,
+        "trajectory": {"T": tr.T, "phi": tr.phi, "psi": tr.psi},
+    }
 
 
 def _draw_rate_neutral(raw: dict[str, Any], fig: Figure) -> None:
@@ -386,7 +510,9 @@ def _draw_rate_neutral(raw: dict[str, Any], fig: Figure) -> None:
     ax.plot(1, 1, "o", color="0.45", ms=4)
     ax.set_xlabel(r"$\phi$")
     ax.set_ylabel(r"$\psi$")
-    ax.set_title(r"rate neutral $b/a = 1$, $\kappa = 1$, $\epsilon = 0.01$, $\Delta\phi = 1$", fontsize=10)
+    ax.set_title(
+        r"rate neutral $b/a = 1$, $\kappa = 1$, $\epsilon = 0.01$, $\Delta\phi = 1$", fontsize=10
+    )
     ax.legend(fontsize=8)
 
 
@@ -405,7 +531,7 @@ def _ratios(n: int, eps: float) -> np.ndarray:
     u = np.linspace(0.0, 1.0, n)
     x = 1.0 + (top - 1.0) * (1.0 - (1.0 - u) ** 2.5)
     if top == SD_RATIO_MAX:
-        x = 1.0 + (top - 1.0) * u ** 1.3
+        x = 1.0 + (top - 1.0) * u**1.3
     if top < SD_RATIO_MAX:  # beyond 1/eps the critical size is infinite
         x = np.concatenate([x, [SD_RATIO_MAX]])
     return np.unique(np.concatenate([x, [2.0]] if top >= 2.0 else [x]))
@@ -421,8 +547,14 @@ def _compute_stability(quality: str, perturbation: str) -> dict[str, Any]:
         x = _ratios(q["n_ratio"], e)
         dg = stability_diagram("kappa_ratio", x, "eps", [e], ba=ba, perturbation=perturbation)
         n_fallback += dg.n_fallback
-        curves.append({"eps": e, "kappa_ratio": x, "critical_size": dg.critical_size[:, 0].copy(),
-                       "kind": dg.kind[:, 0].astype(int)})
+        curves.append(
+            {
+                "eps": e,
+                "kappa_ratio": x,
+                "critical_size": dg.critical_size[:, 0].copy(),
+                "kind": dg.kind[:, 0].astype(int),
+            }
+        )
     # panel b
     p = Params(ba, 2.0 * (ba - 1.0), 0.25, 1.0)
     crit = critical_perturbation(p, perturbation)
@@ -435,14 +567,31 @@ def _compute_stability(quality: str, perturbation: str) -> dict[str, Any]:
             s = simulate(p, perturbation, size, n_points=q["n_traj"])
         tr = s.trajectory
         vo_new = s.params.vo
-        trajs.append({"size": size, "label": label, "outcome": r.outcome, "T": tr.T, "phi": tr.phi, "psi": tr.psi,
-                      "slip": tr.slip, "ln_theta": tr.ln_theta,
-                      "new_steady_state": {"phi": math.log(vo_new), "psi": (1.0 - ba) * math.log(vo_new)}})
+        trajs.append(
+            {
+                "size": size,
+                "label": label,
+                "outcome": r.outcome,
+                "T": tr.T,
+                "phi": tr.phi,
+                "psi": tr.psi,
+                "slip": tr.slip,
+                "ln_theta": tr.ln_theta,
+                "new_steady_state": {"phi": math.log(vo_new), "psi": (1.0 - ba) * math.log(vo_new)},
+            }
+        )
     out: dict[str, Any] = {
-        "perturbation": perturbation, "ba": ba, "vo": 1.0,
+        "perturbation": perturbation,
+        "ba": ba,
+        "vo": 1.0,
         "panel_a": {"curves": curves, "n_fallback": n_fallback},
-        "panel_b": {"kappa": p.kappa, "kappa_ratio": 2.0, "eps": 0.25, "critical_size": crit.critical_size,
-                    "trajectories": trajs},
+        "panel_b": {
+            "kappa": p.kappa,
+            "kappa_ratio": 2.0,
+            "eps": 0.25,
+            "critical_size": crit.critical_size,
+            "trajectories": trajs,
+        },
     }
     if perturbation == "velocity-jump":
         stable = [t for t in trajs if t["outcome"] == "stable"]
@@ -455,10 +604,14 @@ def _compute_stability(quality: str, perturbation: str) -> dict[str, Any]:
         with np.errstate(all="ignore"):
             U = an.U_kcrit(PHI, PSI, ba, 0.25)
         U = np.where(np.isfinite(U), U, np.nan)
-        levels = sorted({float(an.U_kcrit(d, d, ba, 0.25)) for d in (0.25, 0.5, 0.75, 1.0, 1.25)} | {0.0})
+        levels = sorted(
+            {float(an.U_kcrit(d, d, ba, 0.25)) for d in (0.25, 0.5, 0.75, 1.0, 1.25)} | {0.0}
+        )
         out["panel_b"]["window"] = window
-        out["panel_b"]["lyapunov"] = {"function": "U_kcrit (eq: trajectories 1) with kappa = kappa_crit = 1",
-                                      "contours": _contours(phi1, psi1, U, levels)}
+        out["panel_b"]["lyapunov"] = {
+            "function": "U_kcrit (eq: trajectories 1) with kappa = kappa_crit = 1",
+            "contours": _contours(phi1, psi1, U, levels),
+        }
         out["panel_b"]["_grid"] = (phi1, psi1, U)
         out["panel_b"]["_levels"] = levels
     else:
@@ -480,20 +633,38 @@ def _draw_stability(raw: dict[str, Any], fig: Figure) -> None:
     curves = raw["panel_a"]["curves"]
     ymin, ymax = np.inf, 0.0
     for c in curves:
-        v = np.where(np.isfinite(c["critical_size"]) & (c["critical_size"] > 0), c["critical_size"], np.nan)
+        v = np.where(
+            np.isfinite(c["critical_size"]) & (c["critical_size"] > 0), c["critical_size"], np.nan
+        )
         if np.any(np.isfinite(v)):
             ymin = min(ymin, np.nanmin(v))
             ymax = max(ymax, np.nanmax(v))
     ymax = min(ymax, 30.0 if vel else 1e3)
     for c in curves:
-        v = np.where(np.isfinite(c["critical_size"]) & (c["critical_size"] > 0), c["critical_size"], np.nan)
+        v = np.where(
+            np.isfinite(c["critical_size"]) & (c["critical_size"] > 0), c["critical_size"], np.nan
+        )
         col = cmap(0.95 - 0.7 * c["eps"])
-        ax1.semilogy(c["kappa_ratio"], np.where(v > 3 * ymax, 3 * ymax, v), "-", color=col, lw=1.6,
-                     label=rf"$\epsilon = {c['eps']:g}$")
+        ax1.semilogy(
+            c["kappa_ratio"],
+            np.where(v > 3 * ymax, 3 * ymax, v),
+            "-",
+            color=col,
+            lw=1.6,
+            label=rf"$\epsilon = {c['eps']:g}$",
+        )
         if c["eps"] > 0 and 1.0 / c["eps"] <= SD_RATIO_MAX:
             ax1.axvline(1.0 / c["eps"], color=col, ls=":", lw=0.8)
     ax1.axvspan(0.5, 1.0, color="0.85")
-    ax1.text(0.75, math.sqrt(ymin * ymax), "unstable for\nany size", ha="center", va="center", fontsize=7, rotation=90)
+    ax1.text(
+        0.75,
+        math.sqrt(ymin * ymax),
+        "unstable for\nany size",
+        ha="center",
+        va="center",
+        fontsize=7,
+        rotation=90,
+    )
     pb = raw["panel_b"]
     if pb["critical_size"] is not None:
         ax1.plot(pb["kappa_ratio"], pb["critical_size"], "k*", ms=8)
@@ -501,22 +672,40 @@ def _draw_stability(raw: dict[str, Any], fig: Figure) -> None:
     ax1.set_ylim(0.5 * ymin, 2.0 * ymax)
     ax1.set_xlabel(r"$\kappa/\kappa_{crit}$")
     ax1.set_ylabel(r"$\Delta\phi_{crit}$" if vel else r"$(\Delta v_o/v_o)_{crit}$")
-    ax1.set_title(f"(a) critical {'velocity' if vel else 'load-point'} jump, b/a = {raw['ba']:g}", fontsize=10)
+    ax1.set_title(
+        f"(a) critical {'velocity' if vel else 'load-point'} jump, b/a = {raw['ba']:g}", fontsize=10
+    )
     ax1.legend(fontsize=7, loc="upper right")
     window = pb["window"]
     x0, x1, y0, y1 = window
     if vel:
         phi1, psi1, U = pb["_grid"]
         lv = pb["_levels"]
-        ax2.contour(phi1, psi1, np.ma.masked_invalid(U.T), levels=[v for v in lv if v != 0.0], colors="tab:red",
-                    linestyles="dashed", linewidths=0.6)
-        ax2.contour(phi1, psi1, np.ma.masked_invalid(U.T), levels=[0.0], colors="tab:red", linestyles="dashed",
-                    linewidths=1.4)
+        ax2.contour(
+            phi1,
+            psi1,
+            np.ma.masked_invalid(U.T),
+            levels=[v for v in lv if v != 0.0],
+            colors="tab:red",
+            linestyles="dashed",
+            linewidths=0.6,
+        )
+        ax2.contour(
+            phi1,
+            psi1,
+            np.ma.masked_invalid(U.T),
+            levels=[0.0],
+            colors="tab:red",
+            linestyles="dashed",
+            linewidths=1.4,
+        )
         ax2.plot([0, min(x1, y1)], [0, min(x1, y1)], "k--", lw=0.8)
     colors = ["tab:green", "tab:olive", "tab:orange", "tab:purple"]
     for t, col in zip(pb["trajectories"], colors):
         ph, ps = clip_to_window(t["phi"], t["psi"], window)
-        ax2.plot(ph, ps, "-", color=col, lw=1.3, label=f"{t['label']} ({t['size']:g}): {t['outcome']}")
+        ax2.plot(
+            ph, ps, "-", color=col, lw=1.3, label=f"{t['label']} ({t['size']:g}): {t['outcome']}"
+        )
         if not vel and t["outcome"] == "stable":
             ns = t["new_steady_state"]
             ax2.plot(ns["phi"], ns["psi"], "x", color=col, ms=6)
@@ -528,7 +717,9 @@ def _draw_stability(raw: dict[str, Any], fig: Figure) -> None:
     ax2.set_xlabel(r"$\phi$")
     ax2.set_ylabel(r"$\psi$")
     crit = pb["critical_size"]
-    ax2.set_title(rf"(b) $\kappa = 2\kappa_{{crit}}$, $\epsilon = 0.25$, critical {crit:.5g}", fontsize=10)
+    ax2.set_title(
+        rf"(b) $\kappa = 2\kappa_{{crit}}$, $\epsilon = 0.25$, critical {crit:.5g}", fontsize=10
+    )
     ax2.legend(fontsize=7, loc="lower left" if vel else "lower left")
 
 
@@ -536,7 +727,9 @@ def _draw_stability(raw: dict[str, Any], fig: Figure) -> None:
 V0_BA = 2.0
 
 
-def _compute_trajectories_vo0(quality: str, kappa: float, eps_list: tuple[float, ...], window) -> dict[str, Any]:  # noqa: ANN001
+def _compute_trajectories_vo0(
+    quality: str, kappa: float, eps_list: tuple[float, ...], window: Any
+) -> dict[str, Any]:
     q = _Q[quality]
     ba = V0_BA
     phi1, psi1, PHI, PSI = _grid(window, q["grid"])
@@ -563,8 +756,17 @@ def _compute_trajectories_vo0(quality: str, kappa: float, eps_list: tuple[float,
             keep = ph >= window[0] - 0.5
             ph, ps = ph[keep], ps[keep]
             U0 = float(an.U_vo0(d, d, ba, kappa, eps))
-            trajs.append({"size": d, "outcome": s.outcome, "certificate": s.certificate, "U": U0,
-                          "T": tr.T[: keep.size][keep], "phi": ph, "psi": ps})
+            trajs.append(
+                {
+                    "size": d,
+                    "outcome": s.outcome,
+                    "certificate": s.certificate,
+                    "U": U0,
+                    "T": tr.T[: keep.size][keep],
+                    "phi": ph,
+                    "psi": ps,
+                }
+            )
         with np.errstate(all="ignore"):
             U = an.U_vo0(PHI, PSI, ba, kappa, eps)
         U = np.where(np.isfinite(U), U, np.nan)
@@ -572,19 +774,35 @@ def _compute_trajectories_vo0(quality: str, kappa: float, eps_list: tuple[float,
         levels = sorted({t["U"] for t in trajs} | {u for u in extra if math.isfinite(u)})
         levels = [lv for lv in levels if np.nanmin(U) < lv < np.nanmax(U)]
         panel: dict[str, Any] = {
-            "eps": eps, "critical_size": dcrit, "critical_kind": crit.kind,
+            "eps": eps,
+            "critical_size": dcrit,
+            "critical_kind": crit.kind,
             "x": float(eps * kappa / (ba - 1.0)),
             "steady_state": {"phi": phi1[[0, -1]], "psi": (1.0 - ba) * phi1[[0, -1]]},
-            "trajectories": trajs, "contours": _contours(phi1, psi1, U, levels),
-            "_grid": (phi1, psi1, U), "_levels": levels,
+            "trajectories": trajs,
+            "contours": _contours(phi1, psi1, U, levels),
+            "_grid": (phi1, psi1, U),
+            "_levels": levels,
         }
         if dcrit is not None:
-            panel["critical_trajectory"] = {"phi": phi1[[0, -1]], "psi": an.psi_crit_vo0(phi1[[0, -1]], ba, kappa, eps)}
+            panel["critical_trajectory"] = {
+                "phi": phi1[[0, -1]],
+                "psi": an.psi_crit_vo0(phi1[[0, -1]], ba, kappa, eps),
+            }
         if bd.acceleration_possible(ba, kappa, eps):
-            panel["acceleration_line"] = {"phi": phi1[[0, -1]], "psi": bd.acceleration_line(ba, kappa, eps, phi1[[0, -1]])}
+            panel["acceleration_line"] = {
+                "phi": phi1[[0, -1]],
+                "psi": bd.acceleration_line(ba, kappa, eps, phi1[[0, -1]]),
+            }
         panels.append(panel)
-    return {"ba": ba, "kappa": kappa, "vo": 0.0, "eps_crit": bd.eps_crit(ba, kappa), "window": window,
-            "panels": panels}
+    return {
+        "ba": ba,
+        "kappa": kappa,
+        "vo": 0.0,
+        "eps_crit": bd.eps_crit(ba, kappa),
+        "window": window,
+        "panels": panels,
+    }
 
 
 def _draw_trajectories_vo0(raw: dict[str, Any], fig: Figure) -> None:
@@ -598,8 +816,12 @@ def _draw_trajectories_vo0(raw: dict[str, Any], fig: Figure) -> None:
             c = panel["critical_trajectory"]
             ax.plot(c["phi"], c["psi"], "-", color=C_CRIT, lw=1.6)
             d = panel["critical_size"]
-            ax.annotate("", xy=(d, d), xytext=(0, 0),
-                        arrowprops={"arrowstyle": "->", "color": C_CRIT, "lw": 1.5})
+            ax.annotate(
+                "",
+                xy=(d, d),
+                xytext=(0, 0),
+                arrowprops={"arrowstyle": "->", "color": C_CRIT, "lw": 1.5},
+            )
             title = _eps_label(panel["eps"]) + rf", $\Delta\phi_{{crit}} = {d:.4g}$"
         else:
             title = _eps_label(panel["eps"]) + r", no unstable orbit ($\epsilon > \epsilon_{crit}$)"
@@ -610,13 +832,18 @@ def _draw_trajectories_vo0(raw: dict[str, Any], fig: Figure) -> None:
         ax.set_ylabel(r"$\psi$")
     kap = raw["kappa"]
     rel = "<" if kap < raw["ba"] - 1 else ">"
-    fig.suptitle(rf"$v_o = 0$, $b/a = {raw['ba']:g}$, $\kappa = {kap:g} {rel} \kappa_{{crit}}$"
-                 + (rf", $\epsilon_{{crit}} = {raw['eps_crit']:.4g}$" if raw["eps_crit"] <= 1 else ""), fontsize=11)
-    handles = [Line2D([], [], color=C_SS, ls="--", label="steady state"),
-               Line2D([], [], color=C_ACC, ls="--", label="acceleration line"),
-               Line2D([], [], color=C_CRIT, label="critical trajectory U = 0"),
-               Line2D([], [], color=C_U, label="U = const."),
-               Line2D([], [], color=C_TRAJ, label="numerical")]
+    fig.suptitle(
+        rf"$v_o = 0$, $b/a = {raw['ba']:g}$, $\kappa = {kap:g} {rel} \kappa_{{crit}}$"
+        + (rf", $\epsilon_{{crit}} = {raw['eps_crit']:.4g}$" if raw["eps_crit"] <= 1 else ""),
+        fontsize=11,
+    )
+    handles = [
+        Line2D([], [], color=C_SS, ls="--", label="steady state"),
+        Line2D([], [], color=C_ACC, ls="--", label="acceleration line"),
+        Line2D([], [], color=C_CRIT, label="critical trajectory U = 0"),
+        Line2D([], [], color=C_U, label="U = const."),
+        Line2D([], [], color=C_TRAJ, label="numerical"),
+    ]
     axs[0, 0].legend(handles=handles, fontsize=7, loc="lower left")
 
 
@@ -629,19 +856,48 @@ CV_AB_EPS = (0.0, 0.25, 0.5, 0.75, 1.0)
 def _compute_critical_jump_vo0(quality: str) -> dict[str, Any]:
     n = _Q[quality]["n_curve"]
     ba = V0_BA
-    eps = np.unique(np.concatenate([np.linspace(0.0, 1.0, 2 * n + 1), CV_EXTRA_EPS, [2.0 / 3.0 - 1e-3, 2.0 / 3.0 - 1e-4]]))
+    eps = np.unique(
+        np.concatenate(
+            [np.linspace(0.0, 1.0, 2 * n + 1), CV_EXTRA_EPS, [2.0 / 3.0 - 1e-3, 2.0 / 3.0 - 1e-4]]
+        )
+    )
     curves_a = []
     for k in CV_KAPPAS:
-        v = [critical_perturbation(Params(ba, k, float(e), 0.0), "velocity-jump").critical_size for e in eps]
-        curves_a.append({"kappa": k, "eps": eps, "critical_size": np.array([np.inf if x is None else x for x in v])})
+        v = [
+            critical_perturbation(Params(ba, k, float(e), 0.0), "velocity-jump").critical_size
+            for e in eps
+        ]
+        curves_a.append(
+            {
+                "kappa": k,
+                "eps": eps,
+                "critical_size": np.array([np.inf if x is None else x for x in v]),
+            }
+        )
     ab = np.unique(np.concatenate([np.linspace(0.01, 0.99, 2 * n + 1), [0.5]]))
     curves_b = []
     for e in CV_AB_EPS:
-        v = [critical_perturbation(Params(1.0 / a, 1.0, e, 0.0), "velocity-jump").critical_size for a in ab]
-        curves_b.append({"eps": e, "a_over_b": ab, "critical_size": np.array([np.inf if x is None else x for x in v]),
-                         "ab_crit": bd.ab_crit(1.0, e)})
-    return {"panel_a": {"ba": ba, "vo": 0.0, "curves": curves_a, "eps_crit": {str(k): bd.eps_crit(ba, k) for k in CV_KAPPAS}},
-            "panel_b": {"kappa": 1.0, "vo": 0.0, "curves": curves_b}}
+        v = [
+            critical_perturbation(Params(1.0 / a, 1.0, e, 0.0), "velocity-jump").critical_size
+            for a in ab
+        ]
+        curves_b.append(
+            {
+                "eps": e,
+                "a_over_b": ab,
+                "critical_size": np.array([np.inf if x is None else x for x in v]),
+                "ab_crit": bd.ab_crit(1.0, e),
+            }
+        )
+    return {
+        "panel_a": {
+            "ba": ba,
+            "vo": 0.0,
+            "curves": curves_a,
+            "eps_crit": {str(k): bd.eps_crit(ba, k) for k in CV_KAPPAS},
+        },
+        "panel_b": {"kappa": 1.0, "vo": 0.0, "curves": curves_b},
+    }
 
 
 def _draw_critical_jump_vo0(raw: dict[str, Any], fig: Figure) -> None:
@@ -651,10 +907,22 @@ def _draw_critical_jump_vo0(raw: dict[str, Any], fig: Figure) -> None:
     for c in a["curves"]:
         v = np.where(np.isfinite(c["critical_size"]), c["critical_size"], np.nan)
         rel = {0.5: "<", 1.0: "=", 1.5: ">"}[c["kappa"]]
-        ax1.semilogy(c["eps"], v, styles[c["kappa"]], color="k", lw=1.4,
-                     label=rf"$\kappa = {c['kappa']:g} {rel} \kappa_{{crit}}$")
+        ax1.semilogy(
+            c["eps"],
+            v,
+            styles[c["kappa"]],
+            color="k",
+            lw=1.4,
+            label=rf"$\kappa = {c['kappa']:g} {rel} \kappa_{{crit}}$",
+        )
     ec = a["eps_crit"]["1.5"]
-    ax1.axvline(ec, color="tab:red", ls="--", lw=1.2, label=rf"$\epsilon_{{crit}} = {ec:.4g}$ ($\kappa = 1.5$)")
+    ax1.axvline(
+        ec,
+        color="tab:red",
+        ls="--",
+        lw=1.2,
+        label=rf"$\epsilon_{{crit}} = {ec:.4g}$ ($\kappa = 1.5$)",
+    )
     ax1.set_ylim(0.3, 30)
     ax1.set_xlabel(r"$\epsilon$")
     ax1.set_ylabel(r"$\Delta\phi_{crit}$")
@@ -675,7 +943,7 @@ def _draw_critical_jump_vo0(raw: dict[str, Any], fig: Figure) -> None:
     ax2.legend(fontsize=7, loc="upper left")
 
 
-def mplcolor(i: int, n: int):  # noqa: ANN201
+def mplcolor(i: int, n: int) -> Any:
     import matplotlib as mpl
 
     return mpl.colormaps["viridis"](i / max(1, n - 1) * 0.9)
@@ -693,16 +961,33 @@ def _compute_periodic(quality: str) -> dict[str, Any]:
     tr = s.trajectory
     ba = p.ba
     vo_new = s.params.vo
-    return {"ba": ba, "kappa": p.kappa, "eps": p.eps, "size": PR_SIZE, "critical_size": crit.critical_size,
-            "vo_after": vo_new, "outcome": s.outcome,
-            "U": float(an.U_kcrit(0.0, 0.0, ba, p.eps, vo_new)),
-            "trajectory": {"T": tr.T, "slip": tr.slip, "phi": tr.phi, "psi": tr.psi, "Theta": tr.psi - tr.phi}}
+    return {
+        "ba": ba,
+        "kappa": p.kappa,
+        "eps": p.eps,
+        "size": PR_SIZE,
+        "critical_size": crit.critical_size,
+        "vo_after": vo_new,
+        "outcome": s.outcome,
+        "U": float(an.U_kcrit(0.0, 0.0, ba, p.eps, vo_new)),
+        "trajectory": {
+            "T": tr.T,
+            "slip": tr.slip,
+            "phi": tr.phi,
+            "psi": tr.psi,
+            "Theta": tr.psi - tr.phi,
+        },
+    }
 
 
 def _draw_periodic(raw: dict[str, Any], fig: Figure) -> None:
     axs = fig.subplots(2, 2)
     t = raw["trajectory"]
-    for ax, key, lab in zip(axs.flat[:3], ("psi", "phi", "Theta"), (r"$\psi$", r"$\phi$", r"$\Theta = (b/a)\ln(\theta V_*/D_c)$")):
+    for ax, key, lab in zip(
+        axs.flat[:3],
+        ("psi", "phi", "Theta"),
+        (r"$\psi$", r"$\phi$", r"$\Theta = (b/a)\ln(\theta V_*/D_c)$"),
+    ):
         ax.plot(t["slip"], t[key], "k-", lw=1.1)
         ax.set_xlabel(r"$\delta/D_c$")
         ax.set_ylabel(lab)
@@ -713,8 +998,11 @@ def _draw_periodic(raw: dict[str, Any], fig: Figure) -> None:
     ax.set_ylabel(r"$\psi$")
     for a, lab in zip(axs.flat, "abcd"):
         a.set_title(f"({lab})", fontsize=9, loc="left")
-    fig.suptitle(rf"$\kappa = \kappa_{{crit}} = 1$, $b/a = 2$, $\epsilon = 0.25$, $\Delta v_o/v_o = {raw['size']:g}$"
-                 rf" (critical {raw['critical_size']:.4g})", fontsize=10)
+    fig.suptitle(
+        rf"$\kappa = \kappa_{{crit}} = 1$, $b/a = 2$, $\epsilon = 0.25$, $\Delta v_o/v_o = {raw['size']:g}$"
+        rf" (critical {raw['critical_size']:.4g})",
+        fontsize=10,
+    )
 
 
 NP_SIZES = (4.0, 9.0, 12.0, 14.0)
@@ -728,15 +1016,36 @@ def _compute_non_periodic(quality: str) -> dict[str, Any]:
     for dv, label in zip(NP_SIZES, SD_LABELS):
         r = classify(p, "load-point-jump", dv)
         if r.outcome == "stable":
-            s = simulate(p, "load-point-jump", dv, t_end=NP_SLIP / (1.0 + dv), n_points=_Q[quality]["n_traj"])
+            s = simulate(
+                p, "load-point-jump", dv, t_end=NP_SLIP / (1.0 + dv), n_points=_Q[quality]["n_traj"]
+            )
         else:
             s = simulate(p, "load-point-jump", dv, n_points=_Q[quality]["n_traj"])
         tr = s.trajectory
         vo = s.params.vo
-        rows.append({"size": dv, "label": label, "outcome": s.outcome, "slip": tr.slip, "psi": tr.psi, "phi": tr.phi,
-                     "theta": np.exp(np.clip(tr.ln_theta, -700, 700)),
-                     "new_steady_state": {"phi": math.log(vo), "psi": (1.0 - p.ba) * math.log(vo), "theta": 1.0 / vo}})
-    return {"ba": p.ba, "kappa": p.kappa, "eps": p.eps, "critical_size": crit.critical_size, "rows": rows}
+        rows.append(
+            {
+                "size": dv,
+                "label": label,
+                "outcome": s.outcome,
+                "slip": tr.slip,
+                "psi": tr.psi,
+                "phi": tr.phi,
+                "theta": np.exp(np.clip(tr.ln_theta, -700, 700)),
+                "new_steady_state": {
+                    "phi": math.log(vo),
+                    "psi": (1.0 - p.ba) * math.log(vo),
+                    "theta": 1.0 / vo,
+                },
+            }
+        )
+    return {
+        "ba": p.ba,
+        "kappa": p.kappa,
+        "eps": p.eps,
+        "critical_size": crit.critical_size,
+        "rows": rows,
+    }
 
 
 def _draw_non_periodic(raw: dict[str, Any], fig: Figure) -> None:
@@ -755,10 +1064,16 @@ def _draw_non_periodic(raw: dict[str, Any], fig: Figure) -> None:
             if i == len(raw["rows"]) - 1:
                 ax.set_xlabel(r"$\delta/D_c$")
             if i == 0:
-                ax.set_title({"psi": r"$\psi$", "phi": r"$\phi$", "theta": r"$\theta V_*/D_c$"}[key], fontsize=10)
+                ax.set_title(
+                    {"psi": r"$\psi$", "phi": r"$\phi$", "theta": r"$\theta V_*/D_c$"}[key],
+                    fontsize=10,
+                )
         axs[i, 0].set_ylabel(f"{row['size']:g}: {row['outcome']}", fontsize=8)
-    fig.suptitle(rf"load-point jumps, $\kappa = 2\kappa_{{crit}}$, $b/a = 2$, $\epsilon = 0.25$"
-                 rf" (critical {raw['critical_size']:.5g})", fontsize=10)
+    fig.suptitle(
+        rf"load-point jumps, $\kappa = 2\kappa_{{crit}}$, $b/a = 2$, $\epsilon = 0.25$"
+        rf" (critical {raw['critical_size']:.5g})",
+        fontsize=10,
+    )
 
 
 # ==================================================================== continuum eigenmodes
@@ -768,90 +1083,178 @@ def _compute_modes(quality: str) -> dict[str, Any]:
     for case, lo, kstar in (("B", -1.0, "mu'/L"), ("D", -1.0, "E'h/L^2"), ("E", 0.0, "mu/R")):
         x = np.linspace(lo, 1.0, n)
         x, delta = eigen_mode(case, 0, x=x)
-        cases.append({"case": case, "x": x, "delta": delta, "eigenvalue": eigen_stiffness(case, 0), "k_star": kstar})
-    return {"cases": cases, "table_printed": {"B": 1.157773882, "D": math.pi ** 2 / 4.0, "E": 1.003059516}}
+        cases.append(
+            {
+                "case": case,
+                "x": x,
+                "delta": delta,
+                "eigenvalue": eigen_stiffness(case, 0),
+                "k_star": kstar,
+            }
+        )
+    return {
+        "cases": cases,
+        "table_printed": {"B": 1.157773882, "D": math.pi**2 / 4.0, "E": 1.003059516},
+    }
 
 
 def _draw_modes(raw: dict[str, Any], fig: Figure) -> None:
     axs = fig.subplots(1, 3)
-    titles = {"B": "(B) finite interface 2L", "D": "(D) 2L near a free surface", "E": "(E) circular, radius R"}
+    titles = {
+        "B": "(B) finite interface 2L",
+        "D": "(D) 2L near a free surface",
+        "E": "(E) circular, radius R",
+    }
     xl = {"B": "x/L", "D": "x/L", "E": "r/R"}
     for ax, c in zip(axs, raw["cases"]):
         ax.plot(c["x"], c["delta"], color="tab:red", lw=1.6)
         ax.axhline(0.0, color="0.6", lw=0.6)
         ax.set_title(titles[c["case"]], fontsize=9)
         ax.set_xlabel(xl[c["case"]])
-        ax.text(0.5, 0.08, rf"$k/k_* = {c['eigenvalue']:.10g}$" + f"\n$k_* = {c['k_star']}$", transform=ax.transAxes,
-                ha="center", fontsize=8)
+        ax.text(
+            0.5,
+            0.08,
+            rf"$k/k_* = {c['eigenvalue']:.10g}$" + f"\n$k_* = {c['k_star']}$",
+            transform=ax.transAxes,
+            ha="center",
+            fontsize=8,
+        )
         ax.set_ylim(-0.05, 1.1)
     axs[0].set_ylabel(r"eigenmode $\delta/\delta_{max}$")
 
 
 # ==================================================================== registry
-def _mk(name: str, label: str, caption: str, compute, draw, size, note: str = "") -> FigureSpec:  # noqa: ANN001
+def _mk(
+    name: str, label: str, caption: str, compute: Any, draw: Any, size: Any, note: str = ""
+) -> FigureSpec:
     return FigureSpec(name, label, caption, compute, draw, size, note)
 
 
 FIGURES: dict[str, FigureSpec] = {
     s.name: s
     for s in [
-        _mk("velocity-step", "fig: velocity stepping experiments",
+        _mk(
+            "velocity-step",
+            "fig: velocity stepping experiments",
             "analytic stress response (eq: delta tau) Delta tau/(b sigma) vs slip delta/Dc after velocity steps "
             "V2/V1 = 10^{+-1..4}, one panel per eps from 0 (slip law) to 1 (aging law)",
-            _compute_velocity_step, _draw_velocity_step, (10.0, 6.0),
-            "eps = 0, 0.2, 0.4, 0.6, 0.8, 1 (the caption does not list the panels' eps)"),
-        _mk("trajectories-kcrit", "fig: trajectories 1",
-            "U = const. contours in (phi, psi) for v_o = 1, b/a = 5/4, kappa = kappa_crit = 1/4, eps in {0, 0.3, 0.6, 1}; "
+            _compute_velocity_step,
+            _draw_velocity_step,
+            (10.0, 6.0),
+            "eps = 0, 0.2, 0.4, 0.6, 0.8, 1 (the caption does not list the panels' eps)",
+        ),
+        _mk(
+            "trajectories-kcrit",
+            "fig: trajectories 1",
+            "U = const. contours in (phi, psi) for v_o = 1, b/a = 5/4, kappa = kappa_crit = 1/4, "
+            "eps in {0, 0.3, 0.6, 1}; "
             "steady-state line, critical trajectory U = 0 (red), numerical trajectories from velocity jumps (black)",
-            _compute_trajectories_kcrit, _draw_trajectories_kcrit, (10.0, 8.0)),
-        _mk("critical-jump-kcrit", "fig: limiting perturbation 1",
-            "(a) critical velocity jump dphi_crit vs eps for b/a = 5/4, kappa = kappa_crit, with the slip- and aging-law "
+            _compute_trajectories_kcrit,
+            _draw_trajectories_kcrit,
+            (10.0, 8.0),
+        ),
+        _mk(
+            "critical-jump-kcrit",
+            "fig: limiting perturbation 1",
+            "(a) critical velocity jump dphi_crit vs eps for b/a = 5/4, kappa = kappa_crit, "
+            "with the slip- and aging-law "
             "asymptotes; (b) slip law, dphi_crit vs a/b with the sqrt(2 a/b) scaling and the excluded point a/b = 1",
-            _compute_critical_jump_kcrit, _draw_critical_jump_kcrit, (11.0, 4.8)),
-        _mk("rate-neutral", "fig: rate neutral",
+            _compute_critical_jump_kcrit,
+            _draw_critical_jump_kcrit,
+            (11.0, 4.8),
+        ),
+        _mk(
+            "rate-neutral",
+            "fig: rate neutral",
             "phase-plane trajectory for rate-neutral friction b/a = 1, kappa = 1, eps = 0.01 after a velocity jump "
             "dphi = 1: spirals back to steady state",
-            _compute_rate_neutral, _draw_rate_neutral, (5.5, 4.5),
+            _compute_rate_neutral,
+            _draw_rate_neutral,
+            (5.5, 4.5),
             "b/a = 1 exactly is outside rsfcore's range (1, 1e6]; computed at b/a = 1 + 1e-9 "
-            "(tests compare with a direct b/a = 1 integration)"),
-        _mk("stability-diagram-velocity", "fig: stability diagram2",
+            "(tests compare with a direct b/a = 1 integration)",
+        ),
+        _mk(
+            "stability-diagram-velocity",
+            "fig: stability diagram2",
             "(a) critical velocity jump vs kappa/kappa_crit for several eps (b/a = 2, v_o = 1); (b) trajectories for "
             "dphi = 1, 1.5, 2.5, 3 at kappa = 2 kappa_crit, eps = 0.25 with U_kcrit level lines (red dashed)",
-            lambda q: _compute_stability(q, "velocity-jump"), _draw_stability, (11.0, 5.0)),
-        _mk("stability-diagram-load-point", "fig: stability diagram",
+            lambda q: _compute_stability(q, "velocity-jump"),
+            _draw_stability,
+            (11.0, 5.0),
+        ),
+        _mk(
+            "stability-diagram-load-point",
+            "fig: stability diagram",
             "(a) critical load-point jump vs kappa/kappa_crit for several eps (b/a = 2); (b) trajectories for "
             "dv_o/v_o = 4, 9, 12, 14 at kappa = 2 kappa_crit, eps = 0.25",
-            lambda q: _compute_stability(q, "load-point-jump"), _draw_stability, (11.0, 5.0),
-            "the caption reads 12.66 off the figure; the critical jump is 12.6842"),
-        _mk("trajectories-vo0-soft", "fig: trajectories 2",
+            lambda q: _compute_stability(q, "load-point-jump"),
+            _draw_stability,
+            (11.0, 5.0),
+            "the caption reads 12.66 off the figure; the critical jump is 12.6842",
+        ),
+        _mk(
+            "trajectories-vo0-soft",
+            "fig: trajectories 2",
             "stationary load point v_o = 0, b/a = 2, kappa = 0.5 < kappa_crit, eps in {0, 0.3, 0.6, 1}: U contours "
             "(eq: trajectories 2), critical line (red), acceleration line (orange), numerical trajectories",
-            lambda q: _compute_trajectories_vo0(q, 0.5, (0.0, 0.3, 0.6, 1.0), (-3.0, 3.0, -2.5, 3.0)),
-            _draw_trajectories_vo0, (10.0, 8.0)),
-        _mk("trajectories-vo0-stiff", "fig: trajectories 3",
-            "stationary load point v_o = 0, b/a = 2, kappa = 3/2 > kappa_crit, eps in {0, 0.6, 0.7, 1}: unstable orbits "
+            lambda q: _compute_trajectories_vo0(
+                q, 0.5, (0.0, 0.3, 0.6, 1.0), (-3.0, 3.0, -2.5, 3.0)
+            ),
+            _draw_trajectories_vo0,
+            (10.0, 8.0),
+        ),
+        _mk(
+            "trajectories-vo0-stiff",
+            "fig: trajectories 3",
+            "stationary load point v_o = 0, b/a = 2, kappa = 3/2 > kappa_crit, "
+            "eps in {0, 0.6, 0.7, 1}: unstable orbits "
             "vanish above eps_crit = 2/3",
-            lambda q: _compute_trajectories_vo0(q, 1.5, (0.0, 0.6, 0.7, 1.0), (-4.0, 6.0, -4.0, 6.0)),
-            _draw_trajectories_vo0, (10.0, 8.0),
+            lambda q: _compute_trajectories_vo0(
+                q, 1.5, (0.0, 0.6, 0.7, 1.0), (-4.0, 6.0, -4.0, 6.0)
+            ),
+            _draw_trajectories_vo0,
+            (10.0, 8.0),
             "the caption says kappa = 2, which gives eps_crit = 1/2 and no critical line at eps = 0.6; "
-            "kappa = 3/2 (the text) gives the caption's eps_crit = 2/3 and is used"),
-        _mk("critical-jump-vo0", "fig: limiting perturbation 2",
+            "kappa = 3/2 (the text) gives the caption's eps_crit = 2/3 and is used",
+        ),
+        _mk(
+            "critical-jump-vo0",
+            "fig: limiting perturbation 2",
             "v_o = 0: (a) dphi_crit vs eps for b/a = 2, kappa = 0.5, 1, 1.5 with eps_crit = 2/3; (b) dphi_crit vs a/b "
             "for kappa = 1 and eps in {0, 0.25, 0.5, 0.75, 1} with the (a/b)_crit asymptotes",
-            _compute_critical_jump_vo0, _draw_critical_jump_vo0, (11.0, 4.8)),
-        _mk("periodic-response", "fig: periodic motion",
+            _compute_critical_jump_vo0,
+            _draw_critical_jump_vo0,
+            (11.0, 4.8),
+        ),
+        _mk(
+            "periodic-response",
+            "fig: periodic motion",
             "kappa = kappa_crit = 1, b/a = 2, eps = 0.25, load-point jump dv_o/v_o = 1.33 (critical 4/3): psi, phi, "
             "Theta vs slip and the closed phase-plane orbit",
-            _compute_periodic, _draw_periodic, (9.0, 7.0),
-            "the caption's critical value 1.34 is 4/3 = 1.3333 (closed form 1/(kappa_crit (1 - eps)))"),
-        _mk("non-periodic-response", "fig: non-periodic motion",
+            _compute_periodic,
+            _draw_periodic,
+            (9.0, 7.0),
+            "the caption's critical value 1.34 is 4/3 = 1.3333 (closed form 1/(kappa_crit (1 - eps)))",
+        ),
+        _mk(
+            "non-periodic-response",
+            "fig: non-periodic motion",
             "load-point jumps 4, 9, 12, 14 at kappa = 2 kappa_crit, b/a = 2, eps = 0.25: psi, phi, theta V*/Dc vs slip",
-            _compute_non_periodic, _draw_non_periodic, (10.0, 9.0)),
-        _mk("continuum-modes", "fig: continuum models",
+            _compute_non_periodic,
+            _draw_non_periodic,
+            (10.0, 9.0),
+        ),
+        _mk(
+            "continuum-modes",
+            "fig: continuum models",
             "smallest-eigenvalue eigenmodes (red curves of the schematic) of cases B, D and E with k/k_* "
             "(tab: table)",
-            _compute_modes, _draw_modes, (11.0, 3.8),
+            _compute_modes,
+            _draw_modes,
+            (11.0, 3.8),
             "the schematic itself is not computed; case B's converged eigenvalue is 1.1577738836976 "
-            "(the paper prints 1.157773882)"),
+            "(the paper prints 1.157773882)",
+        ),
     ]
 }

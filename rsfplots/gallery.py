@@ -6,6 +6,7 @@ Each image is the 'paper' quality figure at a reduced resolution (at most ~200 K
 markdown lists every image with the exact ``rsf figure`` command that regenerates it at
 full resolution.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -45,7 +46,10 @@ def build(out_dir: Path, md_path: Path, quality: str = "paper", verbose: bool = 
         path.write_bytes(blob)
         written.append(path)
         if verbose:
-            print(f"{name}: {len(blob) / 1e3:.0f} KB, {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+            print(
+                f"{name}: {len(blob) / 1e3:.0f} KB, {time.perf_counter() - t0:.1f} s",
+                file=sys.stderr,
+            )
         rows += [
             f"### `{name}` — {spec.label}",
             "",
@@ -64,7 +68,9 @@ def build(out_dir: Path, md_path: Path, quality: str = "paper", verbose: bool = 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--out-dir", type=Path, default=ROOT / "docs" / "gallery")
     ap.add_argument("--md", type=Path, default=ROOT / "docs" / "gallery.md")
     ap.add_argument("--quality", default="paper", choices=("draft", "paper"))

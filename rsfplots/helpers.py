@@ -6,10 +6,12 @@
 
 Each returns the encoded image (PNG by default, or SVG) as bytes.
 """
+
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from matplotlib.colors import ListedColormap, LogNorm
@@ -41,7 +43,9 @@ def plot_trajectory(result: Any, fmt: str = "png", *, dpi: int = 100) -> bytes:
     d = result.to_dict() if hasattr(result, "to_dict") else dict(result)
     tr = d.get("trajectory")
     if not tr:
-        raise ParameterError("trajectory", None, "a result with a sampled trajectory (n_points > 0 or times)")
+        raise ParameterError(
+            "trajectory", None, "a result with a sampled trajectory (n_points > 0 or times)"
+        )
     phi, psi, T = _arr(tr["phi"]), _arr(tr["psi"]), _arr(tr["T"])
     p = d.get("params", {})
     ba = float(p.get("ba", 2.0))
@@ -67,14 +71,27 @@ def plot_trajectory(result: Any, fmt: str = "png", *, dpi: int = 100) -> bytes:
     ax2.plot(T, phi, "k-", lw=1.2)
     ax2.set_xlabel(r"$T = V_* t/D_c$")
     ax2.set_ylabel(r"$\phi$")
-    title = f"{d.get('outcome', '')} ({d.get('certificate', '')}); b/a={ba:g}, kappa={p.get('kappa', '?'):g}, " \
-            f"eps={p.get('eps', '?'):g}, vo={vo:g}" if p else str(d.get("outcome", ""))
+    title = (
+        f"{d.get('outcome', '')} ({d.get('certificate', '')}); b/a={ba:g}, kappa={p.get('kappa', '?'):g}, "
+        f"eps={p.get('eps', '?'):g}, vo={vo:g}"
+        if p
+        else str(d.get("outcome", ""))
+    )
     fig.suptitle(title, fontsize=9)
     return figure_bytes(fig, fmt, dpi)
 
 
-def plot_u_field(phi: Any, psi: Any = None, U: Any = None, *, levels: Any = None, n_levels: int = 25,
-                 title: str | None = None, fmt: str = "png", dpi: int = 100) -> bytes:
+def plot_u_field(
+    phi: Any,
+    psi: Any = None,
+    U: Any = None,
+    *,
+    levels: Any = None,
+    n_levels: int = 25,
+    title: str | None = None,
+    fmt: str = "png",
+    dpi: int = 100,
+) -> bytes:
     """Contours of a Lyapunov function U on a (phi, psi) grid.
 
     Args:
@@ -101,7 +118,9 @@ def plot_u_field(phi: Any, psi: Any = None, U: Any = None, *, levels: Any = None
         qs = np.unique(np.quantile(fin, np.linspace(0.02, 0.98, n_levels)))
         levels = qs[qs != 0.0]
     if levels is not None and len(levels):
-        ax.contour(x, y, zm, levels=np.sort(np.asarray(levels, dtype=float)), colors="0.4", linewidths=0.7)
+        ax.contour(
+            x, y, zm, levels=np.sort(np.asarray(levels, dtype=float)), colors="0.4", linewidths=0.7
+        )
     if zm.count() > 0 and np.nanmin(z) < 0.0 < np.nanmax(z):
         ax.contour(x, y, zm, levels=[0.0], colors="tab:red", linewidths=1.5)
     ax.set_xlabel(r"$\phi$")
@@ -121,30 +140,57 @@ def plot_diagram(diagram: Any, fmt: str = "png", *, dpi: int = 100) -> bytes:
     """
     d = diagram.to_dict() if hasattr(diagram, "to_dict") else dict(diagram)
     x, y = _arr(d["x"]), _arr(d["y"])
-    cs = np.array([[np.inf if v is None else float(v) for v in row] for row in d["critical_size"]], dtype=float)
+    cs = np.array(
+        [[np.inf if v is None else float(v) for v in row] for row in d["critical_size"]],
+        dtype=float,
+    )
     kind = np.asarray(d["kind"], dtype=int)
     fig = new_figure(6.5, 5.0)
     ax = fig.subplots()
     xn, yn = d["x_name"], d["y_name"]
     if d.get("outcome") is not None:
         out = np.asarray(d["outcome"], dtype=float)
-        m = ax.pcolormesh(x, y, out.T, cmap=ListedColormap(["#9ecae1", "#de2d26"]), vmin=0, vmax=1, shading="nearest")
+        m = ax.pcolormesh(
+            x,
+            y,
+            out.T,
+            cmap=ListedColormap(["#9ecae1", "#de2d26"]),
+            vmin=0,
+            vmax=1,
+            shading="nearest",
+        )
         cb = fig.colorbar(m, ax=ax, ticks=[0.25, 0.75])
         cb.ax.set_yticklabels(["stable", "unstable"])
         title = f"outcome of {d.get('perturbation', '')}"
     else:
         fin = np.where((kind == 1) & np.isfinite(cs) & (cs > 0), cs, np.nan)
-        ax.pcolormesh(x, y, np.where(kind.T == 1, np.nan, kind.T), cmap=_KIND_CMAP, vmin=0, vmax=2, shading="nearest")
+        ax.pcolormesh(
+            x,
+            y,
+            np.where(kind.T == 1, np.nan, kind.T),
+            cmap=_KIND_CMAP,
+            vmin=0,
+            vmax=2,
+            shading="nearest",
+        )
         if np.any(np.isfinite(fin)):
             lo, hi = np.nanmin(fin), np.nanmax(fin)
-            m = ax.pcolormesh(x, y, fin.T, norm=LogNorm(vmin=lo, vmax=max(hi, lo * 1.0001)), cmap="viridis",
-                              shading="nearest")
+            m = ax.pcolormesh(
+                x,
+                y,
+                fin.T,
+                norm=LogNorm(vmin=lo, vmax=max(hi, lo * 1.0001)),
+                cmap="viridis",
+                shading="nearest",
+            )
             fig.colorbar(m, ax=ax, label="critical size")
             if x.size >= 2 and y.size >= 2:
                 ax.contour(x, y, np.log(fin.T), levels=8, colors="k", linewidths=0.5)
         title = f"critical {d.get('perturbation', '')} (red: zero, blue: infinite)"
     ax.set_xlabel(xn)
     ax.set_ylabel(yn)
-    fixed = ", ".join(f"{k}={v:g}" for k, v in (d.get("fixed") or {}).items() if isinstance(v, (int, float)))
+    fixed = ", ".join(
+        f"{k}={v:g}" for k, v in (d.get("fixed") or {}).items() if isinstance(v, (int, float))
+    )
     ax.set_title(title + (f"\n{fixed}" if fixed else ""), fontsize=9)
     return figure_bytes(fig, fmt, dpi)

@@ -8,6 +8,7 @@
 
 Each returns the encoded image (PNG by default, or SVG) as bytes.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -48,8 +49,14 @@ def plot_protocol(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -
     pos = v > 0
     ax2.semilogy(t[pos], v[pos], "k-", lw=1.1, label="slip rate V")
     if vo.size == t.size and np.any(vo > 0):
-        ax2.semilogy(t, np.where(vo > 0, vo, np.nan), "--", color="tab:blue", lw=0.9,
-                     label="load-point velocity (gap: hold)")
+        ax2.semilogy(
+            t,
+            np.where(vo > 0, vo, np.nan),
+            "--",
+            color="tab:blue",
+            lw=0.9,
+            label="load-point velocity (gap: hold)",
+        )
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("V (m/s)")
     ax2.legend(fontsize=7)
@@ -57,8 +64,11 @@ def plot_protocol(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -
     fc = result.get("friction_changes") or {}
     extra = ""
     if fc.get("steady_state_delta_f") is not None:
-        extra = f"; df_ss = {fc['steady_state_delta_f']:.4g}, df_peak = {fc['peak_delta_f']:.4g}" \
-            if fc.get("peak_delta_f") is not None else f"; df_ss = {fc['steady_state_delta_f']:.4g}"
+        extra = (
+            f"; df_ss = {fc['steady_state_delta_f']:.4g}, df_peak = {fc['peak_delta_f']:.4g}"
+            if fc.get("peak_delta_f") is not None
+            else f"; df_ss = {fc['steady_state_delta_f']:.4g}"
+        )
     elif fc.get("healing_delta_f") is not None:
         extra = f"; healing df = {fc['healing_delta_f']:.4g}"
     if result.get("protocol", result).get("unstable"):
@@ -86,8 +96,10 @@ def plot_fit(result: dict[str, Any], fmt: str = "png", *, dpi: int = 100) -> byt
     ax2.set_ylabel("model - data")
     ax2.set_xlabel("t (s)")
     p = result.get("params", {})
-    txt = ", ".join(f"{k}={v:.4g}" for k, v in p.items()
-                    if k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m")
-                    and isinstance(v, (int, float)))
+    txt = ", ".join(
+        f"{k}={v:.4g}"
+        for k, v in p.items()
+        if k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m") and isinstance(v, (int, float))
+    )
     fig.suptitle(f"{result.get('law', '')} law ({result.get('status', '')}): {txt}", fontsize=9)
     return figure_bytes(fig, fmt, dpi)

@@ -1,9 +1,10 @@
 """FastAPI application factory: ``uvicorn service.app:app``."""
+
 from __future__ import annotations
 
 import logging
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from typing import AsyncIterator
 
 from fastapi import Depends, FastAPI
 from starlette.concurrency import run_in_threadpool
@@ -15,10 +16,10 @@ from rsfapp.warmup import warm_up
 from . import auth, contract, limits
 from .deps import Inflight
 from .errors import install_handlers
-from .routes import compute, docs, figures, meta, sweeps, ui
 from .routes import batch as batch_routes
-from .routes import protocols as protocol_routes
+from .routes import compute, docs, figures, meta, sweeps, ui
 from .routes import fits as fit_routes
+from .routes import protocols as protocol_routes
 
 __all__ = ["create_app", "app"]
 log = logging.getLogger("rsf.service")
@@ -41,8 +42,8 @@ def create_app() -> FastAPI:
         redoc_url=None,
         version="1",
         description="Non-linear slip-stability analysis of rate-and-state friction "
-                    "(spring-slider). Dimensionless quantities unless stated; errors are "
-                    "application/problem+json.",
+        "(spring-slider). Dimensionless quantities unless stated; errors are "
+        "application/problem+json.",
         # API keys on every route of the schema (service.auth; open: page, docs)
         dependencies=[Depends(auth.guard)],
     )

@@ -18,6 +18,7 @@ Answers: 401 (no key, malformed, unknown or revoked key: one message for all, wi
 ``application/problem+json``.  Keys are compared through their SHA-256 in constant time
 (:meth:`rsfapp.store.keys.KeyStore.verify`) and never logged or echoed.
 """
+
 from __future__ import annotations
 
 import ipaddress
@@ -40,24 +41,46 @@ from rsfapp.store.keys import KeyStore, Quotas, Scope, hash_key, utc_day
 from .deps import SettingsDep, StoresDep
 from .errors import ProblemError, problem
 
-__all__ = ["AuthError", "Principal", "PrincipalDep", "QuotaError", "RESPONSES", "admit_sweep",
-           "bearer", "check_owner", "current", "get_key_store", "guard", "install",
-           "needed_scope", "quotas_of", "scope_for", "sweep_submitted"]
+__all__ = [
+    "AuthError",
+    "Principal",
+    "PrincipalDep",
+    "QuotaError",
+    "RESPONSES",
+    "admit_sweep",
+    "bearer",
+    "check_owner",
+    "current",
+    "get_key_store",
+    "guard",
+    "install",
+    "needed_scope",
+    "quotas_of",
+    "scope_for",
+    "sweep_submitted",
+]
 log = logging.getLogger("rsf.service")
 
 #: The security scheme shown in OpenAPI (and the Swagger UI "Authorize" button).
 bearer = HTTPBearer(
-    auto_error=False, scheme_name="ApiKey", bearerFormat="rsf_<43 URL-safe characters>",
+    auto_error=False,
+    scheme_name="ApiKey",
+    bearerFormat="rsf_<43 URL-safe characters>",
     description="An API key made by `rsf keys create --name NAME --scope read|submit|admin`, "
-                "sent as `Authorization: Bearer <key>`.  Needed on every endpoint once the "
-                "server has a key (or with RSF_AUTH=on).")
+    "sent as `Authorization: Bearer <key>`.  Needed on every endpoint once the "
+    "server has a key (or with RSF_AUTH=on).",
+)
 
 #: Answers every protected operation may give (documented on each one).
 RESPONSES: dict[int | str, dict[str, Any]] = {
-    401: {"description": "No API key, or an unknown, malformed or revoked one "
-                         "(problem+json; header `WWW-Authenticate: Bearer`)."},
-    403: {"description": "The key's scope does not allow this request, or the sweep "
-                         "belongs to another key (problem+json)."},
+    401: {
+        "description": "No API key, or an unknown, malformed or revoked one "
+        "(problem+json; header `WWW-Authenticate: Bearer`)."
+    },
+    403: {
+        "description": "The key's scope does not allow this request, or the sweep "
+        "belongs to another key (problem+json)."
+    },
 }
 
 
@@ -100,11 +123,15 @@ class AuthError(Exception):
         self.status, self.detail = status, detail
 
 
-_UNAUTHORIZED = ("a valid API key is required: send 'Authorization: Bearer <key>' "
-                 "(keys are made with 'rsf keys create')")
-_NO_KEYS_REMOTE = ("this server has no API key yet and answers requests without a key only "
-                   "on its loopback interface; create one with 'rsf keys create --name NAME' "
-                   "and send it as 'Authorization: Bearer <key>'")
+_UNAUTHORIZED = (
+    "a valid API key is required: send 'Authorization: Bearer <key>' "
+    "(keys are made with 'rsf keys create')"
+)
+_NO_KEYS_REMOTE = (
+    "this server has no API key yet and answers requests without a key only "
+    "on its loopback interface; create one with 'rsf keys create --name NAME' "
+    "and send it as 'Authorization: Bearer <key>'"
+)
 
 _key_stores: dict[int, KeyStore] = {}
 
@@ -127,11 +154,13 @@ KeyStoreDep = Annotated[KeyStore, Depends(_key_store_dep)]
 
 def quotas_of(settings: Settings, overrides: dict[str, Any] | None = None) -> Quotas:
     """The default quotas of ``settings`` with a key's ``overrides``."""
-    q = Quotas(concurrent_sweeps=settings.quota_concurrent_sweeps,
-               points_per_day=settings.quota_points_per_day,
-               fresh_per_s=settings.quota_fresh_per_s,
-               concurrent_requests=settings.quota_concurrent_requests,
-               trajectory_points=settings.quota_trajectory_points)
+    q = Quotas(
+        concurrent_sweeps=settings.quota_concurrent_sweeps,
+        points_per_day=settings.quota_points_per_day,
+        fresh_per_s=settings.quota_fresh_per_s,
+        concurrent_requests=settings.quota_concurrent_requests,
+        trajectory_points=settings.quota_trajectory_points,
+    )
     return q.with_overrides(overrides or {})
 
 
@@ -166,8 +195,9 @@ def needed_scope(request: Request) -> Scope:
     return scope_for(getattr(route, "path_format", None) or request.url.path, request.method)
 
 
-async def _authenticate(request: Request, creds: HTTPAuthorizationCredentials | None,
-                        settings: Settings, keys: KeyStore) -> Principal:
+async def _authenticate(
+    request: Request, creds: HTTPAuthorizationCredentials | None, settings: Settings, keys: KeyStore
+) -> Principal:
     if settings.auth == "off":
         return Principal(None, Scope.admin, quotas_of(settings))
     given = "authorization" in request.headers
@@ -182,13 +212,17 @@ async def _authenticate(request: Request, creds: HTTPAuthorizationCredentials | 
     key = await run_in_threadpool(keys.verify, creds.credentials)
     if key is None:
         raise AuthError(401, _UNAUTHORIZED)
-    return Principal(key.name, key.scope, quotas_of(settings, key.quotas),
-                     hash_key(creds.credentials))
+    return Principal(
+        key.name, key.scope, quotas_of(settings, key.quotas), hash_key(creds.credentials)
+    )
 
 
-async def guard(request: Request, settings: SettingsDep, keys: KeyStoreDep,
-                creds: Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
-                ) -> Principal:
+async def guard(
+    request: Request,
+    settings: SettingsDep,
+    keys: KeyStoreDep,
+    creds: Annotated[HTTPAuthorizationCredentials | None, Security(bearer)],
+) -> Principal:
     """App-level dependency: authenticate, check the scope, bound the work of a request.
 
     Routes outside the OpenAPI schema are open.  The principal is left in
@@ -202,10 +236,10 @@ async def guard(request: Request, settings: SettingsDep, keys: KeyStoreDep,
     request.scope["rsf.principal"] = p
     need = needed_scope(request)
     if not p.scope.allows(need):
-        raise AuthError(403, f"this key has scope '{p.scope.value}'; this request needs "
-                             f"'{need.value}'")
-    if not p.anonymous and request.method == "POST" and request.url.path.endswith(
-            "/trajectory"):
+        raise AuthError(
+            403, f"this key has scope '{p.scope.value}'; this request needs '{need.value}'"
+        )
+    if not p.anonymous and request.method == "POST" and request.url.path.endswith("/trajectory"):
         await _check_trajectory_points(request, p)
     return p
 
@@ -218,9 +252,13 @@ async def _check_trajectory_points(request: Request, p: Principal) -> None:
     n = body.get("n_points") if isinstance(body, dict) else None
     limit = p.quotas.trajectory_points
     if isinstance(n, int) and not isinstance(n, bool) and n > limit:
-        raise ProblemError(422, "Invalid input", f"n_points: {n} exceeds this key's quota "
-                           f"(valid range: [2, {limit}])", field="n_points",
-                           valid=f"[2, {limit}]")
+        raise ProblemError(
+            422,
+            "Invalid input",
+            f"n_points: {n} exceeds this key's quota (valid range: [2, {limit}])",
+            field="n_points",
+            valid=f"[2, {limit}]",
+        )
 
 
 def current(request: Request) -> Principal:
@@ -253,21 +291,28 @@ async def admit_sweep(who: Principal, stores: Stores, sweep_id: str, n_points: i
     ks, q = _keys_of(stores), who.quotas
     active = await run_in_threadpool(ks.active_sweeps, who.name)
     if active >= q.concurrent_sweeps:
-        raise QuotaError(f"this key has {active} sweeps queued or running (quota "
-                         f"concurrent_sweeps = {q.concurrent_sweeps}); wait for one to "
-                         "finish or cancel one", retry_after=30)
+        raise QuotaError(
+            f"this key has {active} sweeps queued or running (quota "
+            f"concurrent_sweeps = {q.concurrent_sweeps}); wait for one to "
+            "finish or cancel one",
+            retry_after=30,
+        )
     left = await run_in_threadpool(ks.reserve_points, who.name, n_points, q.points_per_day)
     if left < 0:
         used = await run_in_threadpool(ks.points_used, who.name)
         midnight = (utc_day() + 1) * 86400 - time.time()
-        raise QuotaError(f"{n_points} points would exceed this key's daily quota "
-                         f"(points_per_day = {q.points_per_day}, used today {used}); the "
-                         "count resets at 00:00 UTC", retry_after=max(1, math.ceil(midnight)))
+        raise QuotaError(
+            f"{n_points} points would exceed this key's daily quota "
+            f"(points_per_day = {q.points_per_day}, used today {used}); the "
+            "count resets at 00:00 UTC",
+            retry_after=max(1, math.ceil(midnight)),
+        )
     return n_points
 
 
-async def sweep_submitted(who: Principal, stores: Stores, sweep_id: str, charged: bool,
-                          reserved: int) -> None:
+async def sweep_submitted(
+    who: Principal, stores: Stores, sweep_id: str, charged: bool, reserved: int
+) -> None:
     """After a submission: record ``who`` as the owner of a new sweep; give the reserved
     points back when nothing new was started (an existing sweep was returned)."""
     if who.anonymous or who.name is None:
@@ -287,8 +332,11 @@ async def check_owner(who: Principal, stores: Stores, sweep_id: str) -> None:
     if owner is None and await run_in_threadpool(stores.sweeps.status, sweep_id) is None:
         return  # unknown sweep: the route answers 404
     if owner != who.name:
-        raise AuthError(403, "this sweep was submitted with another key; only that key or "
-                             "an admin key may cancel it")
+        raise AuthError(
+            403,
+            "this sweep was submitted with another key; only that key or "
+            "an admin key may cancel it",
+        )
 
 
 def install(app: FastAPI) -> None:
@@ -296,13 +344,14 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(QuotaError)
     async def _quota(_req: Request, exc: QuotaError) -> Response:
-        return problem(429, "Too many requests", exc.detail,
-                       headers={"Retry-After": str(exc.retry_after)})
+        return problem(
+            429, "Too many requests", exc.detail, headers={"Retry-After": str(exc.retry_after)}
+        )
 
     @app.exception_handler(AuthError)
     async def _auth(_req: Request, exc: AuthError) -> Response:
         if exc.status == 401:
-            return problem(401, "Unauthorized", exc.detail,
-                           headers={"WWW-Authenticate": 'Bearer realm="rsf"'})
+            return problem(
+                401, "Unauthorized", exc.detail, headers={"WWW-Authenticate": 'Bearer realm="rsf"'}
+            )
         return problem(exc.status, "Forbidden", exc.detail)
-

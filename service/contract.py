@@ -14,6 +14,7 @@ FastAPI's generated schema is post-processed once (:func:`install` replaces
   sent to the queue);
 * every operation states the API-key scope it needs (``x-required-scope``).
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -32,7 +33,7 @@ PROBLEM_SCHEMA: dict[str, Any] = {
     "title": "Problem",
     "type": "object",
     "description": "RFC 9457 problem details.  For 422: `field` names the offending "
-                   "input, `valid` states its valid range, `errors` lists every error.",
+    "input, `valid` states its valid range, `errors` lists every error.",
     "required": ["type", "title", "status", "detail"],
     "properties": {
         "type": {"type": "string"},
@@ -49,27 +50,35 @@ _DEFERRED_SCHEMA: dict[str, Any] = {
     "title": "Deferred",
     "type": "object",
     "required": ["status", "cache_key"],
-    "properties": {"status": {"type": "string", "enum": ["running", "queued"]},
-                   "cache_key": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
-                   "location": {"type": "string"}},
+    "properties": {
+        "status": {"type": "string", "enum": ["running", "queued"]},
+        "cache_key": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
+        "location": {"type": "string"},
+    },
 }
 _REF_PROBLEM = {"$ref": "#/components/schemas/Problem"}
 _HDR = {"schema": {"type": "string"}}
 _STANDARD: dict[str, str] = {
     "400": "Unparsable body (not JSON, or not UTF-8) (problem+json), or a request the HTTP "
-           "layer cannot parse at all, e.g. a URL too long (text/plain).",
+    "layer cannot parse at all, e.g. a URL too long (text/plain).",
     "401": "No API key, or an unknown, malformed or revoked one (problem+json; header "
-           "`WWW-Authenticate: Bearer`).",
+    "`WWW-Authenticate: Bearer`).",
     "403": "The key's scope does not allow this request, or the sweep belongs to another "
-           "key (problem+json).",
+    "key (problem+json).",
     "413": "Request body larger than the limit of this endpoint (problem+json), refused "
-           "before it is read.",
+    "before it is read.",
     "429": "Quota of this key exceeded (problem+json); retry after `Retry-After` seconds.",
     "431": "Request headers too large (problem+json).",
 }
 #: Single-query endpoints answered 202 + Location when their computation is deferred.
-_DEFERRABLE = {"/v1/classify", "/v1/trajectory", "/v1/critical", "/v1/analytic/u",
-               "/v1/boundaries", "/v1/stiffness"}
+_DEFERRABLE = {
+    "/v1/classify",
+    "/v1/trajectory",
+    "/v1/critical",
+    "/v1/analytic/u",
+    "/v1/boundaries",
+    "/v1/stiffness",
+}
 
 
 def _problem_content() -> dict[str, Any]:
@@ -96,17 +105,21 @@ def refine(schema: dict[str, Any]) -> dict[str, Any]:
                 resp.setdefault(c, {"description": _STANDARD[c]})
             if "429" in resp:
                 resp["429"].setdefault("headers", {})["Retry-After"] = {
-                    "description": "Seconds to wait.", "schema": {"type": "integer"}}
+                    "description": "Seconds to wait.",
+                    "schema": {"type": "integer"},
+                }
             if "401" in resp:
                 resp["401"].setdefault("headers", {})["WWW-Authenticate"] = _HDR
             if path in _DEFERRABLE:
                 r202 = resp.setdefault("202", {"description": ""})
                 r202["description"] = (
                     "Still computing (a long integration goes through the queue): poll "
-                    "`Location: /v1/results/{key}`, then repeat the request.")
+                    "`Location: /v1/results/{key}`, then repeat the request."
+                )
             if "202" in resp and not resp["202"].get("content"):
-                resp["202"]["content"] = {"application/json": {
-                    "schema": {"$ref": "#/components/schemas/Deferred"}}}
+                resp["202"]["content"] = {
+                    "application/json": {"schema": {"$ref": "#/components/schemas/Deferred"}}
+                }
                 resp["202"]["headers"] = {"Location": _HDR, "Retry-After": _HDR}
             for code, r in resp.items():
                 if str(code)[0] in "45":
@@ -119,9 +132,12 @@ def refine(schema: dict[str, Any]) -> dict[str, Any]:
             op["x-required-scope"] = extra or scope_for(path, method).value
     used = repr(schema.get("paths", {}))
     for name in ("HTTPValidationError", "ValidationError"):
-        if name in schemas and f"#/components/schemas/{name}" not in used and \
-                f"#/components/schemas/{name}" not in repr(
-                    {k: v for k, v in schemas.items() if k != name}):
+        if (
+            name in schemas
+            and f"#/components/schemas/{name}" not in used
+            and f"#/components/schemas/{name}"
+            not in repr({k: v for k, v in schemas.items() if k != name})
+        ):
             del schemas[name]
     return schema
 
@@ -131,10 +147,18 @@ def install(app: FastAPI) -> None:
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
-            app.openapi_schema = refine(get_openapi(
-                title=app.title, version=app.version, openapi_version=app.openapi_version,
-                summary=app.summary, description=app.description, routes=app.routes,
-                servers=app.servers, tags=app.openapi_tags))
+            app.openapi_schema = refine(
+                get_openapi(
+                    title=app.title,
+                    version=app.version,
+                    openapi_version=app.openapi_version,
+                    summary=app.summary,
+                    description=app.description,
+                    routes=app.routes,
+                    servers=app.servers,
+                    tags=app.openapi_tags,
+                )
+            )
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]

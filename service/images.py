@@ -9,6 +9,7 @@ disk under ``<data dir>/images/<numerics version>/`` (written atomically: a temp
 file renamed into place, so concurrent API processes never read half an image) and
 identical requests arriving while it renders join the running render.
 """
+
 from __future__ import annotations
 
 import asyncio
@@ -31,9 +32,22 @@ from rsfapp.config import get_settings
 
 from .errors import ProblemError
 
-__all__ = ["MEDIA", "QUALITIES", "analytic_u_png", "choice", "diagram_png", "figure",
-           "figure_list", "figure_names", "format_query", "image", "image_response",
-           "png_content", "render_locked", "trajectory_png"]
+__all__ = [
+    "MEDIA",
+    "QUALITIES",
+    "analytic_u_png",
+    "choice",
+    "diagram_png",
+    "figure",
+    "figure_list",
+    "figure_names",
+    "format_query",
+    "image",
+    "image_response",
+    "png_content",
+    "render_locked",
+    "trajectory_png",
+]
 
 #: Media type of each image format.
 MEDIA = {"png": "image/png", "svg": "image/svg+xml"}
@@ -46,11 +60,15 @@ _inflight: dict[str, asyncio.Future[bytes]] = {}
 # ------------------------------------------------------------------ query parameters
 def format_query(allowed: tuple[str, ...], default: str, what: str) -> Any:
     """A documented ``format`` query parameter (enum in OpenAPI, checked by :func:`choice`)."""
-    return Query(description=f"Response format: {' or '.join(repr(a) for a in allowed)} "
-                             f"(default {default!r}). {what} Valid range: "
-                             f"{' or '.join(repr(a) for a in allowed)}.",
-                 json_schema_extra={"enum": list(allowed), "x-valid-range":
-                                    " or ".join(repr(a) for a in allowed)})
+    return Query(
+        description=f"Response format: {' or '.join(repr(a) for a in allowed)} "
+        f"(default {default!r}). {what} Valid range: "
+        f"{' or '.join(repr(a) for a in allowed)}.",
+        json_schema_extra={
+            "enum": list(allowed),
+            "x-valid-range": " or ".join(repr(a) for a in allowed),
+        },
+    )
 
 
 def choice(value: str, allowed: tuple[str, ...], field: str) -> str:
@@ -58,17 +76,27 @@ def choice(value: str, allowed: tuple[str, ...], field: str) -> str:
     v = str(value).strip().lower()
     if v not in allowed:
         valid = " or ".join(repr(a) for a in allowed)
-        raise ProblemError(422, "Invalid input", f"{field}: {value!r} is not supported "
-                           f"(valid range: {valid})", field=field, valid=valid)
+        raise ProblemError(
+            422,
+            "Invalid input",
+            f"{field}: {value!r} is not supported (valid range: {valid})",
+            field=field,
+            valid=valid,
+        )
     return v
 
 
-def png_content(description: str, extra: dict[str, Any] | None = None,
-                model: Any = None) -> dict[int, Any]:
+def png_content(
+    description: str, extra: dict[int | str, Any] | None = None, model: Any = None
+) -> dict[int | str, Any]:
     """OpenAPI ``responses`` entry: 200 as JSON (default; ``model`` documents it) or image/png."""
-    entry: dict[str, Any] = {"description": description,
-                             "content": {"application/json": {}, "image/png": {
-                                 "schema": {"type": "string", "format": "binary"}}}}
+    entry: dict[str, Any] = {
+        "description": description,
+        "content": {
+            "application/json": {},
+            "image/png": {"schema": {"type": "string", "format": "binary"}},
+        },
+    }
     if model is not None:
         entry["model"] = model
     return {200: entry, **(extra or {})}
@@ -120,6 +148,7 @@ async def image(key: str, make: Callable[[], bytes], *, store: bool = True) -> t
             return data, True
     task = _inflight.get(key)
     if task is None:
+
         async def run() -> bytes:
             try:
                 out = await run_in_threadpool(make)
@@ -128,22 +157,27 @@ async def image(key: str, make: Callable[[], bytes], *, store: bool = True) -> t
             if store:
                 await run_in_threadpool(_save, key, out)
             return out
+
         task = asyncio.ensure_future(run())
         _inflight[key] = task
 
-        def _done(t: asyncio.Task, k: str = key) -> None:
+        def _done(t: asyncio.Future[bytes], k: str = key) -> None:
             _inflight.pop(k, None)
             if not t.cancelled():
                 t.exception()  # retrieved here: every waiter may have gone away
+
         task.add_done_callback(_done)
     return await asyncio.shield(task), False
 
 
-def image_response(data: bytes, fmt: str, hit: bool, *, final: bool = True,
-                   headers: dict[str, str] | None = None) -> Response:
+def image_response(
+    data: bytes, fmt: str, hit: bool, *, final: bool = True, headers: dict[str, str] | None = None
+) -> Response:
     """An image response with ``X-Cache`` and cache headers."""
-    h = {"X-Cache": "hit" if hit else "miss",
-         "Cache-Control": "public, max-age=3600" if final else "no-store"}
+    h = {
+        "X-Cache": "hit" if hit else "miss",
+        "Cache-Control": "public, max-age=3600" if final else "no-store",
+    }
     h.update(headers or {})
     return Response(data, media_type=MEDIA[fmt], headers=h)
 
@@ -177,9 +211,13 @@ def trajectory_png(result: dict[str, Any]) -> bytes:
 def analytic_u_png(result: dict[str, Any]) -> bytes:
     """Contours of U (red: U = 0) of a grid answer of ``analytic_u`` as PNG."""
     if result.get("shape") is None:
-        raise ProblemError(422, "Invalid input", "format: png needs U on a grid (give 'grid', "
-                           "not 'points')", field="format", valid="'json' (points or grid) "
-                           "or 'png' (grid only)")
+        raise ProblemError(
+            422,
+            "Invalid input",
+            "format: png needs U on a grid (give 'grid', not 'points')",
+            field="format",
+            valid="'json' (points or grid) or 'png' (grid only)",
+        )
     title = f"U ({result.get('function')}): U = const., red: U = 0"
     return render_locked(_plots().plot_u_field, result, title=title, fmt="png")
 
@@ -196,8 +234,14 @@ def figure_list() -> list[dict[str, Any]]:
     out = []
     for item in plots.list_figures():
         spec = plots.FIGURES.get(item["name"])
-        out.append({"name": item["name"], "caption": item["caption"],
-                    "label": getattr(spec, "label", None), "note": getattr(spec, "note", "")})
+        out.append(
+            {
+                "name": item["name"],
+                "caption": item["caption"],
+                "label": getattr(spec, "label", None),
+                "note": getattr(spec, "note", ""),
+            }
+        )
     return out
 
 

@@ -21,6 +21,7 @@ All refusals are ``application/problem+json``.  The buckets live in this API pro
 
 CORS (:func:`install`) is off unless ``RSF_CORS_ORIGINS`` lists allowed origins.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -45,10 +46,25 @@ from .errors import problem
 __all__ = ["Bucket", "COMPUTING_PREFIXES", "Limits", "install", "is_computing"]
 
 #: Paths whose answers may be computed (and so count as fresh computations).
-COMPUTING_PREFIXES = ("/v1/classify", "/v1/trajectory", "/v1/critical", "/v1/analytic",
-                      "/v1/boundaries", "/v1/stiffness", "/v1/figures/", "/v1/fit")
-_EXPOSED = ["Location", "Retry-After", "X-Cache", "X-Cache-Key", "X-Sweep-Status",
-            "X-Sweep-Progress", "WWW-Authenticate"]
+COMPUTING_PREFIXES = (
+    "/v1/classify",
+    "/v1/trajectory",
+    "/v1/critical",
+    "/v1/analytic",
+    "/v1/boundaries",
+    "/v1/stiffness",
+    "/v1/figures/",
+    "/v1/fit",
+)
+_EXPOSED = [
+    "Location",
+    "Retry-After",
+    "X-Cache",
+    "X-Cache-Key",
+    "X-Sweep-Status",
+    "X-Sweep-Progress",
+    "WWW-Authenticate",
+]
 
 
 def is_computing(path: str) -> bool:
@@ -134,14 +150,23 @@ class Limits:
         max_keys: rate-limit buckets kept (least recently used are forgotten).
     """
 
-    def __init__(self, app: ASGIApp, settings: Callable[[], Settings] = get_settings,
-                 max_keys: int = 10_000) -> None:
+    def __init__(
+        self, app: ASGIApp, settings: Callable[[], Settings] = get_settings, max_keys: int = 10_000
+    ) -> None:
         self.app, self.settings, self.max_keys = app, settings, max_keys
         self.buckets: OrderedDict[str, Bucket] = OrderedDict()
         self.inflight: dict[str, int] = {}
 
-    async def _refuse(self, scope: Scope, receive: Receive, send: Send, status: int,
-                      title: str, detail: str, headers: dict[str, str] | None = None) -> None:
+    async def _refuse(
+        self,
+        scope: Scope,
+        receive: Receive,
+        send: Send,
+        status: int,
+        title: str,
+        detail: str,
+        headers: dict[str, str] | None = None,
+    ) -> None:
         await problem(status, title, detail, headers=headers)(scope, receive, send)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -152,21 +177,32 @@ class Limits:
         path: str = scope.get("path", "")
         hbytes = sum(len(k) + len(v) + 4 for k, v in scope.get("headers", ()))
         if hbytes > s.max_header_bytes:
-            await self._refuse(scope, receive, send, 431, "Request header fields too large",
-                               f"the request headers total {hbytes} bytes; the limit is "
-                               f"{s.max_header_bytes}")
+            await self._refuse(
+                scope,
+                receive,
+                send,
+                431,
+                "Request header fields too large",
+                f"the request headers total {hbytes} bytes; the limit is {s.max_header_bytes}",
+            )
             return
         limit = s.max_body_bytes_batch if _is_batch(path) else s.max_body_bytes
         cl = _header(scope, b"content-length")
         if cl is not None:
             if not cl.strip().isdigit():
-                await self._refuse(scope, receive, send, 400, "Bad request",
-                                   "invalid Content-Length header")
+                await self._refuse(
+                    scope, receive, send, 400, "Bad request", "invalid Content-Length header"
+                )
                 return
             if int(cl) > limit:
-                await self._refuse(scope, receive, send, 413, "Request body too large",
-                                   f"the body has {int(cl)} bytes; the limit of this "
-                                   f"endpoint is {limit} bytes")
+                await self._refuse(
+                    scope,
+                    receive,
+                    send,
+                    413,
+                    "Request body too large",
+                    f"the body has {int(cl)} bytes; the limit of this endpoint is {limit} bytes",
+                )
                 return
         else:
             receive = _counting(receive, limit)
@@ -177,17 +213,29 @@ class Limits:
             if b is not None:
                 quotas = b.quotas
                 if self.inflight.get(kid, 0) >= quotas.concurrent_requests:
-                    await self._refuse(scope, receive, send, 429, "Too many requests",
-                                       "too many requests of this key in flight (quota "
-                                       f"concurrent_requests = {quotas.concurrent_requests})",
-                                       {"Retry-After": "1"})
+                    await self._refuse(
+                        scope,
+                        receive,
+                        send,
+                        429,
+                        "Too many requests",
+                        "too many requests of this key in flight (quota "
+                        f"concurrent_requests = {quotas.concurrent_requests})",
+                        {"Retry-After": "1"},
+                    )
                     return
                 wait = b.wait_s()
                 if wait > 0:
-                    await self._refuse(scope, receive, send, 429, "Too many requests",
-                                       "fresh computations of this key exceed its quota "
-                                       f"(fresh_per_s = {b.rate:g})",
-                                       {"Retry-After": str(max(1, math.ceil(wait)))})
+                    await self._refuse(
+                        scope,
+                        receive,
+                        send,
+                        429,
+                        "Too many requests",
+                        "fresh computations of this key exceed its quota "
+                        f"(fresh_per_s = {b.rate:g})",
+                        {"Retry-After": str(max(1, math.ceil(wait)))},
+                    )
                     return
             await self._tracked(kid, scope, receive, _allow_fixed(scope, send))
             return
@@ -266,6 +314,7 @@ def _allow_fixed(scope: Scope, send: Send) -> Send:
                 hdrs.append((b"allow", ", ".join(sorted(methods)).encode()))
                 msg = {**msg, "headers": hdrs}
         await send(msg)
+
     return wrapped
 
 
@@ -279,9 +328,11 @@ def _counting(receive: Receive, limit: int) -> Receive:
         if msg["type"] == "http.request":
             total += len(msg.get("body", b""))
             if total > limit:
-                raise HTTPException(413, f"the body exceeds the limit of this endpoint "
-                                         f"({limit} bytes)")
+                raise HTTPException(
+                    413, f"the body exceeds the limit of this endpoint ({limit} bytes)"
+                )
         return msg
+
     return wrapped
 
 
@@ -291,7 +342,11 @@ def install(app: FastAPI, settings: Settings | None = None) -> None:
     app.add_middleware(Limits)
     origins = s.cors_origin_list
     if origins:
-        app.add_middleware(CORSMiddleware, allow_origins=origins,
-                           allow_methods=["GET", "POST", "DELETE"],
-                           allow_headers=["Authorization", "Content-Type"],
-                           expose_headers=_EXPOSED, max_age=600)
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=origins,
+            allow_methods=["GET", "POST", "DELETE"],
+            allow_headers=["Authorization", "Content-Type"],
+            expose_headers=_EXPOSED,
+            max_age=600,
+        )

@@ -3,6 +3,7 @@
 The endpoints send the cached JSON text as is (no re-validation on the hot path); these
 models document its fields.  Times are dimensionless, T = V_* t/Dc; phi = ln(V/V_*).
 """
+
 from __future__ import annotations
 
 from typing import Literal
@@ -21,7 +22,9 @@ class _Params(BaseModel):
     ba: float = Field(description="b/a (-).")
     kappa: float = Field(description="k Dc/(a sigma) (-).")
     eps: float = Field(description="evolution-law parameter (-), 0 slip .. 1 aging.")
-    vo: float = Field(description="V_o/V_* (-) the trajectory ran with (v_o (1 + dv) after a load-point jump).")
+    vo: float = Field(
+        description="V_o/V_* (-) the trajectory ran with (v_o (1 + dv) after a load-point jump)."
+    )
 
 
 class _Start(BaseModel):
@@ -32,20 +35,36 @@ class _Start(BaseModel):
 class ClassifyResult(_Cached):
     """Certified outcome of one perturbation."""
 
-    outcome: Literal["stable", "unstable"] = Field(description="stable: returns (or arrests when v_o = 0); unstable: runaway in finite time.")
-    certificate: str = Field(description="What decided the outcome, e.g. L_above_Lstar, returned_to_steady_state, U_negative_closed_orbit.")
-    blowup_time: float | None = Field(description="T at which phi -> infinity (unstable), else null.")
-    return_time: float | None = Field(description="T at which phi first falls back to ln v_o after the excursion (stable, v_o > 0), else null.")
-    peak_phi: float | None = Field(description="True maximum of phi (located on every step); null for a runaway.")
+    outcome: Literal["stable", "unstable"] = Field(
+        description="stable: returns (or arrests when v_o = 0); unstable: runaway in finite time."
+    )
+    certificate: str = Field(
+        description="What decided the outcome, e.g. L_above_Lstar, returned_to_steady_state, U_negative_closed_orbit."
+    )
+    blowup_time: float | None = Field(
+        description="T at which phi -> infinity (unstable), else null."
+    )
+    return_time: float | None = Field(
+        description="T at which phi first falls back to ln v_o after the excursion (stable, v_o > 0), else null."
+    )
+    peak_phi: float | None = Field(
+        description="True maximum of phi (located on every step); null for a runaway."
+    )
     peak_time: float | None = Field(description="T of the peak (the blow-up time for a runaway).")
-    rel_accuracy: float = Field(description="Estimated relative accuracy of the reported times and peak (-).")
+    rel_accuracy: float = Field(
+        description="Estimated relative accuracy of the reported times and peak (-)."
+    )
     n_steps: int = Field(description="Integrator steps (accepted + rejected).")
     n_rhs: int = Field(description="Right-hand-side evaluations.")
     params: _Params
     start: _Start
-    perturbation: str | None = Field(description="velocity-jump, load-point-jump, or null for an explicit start.")
+    perturbation: str | None = Field(
+        description="velocity-jump, load-point-jump, or null for an explicit start."
+    )
     size: float | None = Field(description="Perturbation size (-).")
-    complete: bool = Field(description="False when the outcome is certain but the step budget ended before the final times/peak.")
+    complete: bool = Field(
+        description="False when the outcome is certain but the step budget ended before the final times/peak."
+    )
 
 
 class TrajectoryResult(ClassifyResult):
@@ -53,17 +72,26 @@ class TrajectoryResult(ClassifyResult):
 
     trajectory: dict[str, list[float | None]] = Field(
         description="Columns T, phi, psi, ln_theta (ln of V_* theta/Dc), slip (delta/Dc), "
-                    "load_point (delta_o/Dc); with physical scales also t_s [s], V_m_s [m/s], "
-                    "tau_change_Pa [Pa], friction (-), theta_s [s], slip_m [m], load_point_m [m].")
+        "load_point (delta_o/Dc); with physical scales also t_s [s], V_m_s [m/s], "
+        "tau_change_Pa [Pa], friction (-), theta_s [s], slip_m [m], load_point_m [m]."
+    )
 
 
 class CriticalResult(_Cached):
     """Critical perturbation size (same fields as `rsf critical --json`)."""
 
-    kind: Literal["zero", "finite", "infinite"] = Field(description="zero: every perturbation grows; finite: sizes above critical_size run away; infinite: none does.")
-    critical_size: float | None = Field(description="Critical d (velocity jump) or dv/v_o (load-point jump) (-); null when infinite, 0 when zero.")
+    kind: Literal["zero", "finite", "infinite"] = Field(
+        description="zero: every perturbation grows; finite: sizes above critical_size run away; infinite: none does."
+    )
+    critical_size: float | None = Field(
+        description="Critical d (velocity jump) or dv/v_o (load-point jump) (-); null when infinite, 0 when zero."
+    )
     rel_accuracy: float = Field(description="Delivered relative accuracy of critical_size (-).")
-    method: str = Field(description="How it was obtained: closed form (with the equation), separatrix integration, or bisection.")
+    method: str = Field(
+        description="How it was obtained: closed form (with the equation), separatrix integration, or bisection."
+    )
     perturbation: str
     params: _Params
-    on_boundary: bool = Field(description="True on a kind boundary (eps kappa = kappa_crit or kappa = kappa_crit) up to rounding.")
+    on_boundary: bool = Field(
+        description="True on a kind boundary (eps kappa = kappa_crit or kappa = kappa_crit) up to rounding."
+    )

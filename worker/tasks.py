@@ -9,13 +9,16 @@ stored once).  After a chunk, the worker sends the sweep's next pending chunk (l
 dispatch, :meth:`rsfapp.store.SweepStore.next_chunks`).  Task names are stable strings
 (:data:`rsfapp.queue.RUN_CHUNK`, ...).
 """
+
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 from celery import Task
 from kombu.exceptions import OperationalError as KombuOperationalError
+from pydantic import BaseModel
 
 from rsfapp import adapter, requests
 from rsfapp.config import get_settings
@@ -64,8 +67,7 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
     return {"stored": stored, "points": i1 - i0}
 
 
-@app.task(name=RUN_CHUNK, bind=True, acks_late=True, reject_on_worker_lost=True,
-          max_retries=5)
+@app.task(name=RUN_CHUNK, bind=True, acks_late=True, reject_on_worker_lost=True, max_retries=5)
 def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
     """Celery entry point; on an infrastructure error (e.g. DB locked) retry later."""
     try:
@@ -74,25 +76,33 @@ def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
         # backoff 2, 4, 8, 16, 30, 30, ... s.  The database or broker being down is an
         # outage, not a defect of the chunk: one log line, and retried until it is back
         # (the message is never dropped); any other error: a traceback, 5 retries.
-        delay = min(2.0 * 2 ** self.request.retries, 30.0)
+        delay = min(2.0 * 2**self.request.retries, 30.0)
         outage = diagnose(exc) is not None or isinstance(
-            exc, (OSError, ConnectionError, KombuOperationalError))
+            exc, (OSError, ConnectionError, KombuOperationalError)
+        )
         if outage:
-            log.warning("chunk %s/%d: %s; retrying in %.0f s", sweep_id, idx,
-                        str(exc).strip().splitlines()[0] if str(exc) else type(exc).__name__,
-                        delay)
+            log.warning(
+                "chunk %s/%d: %s; retrying in %.0f s",
+                sweep_id,
+                idx,
+                str(exc).strip().splitlines()[0] if str(exc) else type(exc).__name__,
+                delay,
+            )
         else:
             log.exception("chunk %s/%d failed; retrying in %.0f s", sweep_id, idx, delay)
         try:
             stores_for(get_settings()).sweeps.release_chunk(sweep_id, idx)
         except Exception as exc2:  # noqa: BLE001 - the reaper takes it back after the lease
-            log.warning("could not release chunk %s/%d: %s", sweep_id, idx,
-                        str(exc2).strip().splitlines()[0] if str(exc2) else "")
-        raise self.retry(exc=exc, countdown=delay,
-                         max_retries=None if outage else 5) from exc
+            log.warning(
+                "could not release chunk %s/%d: %s",
+                sweep_id,
+                idx,
+                str(exc2).strip().splitlines()[0] if str(exc2) else "",
+            )
+        raise self.retry(exc=exc, countdown=delay, max_retries=None if outage else 5) from exc
 
 
-_SINGLE = {
+_SINGLE: dict[str, tuple[type[BaseModel], Callable[..., dict[str, Any]]]] = {
     "classify": (requests.ClassifyRequest, adapter.classify),
     "trajectory": (requests.TrajectoryRequest, adapter.trajectory),
 }
@@ -107,7 +117,7 @@ def compute_single(kind: str, request: dict[str, Any], key: str, version: str) -
         return
     model, fn = _SINGLE[kind]
     try:
-        result = fn(model.model_validate(request), max_steps=None)  # type: ignore[attr-defined]
+        result = fn(model.model_validate(request), max_steps=None)
     except Exception as exc:  # noqa: BLE001 - every failure is recorded for the client
         log.warning("single query %s failed: %s", key, exc)
         st.jobs.mark_failed(key, f"{type(exc).__name__}: {exc}")

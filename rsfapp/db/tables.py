@@ -11,18 +11,40 @@
 * ``api_keys``, ``key_usage``, ``sweep_owners``: hashed API keys, their daily usage and
   the key that submitted each sweep (:mod:`rsfapp.store.keys`).
 """
+
 from __future__ import annotations
 
-from sqlalchemy import (Column, Float, ForeignKey, Integer, LargeBinary, MetaData, String, Table,
-                        Text)
+from sqlalchemy import (
+    Column,
+    Float,
+    ForeignKey,
+    Integer,
+    LargeBinary,
+    MetaData,
+    String,
+    Table,
+    Text,
+)
 
-__all__ = ["metadata", "results", "jobs", "sweeps", "chunks", "points", "api_keys", "key_usage",
-           "sweep_owners", "sweep_blocks", "sweep_inputs"]
+__all__ = [
+    "metadata",
+    "results",
+    "jobs",
+    "sweeps",
+    "chunks",
+    "points",
+    "api_keys",
+    "key_usage",
+    "sweep_owners",
+    "sweep_blocks",
+    "sweep_inputs",
+]
 
 metadata = MetaData()
 
 results = Table(
-    "results", metadata,
+    "results",
+    metadata,
     Column("key", String(64), primary_key=True),
     Column("kind", String(32), nullable=False, index=True),
     Column("numerics_version", String(32), nullable=False),
@@ -32,7 +54,8 @@ results = Table(
 )
 
 jobs = Table(
-    "jobs", metadata,
+    "jobs",
+    metadata,
     Column("key", String(64), primary_key=True),
     Column("kind", String(32), nullable=False),
     Column("state", String(16), nullable=False),  # queued | failed
@@ -41,7 +64,8 @@ jobs = Table(
 )
 
 sweeps = Table(
-    "sweeps", metadata,
+    "sweeps",
+    metadata,
     Column("id", String(64), primary_key=True),
     Column("spec", Text, nullable=False),
     Column("status", String(16), nullable=False),  # queued|running|done|cancelled
@@ -54,7 +78,8 @@ sweeps = Table(
 )
 
 chunks = Table(
-    "sweep_chunks", metadata,
+    "sweep_chunks",
+    metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
     Column("idx", Integer, primary_key=True),
     Column("i0", Integer, nullable=False),
@@ -66,7 +91,8 @@ chunks = Table(
 )
 
 points = Table(
-    "sweep_points", metadata,
+    "sweep_points",
+    metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
     Column("idx", Integer, primary_key=True),
     Column("i", Integer, nullable=False),
@@ -84,7 +110,8 @@ points = Table(
 # API keys: only the sha256 of a key is stored; ``quotas`` is a JSON object of per-key
 # overrides of the RSF_QUOTA_* defaults.
 api_keys = Table(
-    "api_keys", metadata,
+    "api_keys",
+    metadata,
     Column("name", String(64), primary_key=True),
     Column("key_hash", String(64), nullable=False, unique=True),
     Column("scope", String(8), nullable=False),  # read | submit | admin
@@ -94,7 +121,8 @@ api_keys = Table(
 )
 
 key_usage = Table(
-    "key_usage", metadata,
+    "key_usage",
+    metadata,
     Column("name", String(64), primary_key=True),
     Column("day", Integer, primary_key=True),  # UTC days since 1970-01-01
     Column("points", Integer, nullable=False, default=0),
@@ -102,7 +130,8 @@ key_usage = Table(
 
 # A side table (not a column of ``sweeps``) so that existing databases gain it on start.
 sweep_owners = Table(
-    "sweep_owners", metadata,
+    "sweep_owners",
+    metadata,
     Column("sweep_id", String(64), primary_key=True),
     Column("owner", String(64), nullable=False, index=True),
 )
@@ -111,7 +140,8 @@ sweep_owners = Table(
 # arrays (``data``, an .npz), ``errors`` a JSON object {offset in chunk: message} of the
 # failed points.  Written once (primary key), so a chunk computed twice is stored once.
 sweep_blocks = Table(
-    "sweep_blocks", metadata,
+    "sweep_blocks",
+    metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
     Column("idx", Integer, primary_key=True),
     Column("i0", Integer, nullable=False),
@@ -124,7 +154,8 @@ sweep_blocks = Table(
 
 # The scattered points of a sweep (compressed .npz of one float64 array per parameter).
 sweep_inputs = Table(
-    "sweep_inputs", metadata,
+    "sweep_inputs",
+    metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
     Column("data", LargeBinary, nullable=False),
 )

@@ -1,5 +1,6 @@
 """Shared pieces of the request models: the field factory that states units and valid
 ranges in OpenAPI, the strict base model, and the perturbation kinds."""
+
 from __future__ import annotations
 
 from typing import Any, Literal
@@ -9,8 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from rsfcore import limits
 from rsfcore.limits import Limit
 
-__all__ = ["F", "FL", "Model", "Perturbation", "RTOL", "VALID", "VALID_RTOL", "bounds",
-           "SIZE_TEXT"]
+__all__ = ["F", "FL", "Model", "Perturbation", "RTOL", "VALID", "VALID_RTOL", "bounds", "SIZE_TEXT"]
 
 #: Human-readable valid range of every field, used in 422 problem details.
 VALID: dict[str, str] = {}
@@ -21,8 +21,12 @@ def F(default: Any, valid: str, description: str, **kw: Any) -> Any:  # noqa: N8
     name = kw.pop("name", None)
     if name:
         VALID[name] = valid
-    return Field(default, description=f"{description} Valid range: {valid}.",
-                 json_schema_extra={"x-valid-range": valid}, **kw)
+    return Field(
+        default,
+        description=f"{description} Valid range: {valid}.",
+        json_schema_extra={"x-valid-range": valid},
+        **kw,
+    )
 
 
 class Model(BaseModel):
@@ -44,16 +48,27 @@ def bounds(limit: Limit) -> dict[str, float]:
 _UNSET: Any = object()
 
 
-def FL(limit: Limit, default: Any = _UNSET, *, description: str | None = None,  # noqa: N802
-       name: str | None = None, valid: str | None = None) -> Any:
+def FL(
+    limit: Limit,
+    default: Any = _UNSET,
+    *,
+    description: str | None = None,  # noqa: N802
+    name: str | None = None,
+    valid: str | None = None,
+) -> Any:
     """A Field whose range, default and text come from ``rsfcore.limits`` (the one source
     of truth shared with rsfcore and the CLI); ``valid`` overrides the range text only
     where a field accepts more than one limit (e.g. size for both perturbations)."""
     text = valid or limit.text
     unit = "" if limit.unit in ("", "-") else f" [{limit.unit}]"
     desc = description or f"{limit.description}{unit}"
-    return F(limit.default if default is _UNSET else default, text, desc,
-             name=name or limit.name, **bounds(limit))
+    return F(
+        limit.default if default is _UNSET else default,
+        text,
+        desc,
+        name=name or limit.name,
+        **bounds(limit),
+    )
 
 
 Perturbation = Literal["velocity-jump", "load-point-jump"]
@@ -61,7 +76,7 @@ Perturbation = Literal["velocity-jump", "load-point-jump"]
 RTOL = bounds(limits.RTOL)
 VALID_RTOL = limits.RTOL.text
 #: Range text of a perturbation ``size`` valid for either kind (rsfcore checks the kind's own).
-SIZE_TEXT = (f"velocity-jump: {limits.VELOCITY_JUMP_SIZE.text}; "
-             f"load-point-jump: {limits.LOAD_POINT_JUMP_SIZE.text}")
-
-
+SIZE_TEXT = (
+    f"velocity-jump: {limits.VELOCITY_JUMP_SIZE.text}; "
+    f"load-point-jump: {limits.LOAD_POINT_JUMP_SIZE.text}"
+)

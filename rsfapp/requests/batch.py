@@ -6,6 +6,7 @@ Each item is exactly what the single endpoint takes (dimensionless or SI, see
 index and field, and the others are answered.  The largest accepted list is the setting
 ``RSF_BATCH_MAX_ITEMS`` (default 10^5).
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -19,10 +20,14 @@ __all__ = ["BatchRequest", "ClassifyBatchRequest", "CriticalBatchRequest"]
 class BatchRequest(_Model):
     """``{"items": [...]}``: a list of single-query objects, answered in the same order."""
 
-    items: list[dict[str, Any]] = F(..., "1..RSF_BATCH_MAX_ITEMS objects (default 1e5)",
-                                    "The queries, each an object as the single endpoint "
-                                    "takes it (dimensionless or with 'physical').",
-                                    name="items", min_length=1)
+    items: list[dict[str, Any]] = F(
+        ...,
+        "1..RSF_BATCH_MAX_ITEMS objects (default 1e5)",
+        "The queries, each an object as the single endpoint "
+        "takes it (dimensionless or with 'physical').",
+        name="items",
+        min_length=1,
+    )
 
 
 class ClassifyBatchRequest(BatchRequest):

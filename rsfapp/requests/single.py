@@ -14,6 +14,7 @@ V_new/V_load for a load-point jump), ``new_slip_rate_m_s`` (velocity jump) or
 rsfcore.units'; answers then carry an ``si`` block (times in s, slip rates in m/s, stress
 in Pa).
 """
+
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
@@ -33,20 +34,37 @@ from ._base import FL, RTOL, SIZE_TEXT, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
 
 __all__ = [
-    "AnalyticRequest", "BoundariesRequest", "BoundariesSIRequest", "ClassifyRequest",
+    "AnalyticRequest",
+    "BoundariesRequest",
+    "BoundariesSIRequest",
+    "ClassifyRequest",
     "CriticalRequest",
-    "GridSpec", "PhysicalSI", "PhysicalScales", "Point", "SI_PERTURBATION_FIELDS",
-    "StiffnessPhysical", "StiffnessRequest", "TrajectoryRequest", "field_error",
+    "GridSpec",
+    "PhysicalSI",
+    "PhysicalScales",
+    "Point",
+    "SI_PERTURBATION_FIELDS",
+    "StiffnessPhysical",
+    "StiffnessRequest",
+    "TrajectoryRequest",
+    "field_error",
 ]
 
 
 class Point(_Model):
     """A point of the (phi, psi) plane (dimensionless)."""
 
-    phi: float = F(..., "finite real", "phi = ln(V/V_*), log slip rate (-).", name="phi",
-                   ge=-1e4, le=1e4)
-    psi: float = F(..., "finite real", "psi = (tau - tau_*)/(a sigma), stress (-).", name="psi",
-                   ge=-1e4, le=1e4)
+    phi: float = F(
+        ..., "finite real", "phi = ln(V/V_*), log slip rate (-).", name="phi", ge=-1e4, le=1e4
+    )
+    psi: float = F(
+        ...,
+        "finite real",
+        "psi = (tau - tau_*)/(a sigma), stress (-).",
+        name="psi",
+        ge=-1e4,
+        le=1e4,
+    )
 
 
 class _Dimless(_Model):
@@ -59,8 +77,14 @@ class _Dimless(_Model):
 def field_error(model: str, field: str, message: str, value: object) -> ValidationError:
     """A pydantic ValidationError located at ``field`` (so the 422 names that field, also
     inside a batch item), raised from a model validator."""
-    return ValidationError.from_exception_data(model, [InitErrorDetails(
-        type=PydanticCustomError("invalid_combination", message), loc=(field,), input=value)])
+    return ValidationError.from_exception_data(
+        model,
+        [
+            InitErrorDetails(
+                type=PydanticCustomError("invalid_combination", message), loc=(field,), input=value
+            )
+        ],
+    )
 
 
 class PhysicalSI(_Model):
@@ -71,24 +95,42 @@ class PhysicalSI(_Model):
     """
 
     a: float = F(..., "(0, 1]", "Direct-effect coefficient a (-).", name="a", gt=0, le=1)
-    b: float = F(..., "(a, 1e6 a]", "Evolution-effect coefficient b (-), b > a.", name="b",
-                 gt=0, le=1e6)
-    Dc_m: float = F(..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc_m",
-                    gt=0, le=1e3)
-    sigma_Pa: float = F(..., "(0, 1e12] Pa", "Effective normal stress sigma [Pa].",
-                        name="sigma_Pa", gt=0, le=1e12)
-    k_Pa_per_m: float = F(..., "[0, 1e6 a sigma/Dc] Pa/m", "Machine (spring) stiffness k "
-                          "[Pa/m]; kappa = k Dc/(a sigma).", name="k_Pa_per_m", ge=0, le=1e30)
-    V_star_m_s: float = F(..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].",
-                          name="V_star_m_s", gt=0, le=1e3)
-    V_load_m_s: float | None = F(None, "[0, 1e3] m/s", "Load-point velocity V_o "
-                                 "[m/s] (default V_*; 0 = stationary load point).",
-                                 name="V_load_m_s", ge=0, le=1e3)
+    b: float = F(
+        ..., "(a, 1e6 a]", "Evolution-effect coefficient b (-), b > a.", name="b", gt=0, le=1e6
+    )
+    Dc_m: float = F(
+        ..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc_m", gt=0, le=1e3
+    )
+    sigma_Pa: float = F(
+        ..., "(0, 1e12] Pa", "Effective normal stress sigma [Pa].", name="sigma_Pa", gt=0, le=1e12
+    )
+    k_Pa_per_m: float = F(
+        ...,
+        "[0, 1e6 a sigma/Dc] Pa/m",
+        "Machine (spring) stiffness k [Pa/m]; kappa = k Dc/(a sigma).",
+        name="k_Pa_per_m",
+        ge=0,
+        le=1e30,
+    )
+    V_star_m_s: float = F(
+        ..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].", name="V_star_m_s", gt=0, le=1e3
+    )
+    V_load_m_s: float | None = F(
+        None,
+        "[0, 1e3] m/s",
+        "Load-point velocity V_o [m/s] (default V_*; 0 = stationary load point).",
+        name="V_load_m_s",
+        ge=0,
+        le=1e3,
+    )
 
 
 #: The perturbation stated in SI (alternatives to ``size``; need ``physical``).
-SI_PERTURBATION_FIELDS: tuple[str, ...] = ("factor", "new_slip_rate_m_s",
-                                           "new_load_point_velocity_m_s")
+SI_PERTURBATION_FIELDS: tuple[str, ...] = (
+    "factor",
+    "new_slip_rate_m_s",
+    "new_load_point_velocity_m_s",
+)
 _DIMLESS = ("ba", "kappa", "vo")
 
 
@@ -100,33 +142,54 @@ def _check_si(m: _Model, name: str, with_size: bool) -> None:
     if phys is not None:
         for f in _DIMLESS:
             if f in given:
-                raise field_error(name, f, f"give either 'physical' (SI) or the dimensionless "
-                                  f"'{f}' (with ba, kappa, vo), never both", getattr(m, f))
+                raise field_error(
+                    name,
+                    f,
+                    f"give either 'physical' (SI) or the dimensionless "
+                    f"'{f}' (with ba, kappa, vo), never both",
+                    getattr(m, f),
+                )
     if not with_size:
         return
     si = [f for f in SI_PERTURBATION_FIELDS if getattr(m, f, None) is not None]
     if not si:
         return
     if phys is None:
-        raise field_error(name, si[0], f"'{si[0]}' states the perturbation in SI and needs "
-                          "'physical' (or give the dimensionless 'size')", getattr(m, si[0]))
+        raise field_error(
+            name,
+            si[0],
+            f"'{si[0]}' states the perturbation in SI and needs "
+            "'physical' (or give the dimensionless 'size')",
+            getattr(m, si[0]),
+        )
     if len(si) > 1:
-        raise field_error(name, si[1], f"give one of {', '.join(SI_PERTURBATION_FIELDS)}, "
-                          f"not both '{si[0]}' and '{si[1]}'", getattr(m, si[1]))
+        raise field_error(
+            name,
+            si[1],
+            f"give one of {', '.join(SI_PERTURBATION_FIELDS)}, not both '{si[0]}' and '{si[1]}'",
+            getattr(m, si[1]),
+        )
     if "size" in given:
-        raise field_error(name, "size", f"give either 'size' or '{si[0]}', never both",
-                          getattr(m, "size", None))  # noqa: B009
+        raise field_error(
+            name, "size", f"give either 'size' or '{si[0]}', never both", getattr(m, "size", None)
+        )  # noqa: B009
     if getattr(m, "start", None) is not None:
-        raise field_error(name, "start", f"'start' overrides the perturbation; do not give "
-                          f"'{si[0]}' with it", None)
+        raise field_error(
+            name,
+            "start",
+            f"'start' overrides the perturbation; do not give '{si[0]}' with it",
+            None,
+        )
 
 
 class _SIInput(_Model):
-    physical: PhysicalSI | None = F(None, "null or an object {a, b, Dc_m, sigma_Pa, "
-                                    "k_Pa_per_m, V_star_m_s, V_load_m_s}",
-                                    "The spring-slider in SI units, instead of ba, kappa, vo "
-                                    "(never both). Answers then carry an 'si' block.",
-                                    name="physical")
+    physical: PhysicalSI | None = F(
+        None,
+        "null or an object {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s, V_load_m_s}",
+        "The spring-slider in SI units, instead of ba, kappa, vo "
+        "(never both). Answers then carry an 'si' block.",
+        name="physical",
+    )
 
     @model_serializer(mode="wrap")
     def _without_unused(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
@@ -140,32 +203,61 @@ class _SIInput(_Model):
 
 
 class _SIPerturbation(_Model):
-    factor: float | None = F(None, "null or (0, 1e300]", "SI perturbation (needs physical), "
-                             "instead of size: V_new/V_before for a velocity jump, "
-                             "V_new/V_load for a load-point jump (-).", name="factor",
-                             gt=0, le=1e300)
-    new_slip_rate_m_s: float | None = F(None, "null or (0, 1e300] m/s", "SI velocity jump "
-                                        "(needs physical): the slip rate right after the "
-                                        "jump [m/s].", name="new_slip_rate_m_s", gt=0,
-                                        le=1e300)
+    factor: float | None = F(
+        None,
+        "null or (0, 1e300]",
+        "SI perturbation (needs physical), "
+        "instead of size: V_new/V_before for a velocity jump, "
+        "V_new/V_load for a load-point jump (-).",
+        name="factor",
+        gt=0,
+        le=1e300,
+    )
+    new_slip_rate_m_s: float | None = F(
+        None,
+        "null or (0, 1e300] m/s",
+        "SI velocity jump (needs physical): the slip rate right after the jump [m/s].",
+        name="new_slip_rate_m_s",
+        gt=0,
+        le=1e300,
+    )
     new_load_point_velocity_m_s: float | None = F(
-        None, "null or (0, 1e300] m/s", "SI load-point jump (needs physical): the new "
-        "load-point velocity [m/s].", name="new_load_point_velocity_m_s", gt=0, le=1e300)
+        None,
+        "null or (0, 1e300] m/s",
+        "SI load-point jump (needs physical): the new load-point velocity [m/s].",
+        name="new_load_point_velocity_m_s",
+        gt=0,
+        le=1e300,
+    )
 
 
 class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
     """Classify one perturbation as stable or unstable (runaway); dimensionless or SI."""
 
-    perturbation: Perturbation = F("velocity-jump", "'velocity-jump' or 'load-point-jump'",
-                                   "Kind of perturbation from steady state.", name="perturbation")
-    size: float = F(limits.VELOCITY_JUMP_SIZE.default, SIZE_TEXT,
-                    "Perturbation size: jump d of (phi, psi) for velocity-jump, relative "
-                    "jump dv of v_o for load-point-jump (-).", name="size",
-                    ge=limits.VELOCITY_JUMP_SIZE.lo, le=limits.LOAD_POINT_JUMP_SIZE.hi)
-    start: Point | None = F(None, "null or a finite (phi, psi)",
-                            "Explicit start point; overrides perturbation and size.", name="start")
-    rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).",
-                    name="rtol", **RTOL)
+    perturbation: Perturbation = F(
+        "velocity-jump",
+        "'velocity-jump' or 'load-point-jump'",
+        "Kind of perturbation from steady state.",
+        name="perturbation",
+    )
+    size: float = F(
+        limits.VELOCITY_JUMP_SIZE.default,
+        SIZE_TEXT,
+        "Perturbation size: jump d of (phi, psi) for velocity-jump, relative "
+        "jump dv of v_o for load-point-jump (-).",
+        name="size",
+        ge=limits.VELOCITY_JUMP_SIZE.lo,
+        le=limits.LOAD_POINT_JUMP_SIZE.hi,
+    )
+    start: Point | None = F(
+        None,
+        "null or a finite (phi, psi)",
+        "Explicit start point; overrides perturbation and size.",
+        name="start",
+    )
+    rtol: float = F(
+        1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).", name="rtol", **RTOL
+    )
 
     @model_validator(mode="after")
     def _si_rules(self) -> ClassifyRequest:
@@ -178,14 +270,18 @@ class PhysicalScales(_Model):
     trajectory's SI columns: ``scales``, or ``physical`` with these keys)."""
 
     a: float = F(..., "(0, 1]", "Direct-effect coefficient a (-).", name="a", gt=0, le=1)
-    Dc: float = F(..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc",
-                  gt=0, le=1e3)
-    sigma: float = F(..., "(0, 1e12] Pa", "Effective normal stress [Pa].", name="sigma",
-                     gt=0, le=1e12)
-    V_star: float = F(..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].", name="V_star",
-                      gt=0, le=1e3)
-    f_star: float = F(0.6, "[-10, 10]", "Reference friction coefficient f_* (-).",
-                      name="f_star", ge=-10, le=10)
+    Dc: float = F(
+        ..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc", gt=0, le=1e3
+    )
+    sigma: float = F(
+        ..., "(0, 1e12] Pa", "Effective normal stress [Pa].", name="sigma", gt=0, le=1e12
+    )
+    V_star: float = F(
+        ..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].", name="V_star", gt=0, le=1e3
+    )
+    f_star: float = F(
+        0.6, "[-10, 10]", "Reference friction coefficient f_* (-).", name="f_star", ge=-10, le=10
+    )
 
 
 _LEGACY_SCALES = {"Dc", "sigma", "V_star", "f_star"}
@@ -201,28 +297,51 @@ class TrajectoryRequest(ClassifyRequest):
     has SI columns (t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m).
     """
 
-    n_points: int = FL(limits.N_POINTS, description="Number of output samples (spacing: "
-                       "see sampling).")
+    n_points: int = FL(
+        limits.N_POINTS, description="Number of output samples (spacing: see sampling)."
+    )
     t_end: float | None = FL(limits.T_END, valid=f"null or {limits.T_END.text}")
-    t_end_s: float | None = F(None, "null or (0, 1e30] s", "Stop at this time t [s] "
-                              "(needs physical; instead of t_end).", name="t_end_s",
-                              gt=0, le=1e30)
+    t_end_s: float | None = F(
+        None,
+        "null or (0, 1e30] s",
+        "Stop at this time t [s] (needs physical; instead of t_end).",
+        name="t_end_s",
+        gt=0,
+        le=1e30,
+    )
     sampling: Literal["tau", "T", "seconds"] = F(
-        "tau", "'tau', 'T' or 'seconds'", "Spacing of the samples: evenly in the "
+        "tau",
+        "'tau', 'T' or 'seconds'",
+        "Spacing of the samples: evenly in the "
         "integrator's bounded time (tau), in T, or in seconds (needs physical).",
-        name="sampling")
-    f_star: float = F(0.6, "[-10, 10]", "Reference friction coefficient f_* for the SI "
-                      "friction column (with physical) (-).", name="f_star", ge=-10, le=10)
-    scales: PhysicalScales | None = F(None, "null or an object {a, Dc, sigma, V_star, "
-                                      "f_star}", "Legacy: SI columns for a dimensionless "
-                                      "query (a 'physical' object with these keys is read "
-                                      "as 'scales').", name="scales")
+        name="sampling",
+    )
+    f_star: float = F(
+        0.6,
+        "[-10, 10]",
+        "Reference friction coefficient f_* for the SI friction column (with physical) (-).",
+        name="f_star",
+        ge=-10,
+        le=10,
+    )
+    scales: PhysicalScales | None = F(
+        None,
+        "null or an object {a, Dc, sigma, V_star, f_star}",
+        "Legacy: SI columns for a dimensionless "
+        "query (a 'physical' object with these keys is read "
+        "as 'scales').",
+        name="scales",
+    )
 
     @model_validator(mode="before")
     @classmethod
     def _legacy_physical(cls, data: object) -> object:
-        if isinstance(data, dict) and isinstance(data.get("physical"), dict) and \
-                "scales" not in data and set(data["physical"]) & _LEGACY_SCALES:
+        if (
+            isinstance(data, dict)
+            and isinstance(data.get("physical"), dict)
+            and "scales" not in data
+            and set(data["physical"]) & _LEGACY_SCALES
+        ):
             data = dict(data)
             data["scales"] = data.pop("physical")
         return data
@@ -231,18 +350,29 @@ class TrajectoryRequest(ClassifyRequest):
     def _trajectory_rules(self) -> TrajectoryRequest:
         name = type(self).__name__
         if self.physical is not None and self.scales is not None:
-            raise field_error(name, "scales", "give either 'physical' (SI inputs) or "
-                              "'scales' (SI columns of a dimensionless query), not both", None)
+            raise field_error(
+                name,
+                "scales",
+                "give either 'physical' (SI inputs) or "
+                "'scales' (SI columns of a dimensionless query), not both",
+                None,
+            )
         if self.physical is None:
             if self.sampling == "seconds":
-                raise field_error(name, "sampling", "'seconds' needs 'physical' (use 'T' "
-                                  "for a dimensionless query)", self.sampling)
+                raise field_error(
+                    name,
+                    "sampling",
+                    "'seconds' needs 'physical' (use 'T' for a dimensionless query)",
+                    self.sampling,
+                )
             if self.t_end_s is not None:
-                raise field_error(name, "t_end_s", "'t_end_s' needs 'physical' (use "
-                                  "'t_end' in T)", self.t_end_s)
+                raise field_error(
+                    name, "t_end_s", "'t_end_s' needs 'physical' (use 't_end' in T)", self.t_end_s
+                )
         if self.t_end_s is not None and self.t_end is not None:
-            raise field_error(name, "t_end_s", "give either 't_end' or 't_end_s', never "
-                              "both", self.t_end_s)
+            raise field_error(
+                name, "t_end_s", "give either 't_end' or 't_end_s', never both", self.t_end_s
+            )
         return self
 
 
@@ -250,10 +380,15 @@ class CriticalRequest(_SIInput, _Dimless):
     """Critical perturbation size separating stable from unstable (as `rsf critical`);
     dimensionless or SI (then also the critical slip rate / load-point velocity in m/s)."""
 
-    perturbation: Perturbation = F("velocity-jump", "'velocity-jump' or 'load-point-jump'",
-                                   "Kind of perturbation from steady state.", name="perturbation")
-    rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).",
-                    name="rtol", **RTOL)
+    perturbation: Perturbation = F(
+        "velocity-jump",
+        "'velocity-jump' or 'load-point-jump'",
+        "Kind of perturbation from steady state.",
+        name="perturbation",
+    )
+    rtol: float = F(
+        1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).", name="rtol", **RTOL
+    )
 
     @model_validator(mode="after")
     def _si_rules(self) -> CriticalRequest:
@@ -265,12 +400,14 @@ class GridSpec(_Model):
     """A rectangular (phi, psi) grid, n_phi x n_psi points, at most 250 000 in all."""
 
     phi_min: float = F(-5.0, "[-1e3, 1e3]", "Smallest phi (-).", name="phi_min", ge=-1e3, le=1e3)
-    phi_max: float = F(5.0, "[-1e3, 1e3], >= phi_min", "Largest phi (-).", name="phi_max",
-                       ge=-1e3, le=1e3)
+    phi_max: float = F(
+        5.0, "[-1e3, 1e3], >= phi_min", "Largest phi (-).", name="phi_max", ge=-1e3, le=1e3
+    )
     n_phi: int = F(51, "[1, 500]", "Number of phi values.", name="n_phi", ge=1, le=500)
     psi_min: float = F(-5.0, "[-1e3, 1e3]", "Smallest psi (-).", name="psi_min", ge=-1e3, le=1e3)
-    psi_max: float = F(5.0, "[-1e3, 1e3], >= psi_min", "Largest psi (-).", name="psi_max",
-                       ge=-1e3, le=1e3)
+    psi_max: float = F(
+        5.0, "[-1e3, 1e3], >= psi_min", "Largest psi (-).", name="psi_max", ge=-1e3, le=1e3
+    )
     n_psi: int = F(51, "[1, 500]", "Number of psi values.", name="n_psi", ge=1, le=500)
 
 
@@ -281,16 +418,17 @@ class AnalyticRequest(_Model):
     'vo0': U of `eq: trajectories 2` (stationary load point, uses kappa).
     """
 
-    function: Literal["kcrit", "vo0"] = F("kcrit", "'kcrit' or 'vo0'", "Which closed form.",
-                                          name="function")
+    function: Literal["kcrit", "vo0"] = F(
+        "kcrit", "'kcrit' or 'vo0'", "Which closed form.", name="function"
+    )
     ba: float = F(2.0, "(1, 1e6]", "b/a (-).", name="ba", gt=1.0, le=1e6)
     eps: float = F(0.0, "[0, 1]", "Evolution-law parameter (-).", name="eps", ge=0, le=1)
     vo: float = F(1.0, "(0, 1e300]", "v_o (-), used by 'kcrit'.", name="vo", gt=0, le=1e300)
     kappa: float = F(1.0, "[0, 1e6]", "kappa (-), used by 'vo0'.", name="kappa", ge=0, le=1e6)
     points: Annotated[list[Point], Field(max_length=10_000)] | None = F(
-        None, "null or 1..10000 points", "Points (phi, psi); give points or grid.", name="points")
-    grid: GridSpec | None = F(None, "null or a grid", "A grid; give points or grid.",
-                              name="grid")
+        None, "null or 1..10000 points", "Points (phi, psi); give points or grid.", name="points"
+    )
+    grid: GridSpec | None = F(None, "null or a grid", "A grid; give points or grid.", name="grid")
 
     @model_validator(mode="after")
     def _one_of(self) -> AnalyticRequest:
@@ -312,8 +450,11 @@ class BoundariesRequest(_Model):
     kappa: float = F(1.0, "[0, 1e6]", "kappa (-).", name="kappa", ge=0, le=1e6)
     eps: float = F(0.0, "[0, 1]", "Evolution-law parameter (-).", name="eps", ge=0, le=1)
     phi: Annotated[list[Annotated[float, Field(ge=-1e3, le=1e3)]], Field(max_length=10_000)] = F(
-        [], "0..10000 values in [-1e3, 1e3]", "phi values at which to give psi on the "
-        "acceleration line (-).", name="phi")
+        [],
+        "0..10000 values in [-1e3, 1e3]",
+        "phi values at which to give psi on the acceleration line (-).",
+        name="phi",
+    )
 
 
 class BoundariesSIRequest(_SIInput, BoundariesRequest):
@@ -331,26 +472,42 @@ class StiffnessPhysical(_Model):
 
     mu: float = F(..., "(0, 1e13] Pa", "Shear modulus [Pa].", name="mu", gt=0, le=1e13)
     nu: float = F(0.25, "[0, 0.5)", "Poisson's ratio (-).", name="nu", ge=0, lt=0.5)
-    mode_of_slip: Literal["II", "III"] = F("II", "'II' or 'III'", "In-plane (II) or "
-                                           "anti-plane (III) slip.", name="mode_of_slip")
-    sigma: float = F(..., "(0, 1e12] Pa", "Effective normal stress [Pa].", name="sigma",
-                     gt=0, le=1e12)
+    mode_of_slip: Literal["II", "III"] = F(
+        "II", "'II' or 'III'", "In-plane (II) or anti-plane (III) slip.", name="mode_of_slip"
+    )
+    sigma: float = F(
+        ..., "(0, 1e12] Pa", "Effective normal stress [Pa].", name="sigma", gt=0, le=1e12
+    )
     a: float = F(..., "(0, 1]", "Direct-effect coefficient (-).", name="a", gt=0, le=1)
-    b: float = F(..., "(a, 1e6 a]", "Evolution-effect coefficient (-), b > a.", name="b",
-                 gt=0, le=1e6)
-    Dc: float = F(..., "(0, 1e3] m", "Characteristic slip distance [m].", name="Dc",
-                  gt=0, le=1e3)
-    h: float | None = F(None, "null or (0, 1e7] m", "Depth of the interface [m]; required "
-                        "for cases C and D.", name="h", gt=0, le=1e7)
+    b: float = F(
+        ..., "(a, 1e6 a]", "Evolution-effect coefficient (-), b > a.", name="b", gt=0, le=1e6
+    )
+    Dc: float = F(..., "(0, 1e3] m", "Characteristic slip distance [m].", name="Dc", gt=0, le=1e3)
+    h: float | None = F(
+        None,
+        "null or (0, 1e7] m",
+        "Depth of the interface [m]; required for cases C and D.",
+        name="h",
+        gt=0,
+        le=1e7,
+    )
 
 
 class StiffnessRequest(_Model):
     """Eigen-stiffness of continuum case A-E and, with physical parameters, the critical
     dimension (lambda_c, L_c or R_c, in metres)."""
 
-    case: Literal["A", "B", "C", "D", "E"] = F("A", "'A'..'E'", "Configuration of `tab: "
-                                               "table`.", name="case")
-    mode: int = F(0, "[0, 64] (0 only for A and C)", "Eigenmode, 0 = smallest eigenvalue.",
-                  name="mode", ge=0, le=64)
-    physical: StiffnessPhysical | None = F(None, "null or an object", "SI parameters.",
-                                           name="physical")
+    case: Literal["A", "B", "C", "D", "E"] = F(
+        "A", "'A'..'E'", "Configuration of `tab: table`.", name="case"
+    )
+    mode: int = F(
+        0,
+        "[0, 64] (0 only for A and C)",
+        "Eigenmode, 0 = smallest eigenvalue.",
+        name="mode",
+        ge=0,
+        le=64,
+    )
+    physical: StiffnessPhysical | None = F(
+        None, "null or an object", "SI parameters.", name="physical"
+    )

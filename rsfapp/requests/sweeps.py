@@ -14,6 +14,7 @@ Parameters not swept take their ``fixed`` values.  ``kappa`` (= k Dc/(a sigma)) 
 one of them.  Per point the workers compute the critical size, or, when a ``size`` is
 fixed or swept, the outcome of that perturbation.
 """
+
 from __future__ import annotations
 
 from typing import Annotated, Literal
@@ -23,8 +24,15 @@ from pydantic import Field
 from ._base import RTOL, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
 
-__all__ = ["AXIS_RANGES", "AxisName", "MAX_AXIS_N", "MAX_AXIS_VALUES", "SweepAxis",
-           "SweepFixed", "SweepRequest"]
+__all__ = [
+    "AXIS_RANGES",
+    "AxisName",
+    "MAX_AXIS_N",
+    "MAX_AXIS_VALUES",
+    "SweepAxis",
+    "SweepFixed",
+    "SweepRequest",
+]
 
 AxisName = Literal["ba", "kappa", "kappa_ratio", "eps", "vo", "size"]
 #: Valid range of each swept parameter (lo, hi, text); checked per value and reported as
@@ -49,15 +57,25 @@ class SweepAxis(_Model):
     Generated values: v_k = start + (stop - start) k/(n - 1) (log: geometric), with the
     end points exact."""
 
-    name: AxisName = F(..., "'ba', 'kappa', 'kappa_ratio', 'eps', 'vo' or 'size'",
-                       "Swept parameter.", name="name")
+    name: AxisName = F(
+        ..., "'ba', 'kappa', 'kappa_ratio', 'eps', 'vo' or 'size'", "Swept parameter.", name="name"
+    )
     values: Annotated[list[float], Field(min_length=1, max_length=MAX_AXIS_VALUES)] | None = F(
-        None, f"null or 1..{MAX_AXIS_VALUES} values in the axis range", "Explicit values.",
-        name="values")
+        None,
+        f"null or 1..{MAX_AXIS_VALUES} values in the axis range",
+        "Explicit values.",
+        name="values",
+    )
     start: float | None = F(None, "axis range (see name)", "First value.", name="start")
     stop: float | None = F(None, "axis range (see name)", "Last value.", name="stop")
-    n: int | None = F(None, f"[1, {MAX_AXIS_N}]", "Number of values from start to stop.",
-                      name="n", ge=1, le=MAX_AXIS_N)
+    n: int | None = F(
+        None,
+        f"[1, {MAX_AXIS_N}]",
+        "Number of values from start to stop.",
+        name="n",
+        ge=1,
+        le=MAX_AXIS_N,
+    )
     log: bool = F(False, "true or false", "Geometric spacing (start, stop > 0).", name="log")
 
 
@@ -65,16 +83,34 @@ class SweepFixed(_Model):
     """Values of the parameters that are not swept (dimensionless)."""
 
     ba: float = F(2.0, "(1, 1e6]", "b/a (-).", name="ba", gt=1.0, le=1e6)
-    kappa_ratio: float | None = F(None, "null or [0, 1e6]", "kappa/kappa_crit (-); default "
-                                  "1 unless kappa is given or swept.", name="kappa_ratio",
-                                  ge=0, le=1e6)
-    kappa: float | None = F(None, "null or [0, 1e6]", "kappa = k Dc/(a sigma) (-), "
-                            "instead of kappa_ratio.", name="kappa", ge=0, le=1e6)
+    kappa_ratio: float | None = F(
+        None,
+        "null or [0, 1e6]",
+        "kappa/kappa_crit (-); default 1 unless kappa is given or swept.",
+        name="kappa_ratio",
+        ge=0,
+        le=1e6,
+    )
+    kappa: float | None = F(
+        None,
+        "null or [0, 1e6]",
+        "kappa = k Dc/(a sigma) (-), instead of kappa_ratio.",
+        name="kappa",
+        ge=0,
+        le=1e6,
+    )
     eps: float = F(0.0, "[0, 1]", "Evolution-law parameter (-).", name="eps", ge=0, le=1)
     vo: float = F(1.0, "0 or (0, 1e300]", "v_o (-).", name="vo", ge=0, le=1e300)
-    size: float | None = F(None, "null or [-1e3, 1e3]", "Perturbation size; when given "
-                           "(or swept) each point gives the outcome instead of the critical "
-                           "size.", name="size", ge=-1e3, le=1e3)
+    size: float | None = F(
+        None,
+        "null or [-1e3, 1e3]",
+        "Perturbation size; when given "
+        "(or swept) each point gives the outcome instead of the critical "
+        "size.",
+        name="size",
+        ge=-1e3,
+        le=1e3,
+    )
 
 
 class SweepRequest(_Model):
@@ -82,17 +118,32 @@ class SweepRequest(_Model):
     of them), computed by the workers in chunks."""
 
     axes: Annotated[list[SweepAxis], Field(min_length=1, max_length=5)] | None = F(
-        None, "null or 1..5 axes with different names", "Grid axes (outer product, first "
-        "axis slowest).", name="axes")
+        None,
+        "null or 1..5 axes with different names",
+        "Grid axes (outer product, first axis slowest).",
+        name="axes",
+    )
     points: dict[AxisName, list[float]] | None = F(
-        None, "null or equal-length arrays (at most RSF_SWEEP_MAX_SCATTERED)",
-        "Scattered points: one array per swept parameter.", name="points")
+        None,
+        "null or equal-length arrays (at most RSF_SWEEP_MAX_SCATTERED)",
+        "Scattered points: one array per swept parameter.",
+        name="points",
+    )
     x: SweepAxis | None = None
     y: SweepAxis | None = None
     fixed: SweepFixed = Field(default_factory=SweepFixed)
-    perturbation: Perturbation = F("velocity-jump", "'velocity-jump' or 'load-point-jump'",
-                                   "Kind of perturbation.", name="perturbation")
+    perturbation: Perturbation = F(
+        "velocity-jump",
+        "'velocity-jump' or 'load-point-jump'",
+        "Kind of perturbation.",
+        name="perturbation",
+    )
     rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance (-).", name="rtol", **RTOL)
-    chunk_points: int | None = F(None, "null or [1, 1000000]", "Points per chunk (default: "
-                                 "about RSF_CHUNK_SECONDS of work).", name="chunk_points",
-                                 ge=1, le=1_000_000)
+    chunk_points: int | None = F(
+        None,
+        "null or [1, 1000000]",
+        "Points per chunk (default: about RSF_CHUNK_SECONDS of work).",
+        name="chunk_points",
+        ge=1,
+        le=1_000_000,
+    )

@@ -1,4 +1,5 @@
 """The stores of the application database, bundled per database URL and process."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -9,8 +10,7 @@ from .jobs import JobState, JobStatus, JobStore
 from .results import ResultStore
 from .sweeps import SweepStore
 
-__all__ = ["JobState", "JobStatus", "JobStore", "ResultStore", "Stores", "SweepStore",
-           "stores_for"]
+__all__ = ["JobState", "JobStatus", "JobStore", "ResultStore", "Stores", "SweepStore", "stores_for"]
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ quota overrides are stored as a JSON object; missing entries fall back to the
 ``RSF_QUOTA_*`` settings.  ``key_usage`` counts sweep points per key and UTC day;
 ``sweep_owners`` records which key submitted a sweep.
 """
+
 from __future__ import annotations
 
 import enum
@@ -29,9 +30,19 @@ from sqlalchemy import and_, case, func, select, update
 from ..db.engine import Database, insert_ignore
 from ..db.tables import api_keys, key_usage, sweep_owners, sweeps
 
-__all__ = ["ApiKey", "KEY_PREFIX", "KeyStore", "KeyStoreError", "NAME_PATTERN", "Quotas", "Scope",
-           "hash_key", "new_key", "utc_day",
-           "validate_quota"]
+__all__ = [
+    "ApiKey",
+    "KEY_PREFIX",
+    "KeyStore",
+    "KeyStoreError",
+    "NAME_PATTERN",
+    "Quotas",
+    "Scope",
+    "hash_key",
+    "new_key",
+    "utc_day",
+    "validate_quota",
+]
 
 #: Every key starts with this prefix (lets secret scanners recognise leaked keys).
 KEY_PREFIX = "rsf_"
@@ -147,8 +158,7 @@ def utc_day(t: float | None = None) -> int:
 
 
 def _row(r: Any) -> ApiKey:
-    return ApiKey(r.name, Scope(r.scope), json.loads(r.quotas or "{}"), r.created_at,
-                  r.revoked_at)
+    return ApiKey(r.name, Scope(r.scope), json.loads(r.quotas or "{}"), r.created_at, r.revoked_at)
 
 
 class KeyStore:
@@ -158,24 +168,34 @@ class KeyStore:
         self.db = db
 
     # ------------------------------------------------------------------ keys
-    def create(self, name: str, scope: Scope = Scope.read,
-               quotas: dict[str, Any] | None = None) -> str:
+    def create(
+        self, name: str, scope: Scope = Scope.read, quotas: dict[str, Any] | None = None
+    ) -> str:
         """Create key ``name``; returns the key (the only time it is available).
 
         Raises:
             KeyStoreError: invalid name, or a key (even revoked) with that name exists.
         """
         if not re.match(NAME_PATTERN, name):
-            raise KeyStoreError(f"name {name!r}: 1-64 letters, digits, '.', '_' or '-', "
-                            "starting with a letter or digit")
+            raise KeyStoreError(
+                f"name {name!r}: 1-64 letters, digits, '.', '_' or '-', "
+                "starting with a letter or digit"
+            )
         key = new_key()
-        row = {"name": name, "key_hash": hash_key(key), "scope": Scope(scope).value,
-               "quotas": json.dumps(quotas or {}, sort_keys=True), "created_at": time.time(),
-               "revoked_at": None}
+        row = {
+            "name": name,
+            "key_hash": hash_key(key),
+            "scope": Scope(scope).value,
+            "quotas": json.dumps(quotas or {}, sort_keys=True),
+            "created_at": time.time(),
+            "revoked_at": None,
+        }
         with self.db.write() as conn:
             if not insert_ignore(conn, api_keys, row):
-                raise KeyStoreError(f"a key named {name!r} exists already (names are never "
-                                "reused, even after revocation)")
+                raise KeyStoreError(
+                    f"a key named {name!r} exists already (names are never "
+                    "reused, even after revocation)"
+                )
         return key
 
     def put(self, name: str, key: str, scope: Scope = Scope.read) -> bool:
@@ -188,23 +208,39 @@ class KeyStore:
             KeyStoreError: invalid name, or a key shorter than 32 characters.
         """
         if not re.match(NAME_PATTERN, name):
-            raise KeyStoreError(f"name {name!r}: 1-64 letters, digits, '.', '_' or '-', "
-                                "starting with a letter or digit")
+            raise KeyStoreError(
+                f"name {name!r}: 1-64 letters, digits, '.', '_' or '-', "
+                "starting with a letter or digit"
+            )
         if len(key) < 32 or len(key) > 512 or not key.isprintable() or " " in key:
-            raise KeyStoreError("the key must be 32-512 printable characters without spaces "
-                                "(e.g. 'rsf_' + `openssl rand -base64 32`)")
+            raise KeyStoreError(
+                "the key must be 32-512 printable characters without spaces "
+                "(e.g. 'rsf_' + `openssl rand -base64 32`)"
+            )
         h, sc = hash_key(key), Scope(scope).value
         with self.db.write() as conn:
             r = conn.execute(select(api_keys).where(api_keys.c.name == name)).first()
             if r is None:
-                insert_ignore(conn, api_keys, {"name": name, "key_hash": h, "scope": sc,
-                                               "quotas": "{}", "created_at": time.time(),
-                                               "revoked_at": None})
+                insert_ignore(
+                    conn,
+                    api_keys,
+                    {
+                        "name": name,
+                        "key_hash": h,
+                        "scope": sc,
+                        "quotas": "{}",
+                        "created_at": time.time(),
+                        "revoked_at": None,
+                    },
+                )
                 return True
             if r.key_hash == h and r.scope == sc and r.revoked_at is None:
                 return False
-            conn.execute(update(api_keys).where(api_keys.c.name == name)
-                         .values(key_hash=h, scope=sc, revoked_at=None))
+            conn.execute(
+                update(api_keys)
+                .where(api_keys.c.name == name)
+                .values(key_hash=h, scope=sc, revoked_at=None)
+            )
         return True
 
     def revoke(self, name: str) -> bool:
@@ -214,9 +250,11 @@ class KeyStore:
             KeyStoreError: no key with that name.
         """
         with self.db.write() as conn:
-            r = conn.execute(update(api_keys).where(
-                and_(api_keys.c.name == name, api_keys.c.revoked_at.is_(None)))
-                .values(revoked_at=time.time()))
+            r = conn.execute(
+                update(api_keys)
+                .where(and_(api_keys.c.name == name, api_keys.c.revoked_at.is_(None)))
+                .values(revoked_at=time.time())
+            )
             if r.rowcount:
                 return True
             exists = conn.execute(select(api_keys.c.name).where(api_keys.c.name == name)).first()
@@ -233,8 +271,12 @@ class KeyStore:
     def any_active(self) -> bool:
         """True if at least one key is not revoked."""
         with self.db.read() as conn:
-            return conn.execute(select(api_keys.c.name).where(
-                api_keys.c.revoked_at.is_(None)).limit(1)).first() is not None
+            return (
+                conn.execute(
+                    select(api_keys.c.name).where(api_keys.c.revoked_at.is_(None)).limit(1)
+                ).first()
+                is not None
+            )
 
     def verify(self, key: str) -> ApiKey | None:
         """The active key matching ``key``, else None (unknown, malformed or revoked).
@@ -260,31 +302,41 @@ class KeyStore:
         """
         d = utc_day() if day is None else day
         with self.db.write() as conn:
-            used = conn.execute(select(key_usage.c.points).where(
-                and_(key_usage.c.name == name, key_usage.c.day == d))).scalar()
+            used = conn.execute(
+                select(key_usage.c.points).where(
+                    and_(key_usage.c.name == name, key_usage.c.day == d)
+                )
+            ).scalar()
             used = int(used or 0)
             if used + n > limit:
                 return -1
             if not insert_ignore(conn, key_usage, {"name": name, "day": d, "points": n}):
-                conn.execute(update(key_usage).where(
-                    and_(key_usage.c.name == name, key_usage.c.day == d))
-                    .values(points=key_usage.c.points + n))
+                conn.execute(
+                    update(key_usage)
+                    .where(and_(key_usage.c.name == name, key_usage.c.day == d))
+                    .values(points=key_usage.c.points + n)
+                )
         return limit - used - n
 
     def refund_points(self, name: str, n: int, day: int | None = None) -> None:
         """Give back ``n`` points reserved today (e.g. the sweep existed already)."""
         d = utc_day() if day is None else day
         with self.db.write() as conn:
-            conn.execute(update(key_usage).where(
-                and_(key_usage.c.name == name, key_usage.c.day == d))
-                .values(points=case((key_usage.c.points > n, key_usage.c.points - n), else_=0)))
+            conn.execute(
+                update(key_usage)
+                .where(and_(key_usage.c.name == name, key_usage.c.day == d))
+                .values(points=case((key_usage.c.points > n, key_usage.c.points - n), else_=0))
+            )
 
     def points_used(self, name: str, day: int | None = None) -> int:
         """Sweep points submitted by ``name`` on UTC day ``day`` (default today)."""
         d = utc_day() if day is None else day
         with self.db.read() as conn:
-            v = conn.execute(select(key_usage.c.points).where(
-                and_(key_usage.c.name == name, key_usage.c.day == d))).scalar()
+            v = conn.execute(
+                select(key_usage.c.points).where(
+                    and_(key_usage.c.name == name, key_usage.c.day == d)
+                )
+            ).scalar()
         return int(v or 0)
 
     # ------------------------------------------------------------------ sweep owners
@@ -296,14 +348,23 @@ class KeyStore:
     def owner(self, sweep_id: str) -> str | None:
         """The key name that submitted ``sweep_id`` (None: anonymous or unknown)."""
         with self.db.read() as conn:
-            return conn.execute(select(sweep_owners.c.owner).where(
-                sweep_owners.c.sweep_id == sweep_id)).scalar()
+            return conn.execute(
+                select(sweep_owners.c.owner).where(sweep_owners.c.sweep_id == sweep_id)
+            ).scalar()
 
     def active_sweeps(self, owner: str) -> int:
         """Sweeps of ``owner`` that are queued or running."""
         with self.db.read() as conn:
-            return int(conn.execute(
-                select(func.count()).select_from(sweep_owners.join(
-                    sweeps, sweeps.c.id == sweep_owners.c.sweep_id))
-                .where(and_(sweep_owners.c.owner == owner,
-                            sweeps.c.status.in_(("queued", "running"))))).scalar() or 0)
+            return int(
+                conn.execute(
+                    select(func.count())
+                    .select_from(sweep_owners.join(sweeps, sweeps.c.id == sweep_owners.c.sweep_id))
+                    .where(
+                        and_(
+                            sweep_owners.c.owner == owner,
+                            sweeps.c.status.in_(("queued", "running")),
+                        )
+                    )
+                ).scalar()
+                or 0
+            )

@@ -5,6 +5,7 @@ rsfcore.NUMERICS_VERSION) (:func:`rsfapp.keys.cache_key`).  Inserts are idempote
 first writer wins, later identical writes are no-ops), so concurrent processes may race
 freely.
 """
+
 from __future__ import annotations
 
 import json
@@ -46,23 +47,37 @@ class ResultStore:
         text = self.get_text(key)
         return None if text is None else dict(json.loads(text))
 
-    def put(self, key: str, kind: str, numerics_version: str, request: dict[str, Any],
-            result: dict[str, Any]) -> bool:
+    def put(
+        self,
+        key: str,
+        kind: str,
+        numerics_version: str,
+        request: dict[str, Any],
+        result: dict[str, Any],
+    ) -> bool:
         """Store a result unless the key exists; True if this call inserted it."""
-        row = {"key": key, "kind": kind, "numerics_version": numerics_version,
-               "request": canonical(request), "result": canonical(result),
-               "created_at": time.time()}
+        row = {
+            "key": key,
+            "kind": kind,
+            "numerics_version": numerics_version,
+            "request": canonical(request),
+            "result": canonical(result),
+            "created_at": time.time(),
+        }
         with self.db.write() as conn:
             return insert_ignore(conn, results, row) == 1
 
     def stats(self) -> dict[str, Any]:
         """Entries per kind, total, and this process's hit/miss counters."""
         with self.db.read() as conn:
-            rows = conn.execute(select(results.c.kind, func.count())
-                                .group_by(results.c.kind)).all()
+            rows = conn.execute(select(results.c.kind, func.count()).group_by(results.c.kind)).all()
         by_kind = {str(k): int(n) for k, n in rows}
         with self._lock:
             hits, misses = self._hits, self._misses
-        return {"entries": sum(by_kind.values()), "by_kind": by_kind,
-                "hits": hits, "misses": misses,
-                "hit_ratio": hits / (hits + misses) if hits + misses else None}
+        return {
+            "entries": sum(by_kind.values()),
+            "by_kind": by_kind,
+            "hits": hits,
+            "misses": misses,
+            "hit_ratio": hits / (hits + misses) if hits + misses else None,
+        }

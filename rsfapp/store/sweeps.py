@@ -31,6 +31,7 @@ Guarantees:
 
 Chunk states: pending -> queued -> running -> done, or cancelled (resumed to pending).
 """
+
 from __future__ import annotations
 
 import io
@@ -50,8 +51,16 @@ from ..db.engine import Database, insert_ignore
 from ..db.tables import chunks, points, sweep_blocks, sweep_inputs, sweeps
 from ..grid import SPEC_VERSION, SweepSpec
 
-__all__ = ["Block", "ChunkRange", "Created", "SweepStore", "decode_block", "encode_block",
-           "iso", "owner_id"]
+__all__ = [
+    "Block",
+    "ChunkRange",
+    "Created",
+    "SweepStore",
+    "decode_block",
+    "encode_block",
+    "iso",
+    "owner_id",
+]
 
 ACTIVE = ("queued", "running")
 
@@ -71,8 +80,7 @@ def iso(t: float | None) -> str | None:
     """A Unix time as ISO 8601 UTC with milliseconds (``2026-11-23T19:02:11.123Z``)."""
     if t is None:
         return None
-    return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds").replace(
-        "+00:00", "Z")
+    return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def _owner_alive(owner: str | None, heartbeat: float | None, lease_s: float) -> bool:
@@ -140,8 +148,14 @@ class SweepStore:
         self._specs: dict[str, SweepSpec] = {}
 
     # -- submit / resume -----------------------------------------------------------------
-    def create(self, sweep_id: str, spec: SweepSpec, chunk_points: int,
-               numerics_version: str, window: int = 64) -> Created:
+    def create(
+        self,
+        sweep_id: str,
+        spec: SweepSpec,
+        chunk_points: int,
+        numerics_version: str,
+        window: int = 64,
+    ) -> Created:
         """Create the sweep and its (pending) chunks unless it exists; dispatch the first
         ``window`` chunks.
 
@@ -154,46 +168,88 @@ class SweepStore:
             row = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).first()
             if row is None:
                 n_chunks = -(-n_total // chunk_points)
-                conn.execute(sweeps.insert().values(
-                    id=sweep_id, spec=json.dumps(spec.to_json(), sort_keys=True),
-                    status="queued", n_total=n_total, n_chunks=n_chunks,
-                    numerics_version=numerics_version, created_at=now))
+                conn.execute(
+                    sweeps.insert().values(
+                        id=sweep_id,
+                        spec=json.dumps(spec.to_json(), sort_keys=True),
+                        status="queued",
+                        n_total=n_total,
+                        n_chunks=n_chunks,
+                        numerics_version=numerics_version,
+                        created_at=now,
+                    )
+                )
                 if spec.points is not None:
-                    conn.execute(sweep_inputs.insert().values(
-                        sweep_id=sweep_id, data=encode_block(spec.points)))
-                conn.execute(chunks.insert(), [
-                    {"sweep_id": sweep_id, "idx": c, "i0": c * chunk_points,
-                     "i1": min(n_total, (c + 1) * chunk_points), "status": "pending",
-                     "attempts": 0}
-                    for c in range(n_chunks)])
+                    conn.execute(
+                        sweep_inputs.insert().values(
+                            sweep_id=sweep_id, data=encode_block(spec.points)
+                        )
+                    )
+                conn.execute(
+                    chunks.insert(),
+                    [
+                        {
+                            "sweep_id": sweep_id,
+                            "idx": c,
+                            "i0": c * chunk_points,
+                            "i1": min(n_total, (c + 1) * chunk_points),
+                            "status": "pending",
+                            "attempts": 0,
+                        }
+                        for c in range(n_chunks)
+                    ],
+                )
                 return Created(True, False, self._dispatch(conn, sweep_id, window))
             if row[0] != "cancelled":
                 return Created(False, False, [])
-            conn.execute(update(sweeps).where(sweeps.c.id == sweep_id).values(
-                status="queued", finished_at=None))
-            conn.execute(update(chunks).where(and_(chunks.c.sweep_id == sweep_id,
-                                                   chunks.c.status == "cancelled"))
-                         .values(status="pending", owner=None))
+            conn.execute(
+                update(sweeps)
+                .where(sweeps.c.id == sweep_id)
+                .values(status="queued", finished_at=None)
+            )
+            conn.execute(
+                update(chunks)
+                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status == "cancelled"))
+                .values(status="pending", owner=None)
+            )
             return Created(False, True, self._dispatch(conn, sweep_id, window))
 
     @staticmethod
     def _dispatch(conn: Connection, sweep_id: str, window: int) -> list[int]:
         """Mark up to ``window`` minus the chunks in flight (queued/running) pending
         chunks queued, lowest index first; returns them (the caller sends them)."""
-        busy = conn.execute(select(func.count()).select_from(chunks).where(and_(
-            chunks.c.sweep_id == sweep_id, chunks.c.status.in_(ACTIVE)))).scalar() or 0
+        busy = (
+            conn.execute(
+                select(func.count())
+                .select_from(chunks)
+                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status.in_(ACTIVE)))
+            ).scalar()
+            or 0
+        )
         k = window - int(busy)
         if k <= 0:
             return []
-        idx = [int(i) for i in conn.execute(
-            select(chunks.c.idx).where(and_(chunks.c.sweep_id == sweep_id,
-                                            chunks.c.status == "pending"))
-            .order_by(chunks.c.idx).limit(k)).scalars()]
+        idx = [
+            int(i)
+            for i in conn.execute(
+                select(chunks.c.idx)
+                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status == "pending"))
+                .order_by(chunks.c.idx)
+                .limit(k)
+            ).scalars()
+        ]
         if idx:
-            conn.execute(update(chunks).where(and_(chunks.c.sweep_id == sweep_id,
-                                                   chunks.c.idx.in_(idx),
-                                                   chunks.c.status == "pending"))
-                         .values(status="queued"))
+            conn.execute(
+                update(chunks)
+                .where(
+                    and_(
+                        chunks.c.sweep_id == sweep_id,
+                        chunks.c.idx.in_(idx),
+                        chunks.c.status == "pending",
+                    )
+                )
+                .values(status="queued")
+            )
         return idx
 
     def next_chunks(self, sweep_id: str, window: int) -> list[int]:
@@ -221,8 +277,9 @@ class SweepStore:
                 return None
             pts = None
             if d.get("mode") == "points":
-                blob = conn.execute(select(sweep_inputs.c.data).where(
-                    sweep_inputs.c.sweep_id == sweep_id)).scalar()
+                blob = conn.execute(
+                    select(sweep_inputs.c.data).where(sweep_inputs.c.sweep_id == sweep_id)
+                ).scalar()
                 pts = decode_block(blob) if blob is not None else None
                 if pts is not None:
                     pts = {n: pts[n] for n in d["points"]["names"]}
@@ -247,51 +304,78 @@ class SweepStore:
             if s is None or c is None or c.status in ("done", "cancelled"):
                 return None
             if s.status == "cancelled":
-                conn.execute(update(chunks).where(_chunk(sweep_id, idx))
-                             .values(status="cancelled"))
+                conn.execute(update(chunks).where(_chunk(sweep_id, idx)).values(status="cancelled"))
                 return None
-            if c.status == "running" and c.owner != me and _owner_alive(
-                    c.owner, c.heartbeat, lease_s):
+            if (
+                c.status == "running"
+                and c.owner != me
+                and _owner_alive(c.owner, c.heartbeat, lease_s)
+            ):
                 return None
-            conn.execute(update(chunks).where(_chunk(sweep_id, idx)).values(
-                status="running", owner=me, heartbeat=now, attempts=chunks.c.attempts + 1))
-            conn.execute(update(sweeps).where(and_(sweeps.c.id == sweep_id,
-                                                   sweeps.c.status == "queued"))
-                         .values(status="running",
-                                 started_at=func.coalesce(sweeps.c.started_at, now)))
+            conn.execute(
+                update(chunks)
+                .where(_chunk(sweep_id, idx))
+                .values(status="running", owner=me, heartbeat=now, attempts=chunks.c.attempts + 1)
+            )
+            conn.execute(
+                update(sweeps)
+                .where(and_(sweeps.c.id == sweep_id, sweeps.c.status == "queued"))
+                .values(status="running", started_at=func.coalesce(sweeps.c.started_at, now))
+            )
             return ChunkRange(int(c.i0), int(c.i1))
 
     def heartbeat(self, sweep_id: str, idx: int) -> bool:
         """Refresh the lease of a running chunk held by this process; False if it is no
         longer held (the reaper took it back after its lease expired)."""
         with self.db.write() as conn:
-            n = conn.execute(update(chunks).where(and_(_chunk(sweep_id, idx),
-                                                       chunks.c.owner == owner_id(),
-                                                       chunks.c.status == "running"))
-                             .values(heartbeat=time.time())).rowcount
+            n = conn.execute(
+                update(chunks)
+                .where(
+                    and_(
+                        _chunk(sweep_id, idx),
+                        chunks.c.owner == owner_id(),
+                        chunks.c.status == "running",
+                    )
+                )
+                .values(heartbeat=time.time())
+            ).rowcount
         return bool(n)
 
     def release_chunk(self, sweep_id: str, idx: int) -> None:
         """Put a running chunk back in the queue (its worker hit an infrastructure error)."""
         with self.db.write() as conn:
-            conn.execute(update(chunks).where(and_(_chunk(sweep_id, idx),
-                                                   chunks.c.status == "running"))
-                         .values(status="queued", owner=None))
+            conn.execute(
+                update(chunks)
+                .where(and_(_chunk(sweep_id, idx), chunks.c.status == "running"))
+                .values(status="queued", owner=None)
+            )
 
     def has_block(self, sweep_id: str, idx: int) -> bool:
         """True if chunk ``idx``'s results are stored (an earlier attempt finished)."""
         with self.db.read() as conn:
-            return conn.execute(select(sweep_blocks.c.idx).where(and_(
-                sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
-            ).first() is not None
+            return (
+                conn.execute(
+                    select(sweep_blocks.c.idx).where(
+                        and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx)
+                    )
+                ).first()
+                is not None
+            )
 
-    def store_block(self, sweep_id: str, idx: int, i0: int, i1: int, data: bytes,
-                    errors: dict[int, str]) -> bool:
+    def store_block(
+        self, sweep_id: str, idx: int, i0: int, i1: int, data: bytes, errors: dict[int, str]
+    ) -> bool:
         """Store chunk ``idx``'s results once (a second write is ignored); True if new."""
-        row = {"sweep_id": sweep_id, "idx": idx, "i0": i0, "i1": i1,
-               "n_failed": len(errors), "data": data,
-               "errors": json.dumps({str(k): v for k, v in errors.items()}) if errors
-               else None, "created_at": time.time()}
+        row = {
+            "sweep_id": sweep_id,
+            "idx": idx,
+            "i0": i0,
+            "i1": i1,
+            "n_failed": len(errors),
+            "data": data,
+            "errors": json.dumps({str(k): v for k, v in errors.items()}) if errors else None,
+            "created_at": time.time(),
+        }
         with self.db.write() as conn:
             return insert_ignore(conn, sweep_blocks, [row]) > 0
 
@@ -306,14 +390,22 @@ class SweepStore:
         now = time.time()
         with self.db.write() as conn:
             self._lock_sweep(conn, sweep_id)
-            conn.execute(update(chunks).where(_chunk(sweep_id, idx))
-                         .values(status="done" if complete else "cancelled", heartbeat=now))
-            left = conn.execute(select(func.count()).select_from(chunks).where(and_(
-                chunks.c.sweep_id == sweep_id, chunks.c.status != "done"))).scalar()
+            conn.execute(
+                update(chunks)
+                .where(_chunk(sweep_id, idx))
+                .values(status="done" if complete else "cancelled", heartbeat=now)
+            )
+            left = conn.execute(
+                select(func.count())
+                .select_from(chunks)
+                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status != "done"))
+            ).scalar()
             if left == 0:
-                conn.execute(update(sweeps).where(and_(sweeps.c.id == sweep_id,
-                                                       sweeps.c.status != "done"))
-                             .values(status="done", finished_at=now))
+                conn.execute(
+                    update(sweeps)
+                    .where(and_(sweeps.c.id == sweep_id, sweeps.c.status != "done"))
+                    .values(status="done", finished_at=now)
+                )
 
     # -- API -------------------------------------------------------------------------------
     def cancel(self, sweep_id: str) -> tuple[str, bool] | None:
@@ -325,11 +417,18 @@ class SweepStore:
                 return None
             if s not in ACTIVE:
                 return str(s), False
-            conn.execute(update(sweeps).where(sweeps.c.id == sweep_id)
-                         .values(status="cancelled", finished_at=time.time()))
-            conn.execute(update(chunks).where(and_(chunks.c.sweep_id == sweep_id,
-                                                   chunks.c.status.in_(("pending", "queued"))))
-                         .values(status="cancelled"))
+            conn.execute(
+                update(sweeps)
+                .where(sweeps.c.id == sweep_id)
+                .values(status="cancelled", finished_at=time.time())
+            )
+            conn.execute(
+                update(chunks)
+                .where(
+                    and_(chunks.c.sweep_id == sweep_id, chunks.c.status.in_(("pending", "queued")))
+                )
+                .values(status="cancelled")
+            )
             return "cancelled", True
 
     def delete(self, sweep_id: str) -> bool:
@@ -344,9 +443,11 @@ class SweepStore:
     @staticmethod
     def _summary(conn: Connection, row: Row[Any]) -> dict[str, Any]:
         n_done, n_failed = conn.execute(
-            select(func.coalesce(func.sum(sweep_blocks.c.i1 - sweep_blocks.c.i0), 0),
-                   func.coalesce(func.sum(sweep_blocks.c.n_failed), 0))
-            .where(sweep_blocks.c.sweep_id == row.id)).one()
+            select(
+                func.coalesce(func.sum(sweep_blocks.c.i1 - sweep_blocks.c.i0), 0),
+                func.coalesce(func.sum(sweep_blocks.c.n_failed), 0),
+            ).where(sweep_blocks.c.sweep_id == row.id)
+        ).one()
         n_done, n_failed = int(n_done), int(n_failed)
         now = time.time()
         eta = None
@@ -359,12 +460,20 @@ class SweepStore:
             summ = SweepSpec.from_json(spec).summary() if spec.get("v") else {}
         except (KeyError, TypeError, ValueError):
             summ = {}
-        return {"id": row.id, "status": row.status, "n_done": n_done,
-                "n_total": int(row.n_total), "n_failed": n_failed,
-                "n_chunks": int(row.n_chunks), "eta_s": eta,
-                "created_at": iso(row.created_at), "started_at": iso(row.started_at),
-                "finished_at": iso(row.finished_at),
-                "numerics_version": row.numerics_version, **summ}
+        return {
+            "id": row.id,
+            "status": row.status,
+            "n_done": n_done,
+            "n_total": int(row.n_total),
+            "n_failed": n_failed,
+            "n_chunks": int(row.n_chunks),
+            "eta_s": eta,
+            "created_at": iso(row.created_at),
+            "started_at": iso(row.started_at),
+            "finished_at": iso(row.finished_at),
+            "numerics_version": row.numerics_version,
+            **summ,
+        }
 
     def status(self, sweep_id: str) -> dict[str, Any] | None:
         """Status, progress, ETA [s] (no axis values)."""
@@ -375,17 +484,20 @@ class SweepStore:
     def list_sweeps(self, limit: int, offset: int) -> list[dict[str, Any]]:
         """Sweeps, newest first, with progress."""
         with self.db.read() as conn:
-            rows = conn.execute(select(sweeps).order_by(sweeps.c.created_at.desc())
-                                .limit(limit).offset(offset)).all()
+            rows = conn.execute(
+                select(sweeps).order_by(sweeps.c.created_at.desc()).limit(limit).offset(offset)
+            ).all()
             return [self._summary(conn, r) for r in rows]
 
     def failures(self, sweep_id: str, limit: int = 100) -> list[tuple[int, str]]:
         """(flat index, message) of the first ``limit`` failed points."""
         out: list[tuple[int, str]] = []
         with self.db.read() as conn:
-            rows = conn.execute(select(sweep_blocks.c.i0, sweep_blocks.c.errors).where(and_(
-                sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.n_failed > 0))
-                .order_by(sweep_blocks.c.i0)).all()
+            rows = conn.execute(
+                select(sweep_blocks.c.i0, sweep_blocks.c.errors)
+                .where(and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.n_failed > 0))
+                .order_by(sweep_blocks.c.i0)
+            ).all()
         for i0, errs in rows:
             for k, msg in sorted(json.loads(errs or "{}").items(), key=lambda kv: int(kv[0])):
                 out.append((int(i0) + int(k), str(msg)))
@@ -397,13 +509,28 @@ class SweepStore:
         """Stored blocks overlapping [i0, i1), in index order (read a few at a time)."""
         hi = i1 if i1 is not None else 2**62
         with self.db.read() as conn:
-            keys = conn.execute(select(sweep_blocks.c.idx).where(and_(
-                sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.i1 > i0,
-                sweep_blocks.c.i0 < hi)).order_by(sweep_blocks.c.i0)).scalars().all()
+            keys = (
+                conn.execute(
+                    select(sweep_blocks.c.idx)
+                    .where(
+                        and_(
+                            sweep_blocks.c.sweep_id == sweep_id,
+                            sweep_blocks.c.i1 > i0,
+                            sweep_blocks.c.i0 < hi,
+                        )
+                    )
+                    .order_by(sweep_blocks.c.i0)
+                )
+                .scalars()
+                .all()
+            )
         for k in keys:
             with self.db.read() as conn:
-                r = conn.execute(select(sweep_blocks).where(and_(
-                    sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == k))).first()
+                r = conn.execute(
+                    select(sweep_blocks).where(
+                        and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == k)
+                    )
+                ).first()
             if r is None:  # deleted meanwhile
                 return
             errs = {int(a): str(b) for a, b in json.loads(r.errors or "{}").items()}
@@ -412,9 +539,14 @@ class SweepStore:
     def disk_bytes(self, sweep_id: str) -> int:
         """Bytes of stored result blobs of a sweep (payload only)."""
         with self.db.read() as conn:
-            return int(conn.execute(select(func.coalesce(func.sum(
-                func.length(sweep_blocks.c.data)), 0)).where(
-                sweep_blocks.c.sweep_id == sweep_id)).scalar() or 0)
+            return int(
+                conn.execute(
+                    select(func.coalesce(func.sum(func.length(sweep_blocks.c.data)), 0)).where(
+                        sweep_blocks.c.sweep_id == sweep_id
+                    )
+                ).scalar()
+                or 0
+            )
 
     # -- recovery ----------------------------------------------------------------------------
     def stale_chunks(self, lease_s: float, window: int = 64) -> list[tuple[str, int]]:
@@ -425,23 +557,32 @@ class SweepStore:
         out: list[tuple[str, int]] = []
         with self.db.write() as conn:
             rows = conn.execute(
-                select(chunks.c.sweep_id, chunks.c.idx, chunks.c.status, chunks.c.owner,
-                       chunks.c.heartbeat)
+                select(
+                    chunks.c.sweep_id,
+                    chunks.c.idx,
+                    chunks.c.status,
+                    chunks.c.owner,
+                    chunks.c.heartbeat,
+                )
                 .join(sweeps, sweeps.c.id == chunks.c.sweep_id)
-                .where(and_(sweeps.c.status.in_(ACTIVE),
-                            chunks.c.status.in_(ACTIVE)))).all()
+                .where(and_(sweeps.c.status.in_(ACTIVE), chunks.c.status.in_(ACTIVE)))
+            ).all()
             active: set[str] = set()
             for r in rows:
                 if r.status == "running":
                     if _owner_alive(r.owner, r.heartbeat, lease_s):
                         active.add(str(r.sweep_id))
                         continue
-                    conn.execute(update(chunks).where(_chunk(r.sweep_id, r.idx))
-                                 .values(status="queued", owner=None))
+                    conn.execute(
+                        update(chunks)
+                        .where(_chunk(r.sweep_id, r.idx))
+                        .values(status="queued", owner=None)
+                    )
                 out.append((str(r.sweep_id), int(r.idx)))
                 active.add(str(r.sweep_id))
-            idle = conn.execute(select(sweeps.c.id).where(sweeps.c.status.in_(ACTIVE))
-                                ).scalars().all()
+            idle = (
+                conn.execute(select(sweeps.c.id).where(sweeps.c.status.in_(ACTIVE))).scalars().all()
+            )
             for sid in idle:
                 if sid not in active:
                     out += [(str(sid), i) for i in self._dispatch(conn, str(sid), window)]
@@ -466,13 +607,26 @@ class SweepStore:
             rows = conn.execute(
                 select(chunks.c.sweep_id, chunks.c.idx)
                 .join(sweeps, sweeps.c.id == chunks.c.sweep_id)
-                .where(and_(sweeps.c.status.in_(ACTIVE), chunks.c.status == "running",
-                            func.coalesce(chunks.c.heartbeat, 0.0) < cutoff))).all()
+                .where(
+                    and_(
+                        sweeps.c.status.in_(ACTIVE),
+                        chunks.c.status == "running",
+                        func.coalesce(chunks.c.heartbeat, 0.0) < cutoff,
+                    )
+                )
+            ).all()
             for r in rows:
-                n = conn.execute(update(chunks).where(and_(
-                    _chunk(r.sweep_id, r.idx), chunks.c.status == "running",
-                    func.coalesce(chunks.c.heartbeat, 0.0) < cutoff))
-                    .values(status="queued", owner=None, heartbeat=now)).rowcount
+                n = conn.execute(
+                    update(chunks)
+                    .where(
+                        and_(
+                            _chunk(r.sweep_id, r.idx),
+                            chunks.c.status == "running",
+                            func.coalesce(chunks.c.heartbeat, 0.0) < cutoff,
+                        )
+                    )
+                    .values(status="queued", owner=None, heartbeat=now)
+                ).rowcount
                 if n:
                     out.append((str(r.sweep_id), int(r.idx)))
         return out
@@ -486,18 +640,27 @@ class SweepStore:
         closed, send = 0, []
         with self.db.write() as conn:
             rows = conn.execute(
-                select(sweeps.c.id, sweeps.c.n_chunks,
-                       func.count(chunks.c.idx).filter(chunks.c.status == "done"),
-                       func.count(chunks.c.idx).filter(chunks.c.status.in_(ACTIVE)))
+                select(
+                    sweeps.c.id,
+                    sweeps.c.n_chunks,
+                    func.count(chunks.c.idx).filter(chunks.c.status == "done"),
+                    func.count(chunks.c.idx).filter(chunks.c.status.in_(ACTIVE)),
+                )
                 .join(chunks, chunks.c.sweep_id == sweeps.c.id)
                 .where(sweeps.c.status.in_(ACTIVE))
-                .group_by(sweeps.c.id, sweeps.c.n_chunks)).all()
+                .group_by(sweeps.c.id, sweeps.c.n_chunks)
+            ).all()
             for sid, n_chunks, n_done, n_busy in rows:
                 if n_done == n_chunks:
                     self._lock_sweep(conn, sid)
-                    closed += conn.execute(update(sweeps).where(and_(
-                        sweeps.c.id == sid, sweeps.c.status.in_(ACTIVE)))
-                        .values(status="done", finished_at=now)).rowcount or 0
+                    closed += (
+                        conn.execute(
+                            update(sweeps)
+                            .where(and_(sweeps.c.id == sid, sweeps.c.status.in_(ACTIVE)))
+                            .values(status="done", finished_at=now)
+                        ).rowcount
+                        or 0
+                    )
                 elif n_busy == 0:
                     send += [(str(sid), i) for i in self._dispatch(conn, str(sid), window)]
         return closed, send

@@ -12,6 +12,7 @@ bench/bench_batch.py) and are not cached (recomputing is about as cheap as a loo
 classify batches integrate item by item and go through the result cache like a single
 query (answered 202 + Location when still computing after ``RSF_INLINE_BUDGET_S``).
 """
+
 from __future__ import annotations
 
 import json
@@ -31,15 +32,23 @@ from .compute import CtxDep
 __all__ = ["router"]
 
 router = APIRouter(prefix="/v1", tags=["batch"])
-_R: dict[int | str, dict[str, Any]] = {422: {"description": "Too many items, or a body that is not {\"items\": [objects]}; "
-                           "invalid items are reported in their own result entries."}}
+_R: dict[int | str, dict[str, Any]] = {
+    422: {
+        "description": 'Too many items, or a body that is not {"items": [objects]}; '
+        "invalid items are reported in their own result entries."
+    }
+}
 
 
 def _check_size(req: BatchRequest, limit: int) -> None:
     if len(req.items) > limit:
-        raise ProblemError(422, "Invalid input", f"items: {len(req.items)} items, at most "
-                           f"{limit} per request (RSF_BATCH_MAX_ITEMS)", field="items",
-                           valid=f"1..{limit} objects")
+        raise ProblemError(
+            422,
+            "Invalid input",
+            f"items: {len(req.items)} items, at most {limit} per request (RSF_BATCH_MAX_ITEMS)",
+            field="items",
+            valid=f"1..{limit} objects",
+        )
 
 
 @router.post("/critical/batch", responses=_R, summary="Critical sizes of many items")

@@ -3,6 +3,7 @@
 All are answered in the API process and cached (see :mod:`service.answer`).  Trajectories
 and U grids can also be fetched as PNG plots (``?format=png``; JSON is the default).
 """
+
 from __future__ import annotations
 
 import json
@@ -48,37 +49,54 @@ class Ctx:
     inflight: Inflight
     settings: Settings
 
-    async def answer(self, kind: str, req: BaseModel,
-                     fn: Callable[[Any], dict[str, Any]]) -> Response:
+    async def answer(
+        self, kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]]
+    ) -> Response:
         """The cached or computed answer (:func:`service.answer.answer`)."""
-        return await answer(kind, req, fn, stores=self.stores, queue=self.queue,
-                            inflight=self.inflight, settings=self.settings)
+        return await answer(
+            kind,
+            req,
+            fn,
+            stores=self.stores,
+            queue=self.queue,
+            inflight=self.inflight,
+            settings=self.settings,
+        )
 
 
-def _ctx(stores: StoresDep, queue: QueueDep, inflight: InflightDep,
-         settings: SettingsDep) -> Ctx:
+def _ctx(stores: StoresDep, queue: QueueDep, inflight: InflightDep, settings: SettingsDep) -> Ctx:
     return Ctx(stores, queue, inflight, settings)
 
 
 CtxDep = Annotated[Ctx, Depends(_ctx)]
-_R: dict[int | str, dict[str, Any]] = {422: {
-    "description": "Invalid input (problem+json naming the field and its range) or a "
-                   "computation that could not be completed."}}
+_R: dict[int | str, dict[str, Any]] = {
+    422: {
+        "description": "Invalid input (problem+json naming the field and its range) or a "
+        "computation that could not be completed."
+    }
+}
 
 
-@router.post("/classify", responses={200: {"model": ClassifyResult, "description": "The outcome."}, **_R},
-             summary="Stable or unstable?")
+@router.post(
+    "/classify",
+    responses={200: {"model": ClassifyResult, "description": "The outcome."}, **_R},
+    summary="Stable or unstable?",
+)
 async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
     """Certified outcome of one perturbation (outcome, certificate, peak_phi, blow-up or
     return time T = V_* t/Dc, rel_accuracy). Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer("classify", req, partial(adapter.classify,
-                                                   max_steps=ctx.settings.quick_steps))
+    return await ctx.answer(
+        "classify", req, partial(adapter.classify, max_steps=ctx.settings.quick_steps)
+    )
 
 
 _JSON_OR_PNG = ("json", "png")
-_DEFERRED: dict[int | str, dict[str, Any]] = {202: {
-    "description": "Still computing (JSON with `Location: /v1/results/{key}`, also for "
-                   "format=png): poll it, then repeat the request."}}
+_DEFERRED: dict[int | str, dict[str, Any]] = {
+    202: {
+        "description": "Still computing (JSON with `Location: /v1/results/{key}`, also for "
+        "format=png): poll it, then repeat the request."
+    }
+}
 
 
 async def _as_png(resp: Response, plot: Callable[[dict[str, Any]], bytes]) -> Response:
@@ -92,19 +110,32 @@ async def _as_png(resp: Response, plot: Callable[[dict[str, Any]], bytes]) -> Re
 
 
 _TRAJ_FORMATS = ("json", "png", "csv")
-_TRAJ_200 = png_content("The outcome and trajectory (JSON), with format=png the phase plane "
-                        "(phi, psi) and phi(T) as a PNG image, with format=csv the samples "
-                        "as CSV.", model=TrajectoryResult)
+_TRAJ_200 = png_content(
+    "The outcome and trajectory (JSON), with format=png the phase plane "
+    "(phi, psi) and phi(T) as a PNG image, with format=csv the samples "
+    "as CSV.",
+    model=TrajectoryResult,
+)
 _TRAJ_200[200]["content"]["text/csv"] = {"schema": {"type": "string"}}
 
 
-@router.post("/trajectory", responses={**_R, **_DEFERRED, **_TRAJ_200},
-             summary="One trajectory, downsampled")
-async def trajectory(req: TrajectoryRequest, ctx: CtxDep,
-                     format: Annotated[str, format_query(  # noqa: A002
-                         _TRAJ_FORMATS, "json", "'png': phase-plane (phi, psi) and phi(T) "
-                         "plot of the trajectory; 'csv': the samples, one row each (header "
-                         "X-Sampling says the spacing).")] = "json") -> Response:
+@router.post(
+    "/trajectory", responses={**_R, **_DEFERRED, **_TRAJ_200}, summary="One trajectory, downsampled"
+)
+async def trajectory(
+    req: TrajectoryRequest,
+    ctx: CtxDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _TRAJ_FORMATS,
+            "json",
+            "'png': phase-plane (phi, psi) and phi(T) "
+            "plot of the trajectory; 'csv': the samples, one row each (header "
+            "X-Sampling says the spacing).",
+        ),
+    ] = "json",
+) -> Response:
     """Outcome and the trajectory (T, phi, psi, ln_theta, slip, load_point) at
     ``n_points`` samples, spaced as ``sampling`` says ('tau': evenly in the integrator's
     bounded time; 'T': evenly in T; 'seconds': evenly in t, needs physical); the answer's
@@ -113,8 +144,9 @@ async def trajectory(req: TrajectoryRequest, ctx: CtxDep,
     With ``?format=png``: the phase plane and phi(T) as a PNG (image cached too); with
     ``?format=csv``: the samples as CSV."""
     fmt = choice(format, _TRAJ_FORMATS, "format")
-    resp = await ctx.answer("trajectory", req, partial(adapter.trajectory,
-                                                       max_steps=ctx.settings.quick_steps))
+    resp = await ctx.answer(
+        "trajectory", req, partial(adapter.trajectory, max_steps=ctx.settings.quick_steps)
+    )
     if fmt == "csv":
         return _as_csv(resp)
     return resp if fmt == "json" else await _as_png(resp, images.trajectory_png)
@@ -127,48 +159,82 @@ def _as_csv(resp: Response) -> Response:
     result = json.loads(bytes(resp.body))
     cols = result.get("trajectory") or {}
     from .protocols import csv_table
+
     samp = result.get("sampling", {}).get("kind", "tau")
-    return Response(csv_table(cols), media_type="text/csv", headers={
-        "X-Cache-Key": result["cache_key"], "X-Sampling": samp,
-        "X-Cache": resp.headers.get("X-Cache", "miss"),
-        "Content-Disposition": 'attachment; filename="trajectory.csv"'})
+    return Response(
+        csv_table(cols),
+        media_type="text/csv",
+        headers={
+            "X-Cache-Key": result["cache_key"],
+            "X-Sampling": samp,
+            "X-Cache": resp.headers.get("X-Cache", "miss"),
+            "Content-Disposition": 'attachment; filename="trajectory.csv"',
+        },
+    )
 
 
-@router.post("/critical", responses={200: {"model": CriticalResult, "description": "The critical size."}, **_R},
-             summary="Critical perturbation size")
+@router.post(
+    "/critical",
+    responses={200: {"model": CriticalResult, "description": "The critical size."}, **_R},
+    summary="Critical perturbation size",
+)
 async def critical(req: CriticalRequest, ctx: CtxDep) -> Response:
     """Same fields as `rsf critical --json`: kind (zero|finite|infinite), critical_size,
     rel_accuracy, method, perturbation, params. Cached (field `cached`, header `X-Cache: hit|miss`)."""
     return await ctx.answer("critical", req, adapter.critical)
 
 
-@router.post("/analytic/u", responses={**_R, **png_content(
-        "U at the points or on the grid (JSON), or with format=png (grid only) the contours "
-        "of U (red: U = 0) as a PNG image.")}, summary="Analytic Lyapunov function U")
-async def analytic_u(req: AnalyticRequest, ctx: CtxDep,
-                     format: Annotated[str, format_query(  # noqa: A002
-                         _JSON_OR_PNG, "json", "'png' (needs 'grid'): contours of U in the "
-                         "(phi, psi) plane.")] = "json") -> Response:
+@router.post(
+    "/analytic/u",
+    responses={
+        **_R,
+        **png_content(
+            "U at the points or on the grid (JSON), or with format=png (grid only) the contours "
+            "of U (red: U = 0) as a PNG image."
+        ),
+    },
+    summary="Analytic Lyapunov function U",
+)
+async def analytic_u(
+    req: AnalyticRequest,
+    ctx: CtxDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _JSON_OR_PNG, "json", "'png' (needs 'grid'): contours of U in the (phi, psi) plane."
+        ),
+    ] = "json",
+) -> Response:
     """U at points (list) or on a grid (U[i][j] at phi[i], psi[j]). Cached (field `cached`, header `X-Cache: hit|miss`).
     With ``?format=png`` and a grid (at least 2 x 2): contour plot of U (red: U = 0)."""
     fmt = choice(format, _JSON_OR_PNG, "format")
     if fmt == "png" and req.grid is None:
-        raise ProblemError(422, "Invalid input", "format: png needs U on a grid (give "
-                           "'grid', not 'points')", field="format",
-                           valid="'json' (points or grid) or 'png' (grid only)")
+        raise ProblemError(
+            422,
+            "Invalid input",
+            "format: png needs U on a grid (give 'grid', not 'points')",
+            field="format",
+            valid="'json' (points or grid) or 'png' (grid only)",
+        )
     if fmt == "png":
         for f in ("n_phi", "n_psi"):
             if getattr(req.grid, f) < 2:
-                raise ProblemError(422, "Invalid input", f"grid.{f}: a contour plot needs "
-                                   "at least 2 values (valid range: [2, 500] with format=png)",
-                                   field=f"grid.{f}", valid="[2, 500] with format=png")
+                raise ProblemError(
+                    422,
+                    "Invalid input",
+                    f"grid.{f}: a contour plot needs "
+                    "at least 2 values (valid range: [2, 500] with format=png)",
+                    field=f"grid.{f}",
+                    valid="[2, 500] with format=png",
+                )
     resp = await ctx.answer("analytic_u", req, adapter.analytic_u)
     return resp if fmt == "json" else await _as_png(resp, images.analytic_u_png)
 
 
 @router.get("/boundaries", responses=_R, summary="Stability boundaries (query)")
 async def boundaries_get(req: Annotated[BoundariesRequest, Query()], ctx: CtxDep) -> Response:
-    """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values. Cached (field `cached`, header `X-Cache: hit|miss`)."""
+    """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values.
+    Cached (field `cached`, header `X-Cache: hit|miss`)."""
     return await ctx.answer("boundaries", req, adapter.boundaries)
 
 

@@ -4,6 +4,7 @@ assets, so they work on a lab network without internet access.
 The JavaScript and CSS come from the installed ``fastapi-offline`` package (its
 ``static/`` directory), served under ``/docs-assets/``; nothing is fetched from a CDN.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -20,27 +21,36 @@ __all__ = ["ASSETS", "router"]
 router = APIRouter(include_in_schema=False)
 #: Directory holding swagger-ui-bundle.js, swagger-ui.css, redoc.standalone.js.
 ASSETS = Path(fastapi_offline.__file__).resolve().parent / "static"
-_TYPES = {".js": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8",
-          ".png": "image/png"}
+_TYPES = {
+    ".js": "text/javascript; charset=utf-8",
+    ".css": "text/css; charset=utf-8",
+    ".png": "image/png",
+}
 _TITLE = "rsf-stability service"
 
 
 @router.get("/docs")
 async def swagger() -> HTMLResponse:
     """Swagger UI on /openapi.json."""
-    return get_swagger_ui_html(openapi_url="/openapi.json", title=f"{_TITLE} - Swagger UI",
-                               swagger_js_url="/docs-assets/swagger-ui-bundle.js",
-                               swagger_css_url="/docs-assets/swagger-ui.css",
-                               swagger_favicon_url="/docs-assets/favicon.png")
+    return get_swagger_ui_html(
+        openapi_url="/openapi.json",
+        title=f"{_TITLE} - Swagger UI",
+        swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+        swagger_css_url="/docs-assets/swagger-ui.css",
+        swagger_favicon_url="/docs-assets/favicon.png",
+    )
 
 
 @router.get("/redoc")
 async def redoc() -> HTMLResponse:
     """ReDoc on /openapi.json."""
-    return get_redoc_html(openapi_url="/openapi.json", title=f"{_TITLE} - ReDoc",
-                          redoc_js_url="/docs-assets/redoc.standalone.js",
-                          redoc_favicon_url="/docs-assets/favicon.png",
-                          with_google_fonts=False)
+    return get_redoc_html(
+        openapi_url="/openapi.json",
+        title=f"{_TITLE} - ReDoc",
+        redoc_js_url="/docs-assets/redoc.standalone.js",
+        redoc_favicon_url="/docs-assets/favicon.png",
+        with_google_fonts=False,
+    )
 
 
 @router.get("/docs-assets/{name}")
@@ -49,5 +59,6 @@ async def asset(name: str) -> Response:
     path = (ASSETS / name).resolve()
     if path.parent != ASSETS or path.suffix not in _TYPES or not path.is_file():
         raise ProblemError(404, "Not found", f"no documentation asset {name!r}")
-    return FileResponse(path, media_type=_TYPES[path.suffix],
-                        headers={"Cache-Control": "public, max-age=86400"})
+    return FileResponse(
+        path, media_type=_TYPES[path.suffix], headers={"Cache-Control": "public, max-age=86400"}
+    )

@@ -12,6 +12,7 @@ the worker is at) while the fit runs, 200 with the fit when done
 (``?format=png``: data, fit and residuals; ``?format=csv``: t_s, v_lp_m_s, mu, model,
 residuals), 422 if the fit could not be computed, 404 for an unknown key.
 """
+
 from __future__ import annotations
 
 import json
@@ -46,17 +47,29 @@ def _queued(key: str, progress: str = "") -> Response:
     (the stage the worker is at)."""
     loc = f"/v1/fits/{key}"
     status = "running" if progress else "queued"
-    return Response(json.dumps({"status": status, "progress": progress or None,
-                                "cache_key": key, "location": loc}),
-                    status_code=202, media_type="application/json",
-                    headers={"Location": loc, "Retry-After": "1", "X-Cache": "miss"})
+    return Response(
+        json.dumps(
+            {"status": status, "progress": progress or None, "cache_key": key, "location": loc}
+        ),
+        status_code=202,
+        media_type="application/json",
+        headers={"Location": loc, "Retry-After": "1", "X-Cache": "miss"},
+    )
 
 
-@router.post("", status_code=202, summary="Fit a lab record (queued)", responses={
-    202: {"description": "Queued: poll the Location (GET /v1/fits/{key})."},
-    200: {"description": "This record with these options was fitted before: the fit."},
-    422: {"description": "Invalid options or a record that cannot be read (problem+json "
-                         "naming the field)."}})
+@router.post(
+    "",
+    status_code=202,
+    summary="Fit a lab record (queued)",
+    responses={
+        202: {"description": "Queued: poll the Location (GET /v1/fits/{key})."},
+        200: {"description": "This record with these options was fitted before: the fit."},
+        422: {
+            "description": "Invalid options or a record that cannot be read (problem+json "
+            "naming the field)."
+        },
+    },
+)
 async def submit_fit(req: FitRequest, ctx: CtxDep) -> Response:
     """Fit mu0, a, b, Dc (and eps, machine stiffness [1/m]) to a velocity-step record by
     bounded non-linear least squares on the compiled forward model; compare the evolution
@@ -66,8 +79,11 @@ async def submit_fit(req: FitRequest, ctx: CtxDep) -> Response:
     key = cache_key("fit", summary, version)
     hit = await run_in_threadpool(ctx.stores.results.get_text, key)
     if hit is not None:
-        return Response(body(hit, key, True), media_type="application/json",
-                        headers={"X-Cache": "hit", "Location": f"/v1/fits/{key}"})
+        return Response(
+            body(hit, key, True),
+            media_type="application/json",
+            headers={"X-Cache": "hit", "Location": f"/v1/fits/{key}"},
+        )
     st = await run_in_threadpool(ctx.stores.jobs.status, key)
     if st is not None and st.state is JobState.failed:
         raise ProblemError(422, "Could not be computed", st.message)
@@ -77,23 +93,43 @@ async def submit_fit(req: FitRequest, ctx: CtxDep) -> Response:
     return _queued(key)
 
 
-@router.get("/{key}", summary="A fit: result or state", responses={
-    200: {"description": "The fit (JSON), or its plot (PNG) or series (CSV).",
-          "content": {"application/json": {}, "image/png": {}, "text/csv": {}}},
-    202: {"description": "Still queued or running."},
-    404: {"description": "No fit with this key."},
-    422: {"description": "The fit could not be computed."}})
-async def get_fit(key: Annotated[str, Path(description="The key of POST /v1/fits.")],
-                  ctx: CtxDep,
-                  format: Annotated[str, format_query(  # noqa: A002
-                      _FORMATS, "json", "'png': data, fit and residuals; 'csv': the "
-                      "series (t_s, v_lp_m_s, mu, model, residuals).")] = "json") -> Response:
+@router.get(
+    "/{key}",
+    summary="A fit: result or state",
+    responses={
+        200: {
+            "description": "The fit (JSON), or its plot (PNG) or series (CSV).",
+            "content": {"application/json": {}, "image/png": {}, "text/csv": {}},
+        },
+        202: {"description": "Still queued or running."},
+        404: {"description": "No fit with this key."},
+        422: {"description": "The fit could not be computed."},
+    },
+)
+async def get_fit(
+    key: Annotated[str, Path(description="The key of POST /v1/fits.")],
+    ctx: CtxDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _FORMATS,
+            "json",
+            "'png': data, fit and residuals; 'csv': the "
+            "series (t_s, v_lp_m_s, mu, model, residuals).",
+        ),
+    ] = "json",
+) -> Response:
     """The fit's answer: params, stderr, correlation, misfit, law comparison, stability
     (kappa/kappa_crit, critical velocity and load-point jumps in SI, with spread)."""
     fmt = choice(format, _FORMATS, "format")
     if not _KEY.match(key):
-        raise ProblemError(422, "Invalid input", "key: 64 hex digits expected", field="key",
-                           valid="64 lowercase hex digits")
+        raise ProblemError(
+            422,
+            "Invalid input",
+            "key: 64 hex digits expected",
+            field="key",
+            valid="64 lowercase hex digits",
+        )
     text = await run_in_threadpool(ctx.stores.results.get_text, key)
     if text is None:
         st = await run_in_threadpool(ctx.stores.jobs.status, key)
@@ -103,16 +139,21 @@ async def get_fit(key: Annotated[str, Path(description="The key of POST /v1/fits
             raise ProblemError(422, "Could not be computed", st.message)
         return _queued(key, st.message)
     if fmt == "json":
-        return Response(body(text, key, True), media_type="application/json",
-                        headers={"X-Cache": "hit"})
+        return Response(
+            body(text, key, True), media_type="application/json", headers={"X-Cache": "hit"}
+        )
     result: dict[str, Any] = json.loads(text)
     if fmt == "csv":
-        return Response(csv_table(adapter.fit_table(result)), media_type="text/csv",
-                        headers={"Content-Disposition": 'attachment; filename="fit.csv"'})
+        return Response(
+            csv_table(adapter.fit_table(result)),
+            media_type="text/csv",
+            headers={"Content-Disposition": 'attachment; filename="fit.csv"'},
+        )
     data, hit = await image(f"fit-{key}.png", lambda: _plot(result))
     return image_response(data, "png", hit)
 
 
 def _plot(result: dict[str, Any]) -> bytes:
     from rsfplots.lab import plot_fit
+
     return images.render_locked(plot_fit, result, "png")

@@ -9,6 +9,7 @@ plot (friction and slip rate against time, peaks marked).  Cached like every sin
 (field `cached`, header `X-Cache`); a long history still computing after
 ``RSF_INLINE_BUDGET_S`` is answered 202 + Location and lands in the cache.
 """
+
 from __future__ import annotations
 
 import csv
@@ -32,13 +33,21 @@ __all__ = ["router", "csv_table"]
 
 router = APIRouter(prefix="/v1/protocols", tags=["protocols"])
 _FORMATS = ("json", "csv", "png")
-_R: dict[int | str, dict[str, Any]] = {422: {"description": "Invalid input (problem+json naming the field and its range) "
-                           "or a computation that could not be completed."},
-      202: {"description": "Still computing: poll the Location, then repeat the request."},
-      200: {"description": "JSON (default), CSV of the sampled history, or a PNG plot.",
-            "content": {"application/json": {}, "text/csv": {}, "image/png": {}}}}
-_FMT_HELP = "'csv': the sampled history (t_s, friction, tau_change_Pa, V_m_s, ...); " \
-            "'png': friction and slip rate against time."
+_R: dict[int | str, dict[str, Any]] = {
+    422: {
+        "description": "Invalid input (problem+json naming the field and its range) "
+        "or a computation that could not be completed."
+    },
+    202: {"description": "Still computing: poll the Location, then repeat the request."},
+    200: {
+        "description": "JSON (default), CSV of the sampled history, or a PNG plot.",
+        "content": {"application/json": {}, "text/csv": {}, "image/png": {}},
+    },
+}
+_FMT_HELP = (
+    "'csv': the sampled history (t_s, friction, tau_change_Pa, V_m_s, ...); "
+    "'png': friction and slip rate against time."
+)
 
 
 def csv_table(columns: dict[str, list[Any]]) -> str:
@@ -54,11 +63,13 @@ def csv_table(columns: dict[str, list[Any]]) -> str:
 
 def _plot(result: dict[str, Any]) -> bytes:
     from rsfplots.lab import plot_protocol
+
     return images.render_locked(plot_protocol, result, "png")
 
 
-async def _answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]],
-                  ctx: Any, fmt: str) -> Response:
+async def _answer(
+    kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]], ctx: Any, fmt: str
+) -> Response:
     fmt = choice(fmt, _FORMATS, "format")
     resp: Response = await ctx.answer(kind, req, fn)
     if fmt == "json" or resp.status_code != 200:
@@ -66,39 +77,65 @@ async def _answer(kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]]
     result = json.loads(bytes(resp.body))
     key = result["cache_key"]
     if fmt == "csv":
-        return Response(csv_table(adapter.protocol_table(result)), media_type="text/csv",
-                        headers={"X-Cache-Key": key, "X-Cache": resp.headers.get("X-Cache", "miss"),
-                                 "Content-Disposition": f'attachment; filename="{kind}.csv"'})
+        return Response(
+            csv_table(adapter.protocol_table(result)),
+            media_type="text/csv",
+            headers={
+                "X-Cache-Key": key,
+                "X-Cache": resp.headers.get("X-Cache", "miss"),
+                "Content-Disposition": f'attachment; filename="{kind}.csv"',
+            },
+        )
     data, hit = await image(f"{key}.png", lambda: _plot(result))
     return image_response(data, "png", hit, headers={"X-Cache-Key": key})
 
 
 @router.post("/velocity-step", responses=_R, summary="Velocity step V1 -> V2 (SI)")
-async def velocity_step(req: VelocityStepRequest, ctx: CtxDep,
-                        format: Annotated[str, format_query(  # noqa: A002
-                            _FORMATS, "json", _FMT_HELP)] = "json") -> Response:
+async def velocity_step(
+    req: VelocityStepRequest,
+    ctx: CtxDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _FORMATS, "json", _FMT_HELP
+        ),
+    ] = "json",
+) -> Response:
     """Load-point velocity step from steady state at V1: the response against slip and
     time, the true peak, steady-state and peak friction changes (also in Pa), and the
     deviation from the infinitely stiff closed form `eq: delta tau`."""
-    return await _answer("protocol_velocity_step", req, adapter.protocol_velocity_step,
-                         ctx, format)
+    return await _answer("protocol_velocity_step", req, adapter.protocol_velocity_step, ctx, format)
 
 
 @router.post("/slide-hold-slide", responses=_R, summary="Slide-hold-slide test (SI)")
-async def slide_hold_slide(req: SlideHoldSlideRequest, ctx: CtxDep,
-                           format: Annotated[str, format_query(  # noqa: A002
-                               _FORMATS, "json", _FMT_HELP)] = "json") -> Response:
+async def slide_hold_slide(
+    req: SlideHoldSlideRequest,
+    ctx: CtxDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _FORMATS, "json", _FMT_HELP
+        ),
+    ] = "json",
+) -> Response:
     """Slide at V, hold, reslide at V: healing (true peak on reslide minus f_ss) and
     relaxation during the hold, as friction and in Pa."""
-    return await _answer("protocol_slide_hold_slide", req, adapter.protocol_slide_hold_slide,
-                         ctx, format)
+    return await _answer(
+        "protocol_slide_hold_slide", req, adapter.protocol_slide_hold_slide, ctx, format
+    )
 
 
 @router.post("/load-history", responses=_R, summary="Piecewise load history (SI)")
-async def load_history(req: LoadHistoryRequest, ctx: CtxDep,
-                       format: Annotated[str, format_query(  # noqa: A002
-                           _FORMATS, "json", _FMT_HELP)] = "json") -> Response:
+async def load_history(
+    req: LoadHistoryRequest,
+    ctx: CtxDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _FORMATS, "json", _FMT_HELP
+        ),
+    ] = "json",
+) -> Response:
     """Any piecewise-constant load-point velocity history (velocity steps, holds): true
     per-segment peaks, per-segment steady-state and peak friction changes, runaway."""
-    return await _answer("protocol_load_history", req, adapter.protocol_load_history,
-                         ctx, format)
+    return await _answer("protocol_load_history", req, adapter.protocol_load_history, ctx, format)

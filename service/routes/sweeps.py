@@ -20,6 +20,7 @@ Lifecycle:
 Timestamps are ISO 8601 UTC.  Status polls are small (no axis values: ``GET .../spec``
 has them).
 """
+
 from __future__ import annotations
 
 import json
@@ -50,13 +51,15 @@ router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 log = logging.getLogger("rsf.service")
 SweepId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="Sweep id (32 hex).")]
 _R: dict[int | str, dict[str, Any]] = {
-    422: {"description": "Invalid input (problem+json naming the field and its range)."}}
+    422: {"description": "Invalid input (problem+json naming the field and its range)."}
+}
 _N: dict[int | str, dict[str, Any]] = {404: {"description": "Unknown sweep (problem+json)."}}
 
 
 def _json(obj: object, status: int = 200, headers: dict[str, str] | None = None) -> Response:
-    return Response(json.dumps(obj), status_code=status, media_type="application/json",
-                    headers=headers)
+    return Response(
+        json.dumps(obj), status_code=status, media_type="application/json", headers=headers
+    )
 
 
 def _unknown(sweep_id: str) -> ProblemError:
@@ -69,8 +72,10 @@ def _enqueue(queue: Queue, sweep_id: str, chunk_ids: list[int]) -> str | None:
             queue.send_chunk(sweep_id, c)
     except Exception as exc:  # noqa: BLE001 - chunks stay queued; a worker start requeues
         log.exception("could not enqueue sweep %s", sweep_id)
-        return f"broker unavailable ({type(exc).__name__}); queued chunks are sent when " \
-               "a worker starts"
+        return (
+            f"broker unavailable ({type(exc).__name__}); queued chunks are sent when "
+            "a worker starts"
+        )
     return None
 
 
@@ -78,13 +83,18 @@ async def _spec(stores: Any, sweep_id: str) -> SweepSpec:
     """The spec of an existing sweep; 410 for a sweep stored in the pre-array layout."""
     spec = await run_in_threadpool(stores.sweeps.get_spec, sweep_id)
     if spec is None:
-        raise ProblemError(410, "Gone", f"sweep {sweep_id} was stored in the layout before "
-                           "N-D sweeps; submit it again to compute it with this version")
+        raise ProblemError(
+            410,
+            "Gone",
+            f"sweep {sweep_id} was stored in the layout before "
+            "N-D sweeps; submit it again to compute it with this version",
+        )
     return spec  # type: ignore[no-any-return]
 
 
-def _failures(sweeps: SweepStore, spec: SweepSpec | None, sweep_id: str,
-              limit: int = 100) -> list[dict[str, Any]]:
+def _failures(
+    sweeps: SweepStore, spec: SweepSpec | None, sweep_id: str, limit: int = 100
+) -> list[dict[str, Any]]:
     out: list[dict[str, Any]] = []
     for idx, msg in sweeps.failures(sweep_id, limit):
         f: dict[str, Any] = {"idx": idx}
@@ -97,10 +107,15 @@ def _failures(sweeps: SweepStore, spec: SweepSpec | None, sweep_id: str,
     return out
 
 
-@router.post("", status_code=202, responses={**_R, 200: {"description": "Already done."}},
-             summary="Submit a sweep")
-async def submit(req: SweepRequest, stores: StoresDep, queue: QueueDep,
-                 s: SettingsDep, who: PrincipalDep) -> Response:
+@router.post(
+    "",
+    status_code=202,
+    responses={**_R, 200: {"description": "Already done."}},
+    summary="Submit a sweep",
+)
+async def submit(
+    req: SweepRequest, stores: StoresDep, queue: QueueDep, s: SettingsDep, who: PrincipalDep
+) -> Response:
     """Start a sweep: an N-D grid (``axes``: 1-5 of ba, kappa or kappa_ratio, eps, vo,
     size; each ``{name, values}`` or ``{name, start, stop, n, log}``), scattered ``points``
     (equal-length arrays per parameter) or the 2-D ``x``/``y`` form, with ``fixed`` values
@@ -118,8 +133,7 @@ async def submit(req: SweepRequest, stores: StoresDep, queue: QueueDep,
     sweep_id = cache_key("sweep", spec.to_json(), version)[:32]
     chunk = plan_chunks(spec, s, req.chunk_points)
     reserved = await admit_sweep(who, stores, sweep_id, spec.n_total)  # key quotas (429)
-    created = await run_in_threadpool(sweeps.create, sweep_id, spec, chunk, version,
-                                      s.sweep_window)
+    created = await run_in_threadpool(sweeps.create, sweep_id, spec, chunk, version, s.sweep_window)
     await sweep_submitted(who, stores, sweep_id, created.created or created.resumed, reserved)
     todo = created.todo
     warning = await run_in_threadpool(_enqueue, queue, sweep_id, todo) if todo else None
@@ -139,12 +153,14 @@ async def submit(req: SweepRequest, stores: StoresDep, queue: QueueDep,
 
 
 @router.get("", summary="List sweeps")
-async def list_all(stores: StoresDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-                   offset: Annotated[int, Query(ge=0, le=10**9)] = 0) -> Response:
+async def list_all(
+    stores: StoresDep,
+    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+) -> Response:
     """Sweeps, newest first, with status and progress (as the status endpoint, without
     failures)."""
-    return _json({"sweeps": await run_in_threadpool(stores.sweeps.list_sweeps, limit,
-                                                      offset)})
+    return _json({"sweeps": await run_in_threadpool(stores.sweeps.list_sweeps, limit, offset)})
 
 
 async def _status(stores: Any, sweep_id: str) -> dict[str, Any]:
@@ -177,9 +193,12 @@ async def get_spec(sweep_id: SweepId, stores: StoresDep) -> Response:
 
 
 @router.get("/{sweep_id}/points", responses=_N, summary="Sweep points (paged)")
-async def get_points(sweep_id: SweepId, stores: StoresDep,
-                     offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
-                     limit: Annotated[int, Query(ge=1, le=10_000)] = 1000) -> Response:
+async def get_points(
+    sweep_id: SweepId,
+    stores: StoresDep,
+    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+    limit: Annotated[int, Query(ge=1, le=10_000)] = 1000,
+) -> Response:
     """Points ``offset`` .. ``offset + limit - 1`` in flat-index order (C order over the
     axes), available while running.  Each point: idx, index (grid), the swept parameter
     values, computed, kind, critical_size (null if infinite or missing), outcome,
@@ -196,8 +215,16 @@ async def get_points(sweep_id: SweepId, stores: StoresDep,
             if spec.mode == "grid":
                 p["index"] = [int(v) for v in np.unravel_index(k, spec.shape)]
             p.update({n: float(v[k - i0]) for n, v in vals.items()})
-            p.update(computed=False, kind=None, critical_size=None, outcome=None,
-                     rel_accuracy=None, method=None, failed=None, error=None)
+            p.update(
+                computed=False,
+                kind=None,
+                critical_size=None,
+                outcome=None,
+                rel_accuracy=None,
+                method=None,
+                failed=None,
+                error=None,
+            )
             pts.append(p)
         for b in stores.sweeps.blocks(sweep_id, i0, i1):
             for k in range(max(b.i0, i0), min(b.i1, i1)):
@@ -207,37 +234,62 @@ async def get_points(sweep_id: SweepId, stores: StoresDep,
                 oc = int(a["outcome"][o]) if "outcome" in a else -1
                 cs, ra = float(a["critical_size"][o]), float(a["rel_accuracy"][o])
                 pts[k - i0].update(
-                    computed=True, kind=KINDS[kd] if kd >= 0 else None,
+                    computed=True,
+                    kind=KINDS[kd] if kd >= 0 else None,
                     critical_size=cs if np.isfinite(cs) else None,
                     outcome=("stable", "unstable")[oc] if oc >= 0 else None,
                     rel_accuracy=ra if np.isfinite(ra) else None,
                     method=METHODS[int(a["method"][o])] if a["method"][o] >= 0 else None,
-                    failed=bool(a["failed"][o]), error=b.errors.get(o))
+                    failed=bool(a["failed"][o]),
+                    error=b.errors.get(o),
+                )
         return pts
 
     pts = await run_in_threadpool(page)
     nxt = i1 if i1 < spec.n_total else None
-    return _json({"id": sweep_id, "status": st["status"], "n_done": st["n_done"],
-                  "n_total": st["n_total"], "offset": offset, "limit": limit,
-                  "next_offset": nxt, "points": pts})
+    return _json(
+        {
+            "id": sweep_id,
+            "status": st["status"],
+            "n_done": st["n_done"],
+            "n_total": st["n_total"],
+            "offset": offset,
+            "limit": limit,
+            "next_offset": nxt,
+            "points": pts,
+        }
+    )
 
 
 _DATA_FORMATS = ("netcdf", "csv", "json")
 
 
-@router.get("/{sweep_id}/data", summary="Sweep result (NetCDF, CSV or JSON)",
-            responses={**_N, 200: {"description": "The whole result, also while running "
-                                   "(missing points NaN / empty).", "content": {
-                                       "application/x-netcdf": {}, "text/csv": {},
-                                       "application/json": {}}},
-                       422: {"description": "Invalid format (problem+json)."}})
-async def get_data(sweep_id: SweepId, stores: StoresDep,
-                   format: Annotated[str, format_query(  # noqa: A002
-                       _DATA_FORMATS, "netcdf",
-                       "'netcdf': a NetCDF file (xarray.open_dataset opens it; grid axes as "
-                       "named coordinates, scattered sweeps on a 'point' dimension); "
-                       "'csv': one row per point with a header; 'json': flat arrays.")]
-                   = "netcdf") -> Response:
+@router.get(
+    "/{sweep_id}/data",
+    summary="Sweep result (NetCDF, CSV or JSON)",
+    responses={
+        **_N,
+        200: {
+            "description": "The whole result, also while running (missing points NaN / empty).",
+            "content": {"application/x-netcdf": {}, "text/csv": {}, "application/json": {}},
+        },
+        422: {"description": "Invalid format (problem+json)."},
+    },
+)
+async def get_data(
+    sweep_id: SweepId,
+    stores: StoresDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _DATA_FORMATS,
+            "netcdf",
+            "'netcdf': a NetCDF file (xarray.open_dataset opens it; grid axes as "
+            "named coordinates, scattered sweeps on a 'point' dimension); "
+            "'csv': one row per point with a header; 'json': flat arrays.",
+        ),
+    ] = "netcdf",
+) -> Response:
     """The whole result, streamed, also while the sweep runs (points not computed yet are
     NaN / -1 / empty).  Variables per point: ``critical_size`` (0 zero, inf infinite),
     ``kind`` (0 zero, 1 finite, 2 infinite, -1 missing/failed), ``outcome`` (0 stable,
@@ -247,17 +299,22 @@ async def get_data(sweep_id: SweepId, stores: StoresDep,
     fmt = choice(format, _DATA_FORMATS, "format")
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
-    h = {"X-Sweep-Status": st["status"], "X-Sweep-Progress": f"{st['n_done']}/{st['n_total']}",
-         "Content-Disposition": f'attachment; filename="sweep-{sweep_id}.'
-                                f'{ {"netcdf": "nc"}.get(fmt, fmt)}"'}
+    h = {
+        "X-Sweep-Status": st["status"],
+        "X-Sweep-Progress": f"{st['n_done']}/{st['n_total']}",
+        "Content-Disposition": f'attachment; filename="sweep-{sweep_id}.'
+        f'{ {"netcdf": "nc"}.get(fmt, fmt) }"',
+    }
     if fmt == "csv":
-        return StreamingResponse(sweepdata.csv_rows(stores.sweeps, spec, sweep_id),
-                                 media_type="text/csv", headers=h)
+        return StreamingResponse(
+            sweepdata.csv_rows(stores.sweeps, spec, sweep_id), media_type="text/csv", headers=h
+        )
     arrays = await run_in_threadpool(sweepdata.assemble, stores.sweeps, sweep_id, spec.n_total)
     if fmt == "json":
         fails = await run_in_threadpool(stores.sweeps.failures, sweep_id, 100)
-        return StreamingResponse(sweepdata.json_chunks(spec, st, arrays, fails),
-                                 media_type="application/json", headers=h)
+        return StreamingResponse(
+            sweepdata.json_chunks(spec, st, arrays, fails), media_type="application/json", headers=h
+        )
 
     def nc() -> bytes:
         return sweepdata.netcdf_bytes(sweepdata.to_dataset(spec, st, arrays))
@@ -267,7 +324,7 @@ async def get_data(sweep_id: SweepId, stores: StoresDep,
 
     def pieces() -> Any:
         for k in range(0, len(data), step):
-            yield data[k:k + step]
+            yield data[k : k + step]
 
     h["Content-Length"] = str(len(data))
     return StreamingResponse(pieces(), media_type="application/x-netcdf", headers=h)
@@ -276,22 +333,38 @@ async def get_data(sweep_id: SweepId, stores: StoresDep,
 _JSON_OR_PNG = ("json", "png")
 
 
-@router.get("/{sweep_id}/diagram", summary="Stability diagram of a 2-D slice (JSON or PNG)",
-            responses={**_N, **png_content(
-                "The sweep (or a 2-D slice of it) on its grid (JSON), or with format=png "
-                "the stability diagram image (critical size, or stable/unstable when a "
-                "size is given).",
-                {422: {"description": "Invalid format or slice (problem+json naming the "
-                                      "field)."}})})
-async def get_diagram(sweep_id: SweepId, stores: StoresDep,
-                      format: Annotated[str, format_query(  # noqa: A002
-                          _JSON_OR_PNG, "json", "'png': the stability diagram image.")]
-                      = "json",
-                      slice: Annotated[str | None, Query(  # noqa: A002
-                          description="Values of all but two grid axes, e.g. "
-                          "'ba:2.0' or 'ba:2.0,vo:1' (nearest grid value). Valid range: "
-                          "comma-separated <axis>:<number>; not needed for a 2-D grid.",
-                          max_length=500)] = None) -> Response:
+@router.get(
+    "/{sweep_id}/diagram",
+    summary="Stability diagram of a 2-D slice (JSON or PNG)",
+    responses={
+        **_N,
+        **png_content(
+            "The sweep (or a 2-D slice of it) on its grid (JSON), or with format=png "
+            "the stability diagram image (critical size, or stable/unstable when a "
+            "size is given).",
+            {422: {"description": "Invalid format or slice (problem+json naming the field)."}},
+        ),
+    },
+)
+async def get_diagram(
+    sweep_id: SweepId,
+    stores: StoresDep,
+    format: Annotated[
+        str,
+        format_query(  # noqa: A002
+            _JSON_OR_PNG, "json", "'png': the stability diagram image."
+        ),
+    ] = "json",
+    slice: Annotated[
+        str | None,
+        Query(  # noqa: A002
+            description="Values of all but two grid axes, e.g. "
+            "'ba:2.0' or 'ba:2.0,vo:1' (nearest grid value). Valid range: "
+            "comma-separated <axis>:<number>; not needed for a 2-D grid.",
+            max_length=500,
+        ),
+    ] = None,
+) -> Response:
     """A finished or partial grid sweep as a stability diagram over two of its axes (the
     others fixed by ``slice``), laid out like ``rsfcore.diagram.DiagramResult.to_dict()``:
     ``critical_size[i][j]`` at (x[i], y[j]) (null where infinite or not yet computed),
@@ -313,17 +386,36 @@ async def get_diagram(sweep_id: SweepId, stores: StoresDep,
     tag = "-".join(f"{k}{v}" for k, v in sorted(fixed_idx.items()))
     key = f"sweep-{sweep_id}-{tag}-{d['status']}-{d['n_done']}-{d['n_failed']}.png"
     data, hit = await image(key, lambda: images.diagram_png(d), store=final)
-    return image_response(data, "png", hit, final=final, headers={
-        "X-Sweep-Status": d["status"], "X-Sweep-Progress": f"{d['n_done']}/{d['n_total']}"})
+    return image_response(
+        data,
+        "png",
+        hit,
+        final=final,
+        headers={
+            "X-Sweep-Status": d["status"],
+            "X-Sweep-Progress": f"{d['n_done']}/{d['n_total']}",
+        },
+    )
 
 
-@router.delete("/{sweep_id}", responses={**_N, 204: {"description": "Deleted (purge)."}},
-               summary="Cancel a sweep, or delete it with ?purge=true")
-async def cancel(sweep_id: SweepId, stores: StoresDep, who: PrincipalDep,
-                 purge: Annotated[bool, Query(description="Delete the sweep and all its "
-                                              "data (cancelling it first if active). "
-                                              "Valid range: true or false.")] = False
-                 ) -> Response:
+@router.delete(
+    "/{sweep_id}",
+    responses={**_N, 204: {"description": "Deleted (purge)."}},
+    summary="Cancel a sweep, or delete it with ?purge=true",
+)
+async def cancel(
+    sweep_id: SweepId,
+    stores: StoresDep,
+    who: PrincipalDep,
+    purge: Annotated[
+        bool,
+        Query(
+            description="Delete the sweep and all its "
+            "data (cancelling it first if active). "
+            "Valid range: true or false."
+        ),
+    ] = False,
+) -> Response:
     """Without ``purge``: cancel an active sweep (chunks not started are dropped; a
     running chunk finishes, so work stops within one chunk per worker process).  On a
     sweep already cancelled or done nothing changes (``changed: false``).  Re-submitting

@@ -4,6 +4,7 @@
 are served from ``/static/<file>``.  There is no build step: the page talks to the JSON
 and PNG endpoints of ``/v1`` with ``fetch``.  Nothing here appears in the OpenAPI schema.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -18,9 +19,14 @@ __all__ = ["router", "STATIC"]
 router = APIRouter(include_in_schema=False)
 #: Directory of the page's files (read from the source tree).
 STATIC = Path(__file__).resolve().parents[1] / "static"
-_TYPES = {".html": "text/html; charset=utf-8", ".css": "text/css; charset=utf-8",
-          ".js": "text/javascript; charset=utf-8", ".svg": "image/svg+xml",
-          ".png": "image/png", ".ico": "image/x-icon"}
+_TYPES = {
+    ".html": "text/html; charset=utf-8",
+    ".css": "text/css; charset=utf-8",
+    ".js": "text/javascript; charset=utf-8",
+    ".svg": "image/svg+xml",
+    ".png": "image/png",
+    ".ico": "image/x-icon",
+}
 
 
 def _serve(name: str, cache: str) -> Response:

@@ -2,6 +2,7 @@
 directory, driven by FastAPI's TestClient (no uvicorn, no subprocess).  The Celery queue
 is replaced by :class:`RecordingQueue` (the only part that cannot run in-process; the e2e
 tests use real workers)."""
+
 from __future__ import annotations
 
 import os

@@ -1,6 +1,7 @@
 """API keys, scopes, quotas and request bounds, in process (TestClient, real SQLite in a
 temporary directory, RSF_AUTH=on).  The real-server version of the essentials is
 tests/e2e/test_auth_server.py."""
+
 from __future__ import annotations
 
 import json
@@ -55,9 +56,14 @@ def env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Env]:
     for k in saved:
         del os.environ[k]
     # Defaults generous enough that only the quota tests (per-key overrides) meet them.
-    os.environ.update(RSF_DATA_DIR=str(d), RSF_INLINE_BUDGET_S="120", RSF_AUTH="on",
-                      RSF_QUOTA_FRESH_PER_S="1000", RSF_QUOTA_CONCURRENT_REQUESTS="100",
-                      RSF_MAX_BODY_BYTES="65536")
+    os.environ.update(
+        RSF_DATA_DIR=str(d),
+        RSF_INLINE_BUDGET_S="120",
+        RSF_AUTH="on",
+        RSF_QUOTA_FRESH_PER_S="1000",
+        RSF_QUOTA_CONCURRENT_REQUESTS="100",
+        RSF_MAX_BODY_BYTES="65536",
+    )
     try:
         app = create_app()
         queue = RecordingQueue()
@@ -92,13 +98,19 @@ def test_every_schema_operation_needs_a_key(env: Env) -> None:
     assert len(ops) >= 20  # the schema was read, not an empty list
     revoked = env.key()
     env.revoke(revoked)
-    bad = {"none": {}, "unknown": env.h("rsf_" + "A" * 43), "revoked": env.h(revoked),
-           "basic": {"Authorization": "Basic dXNlcjpwYXNz"}, "empty": {"Authorization": "Bearer "}}
+    bad = {
+        "none": {},
+        "unknown": env.h("rsf_" + "A" * 43),
+        "revoked": env.h(revoked),
+        "basic": {"Authorization": "Basic dXNlcjpwYXNz"},
+        "empty": {"Authorization": "Bearer "},
+    }
     details = set()
     for method, path in ops:
         for label, headers in bad.items():
-            r = env.c.request(method, path, headers=headers,
-                              json={} if method in ("POST", "PUT") else None)
+            r = env.c.request(
+                method, path, headers=headers, json={} if method in ("POST", "PUT") else None
+            )
             p = assert_problem(r, 401)
             assert r.headers["www-authenticate"].startswith("Bearer"), (method, path, label)
             details.add(p["detail"])
@@ -176,8 +188,10 @@ def test_fresh_computation_quota_429_then_reset_by_time(env: Env) -> None:
     assert retry is not None and 1 <= retry <= 1 + 1 / rate  # whole seconds, >= 1
     # another key is not affected
     other = env.h(env.key(Scope.read, fresh_per_s=rate))
-    assert env.c.post("/v1/classify", json={"size": 0.91, "eps": 0.31},
-                      headers=other).status_code == 200
+    assert (
+        env.c.post("/v1/classify", json={"size": 0.91, "eps": 0.31}, headers=other).status_code
+        == 200
+    )
     time.sleep(retry + 0.05)
     r = env.c.post("/v1/classify", json={"size": 0.92, "eps": 0.31}, headers=h)
     assert r.status_code == 200, r.text
@@ -200,8 +214,10 @@ def test_trajectory_points_quota(env: Env) -> None:
     h = env.h(env.key(Scope.read, trajectory_points=50))
     p = assert_problem(env.c.post("/v1/trajectory", json={"n_points": 51}, headers=h), 422)
     assert p["field"] == "n_points" and "50" in p["valid"]
-    assert env.c.post("/v1/trajectory", json={"n_points": 50, "size": 0.3},
-                      headers=h).status_code == 200
+    assert (
+        env.c.post("/v1/trajectory", json={"n_points": 50, "size": 0.3}, headers=h).status_code
+        == 200
+    )
 
 
 def test_body_limit_413_before_reading(env: Env) -> None:
@@ -217,12 +233,15 @@ def test_body_limit_413_before_reading(env: Env) -> None:
         for i in range(100):
             read.append(i)
             yield b" " * 16384
+
     r = env.c.post("/v1/classify", content=chunks(), headers=h)
     assert_problem(r, 413)
     # batch endpoints have the larger limit: this body is refused for its content only
-    r = env.c.post("/v1/classify/batch", headers={**env.h(env.key(Scope.submit)),
-                                                  "Content-Type": "application/json"},
-                   content=json.dumps({"items": [{"size": 0.5}] * 2000}).encode())
+    r = env.c.post(
+        "/v1/classify/batch",
+        headers={**env.h(env.key(Scope.submit)), "Content-Type": "application/json"},
+        content=json.dumps({"items": [{"size": 0.5}] * 2000}).encode(),
+    )
     assert r.status_code != 413, r.text
 
 
@@ -235,8 +254,10 @@ def test_cors_off_by_default(env: Env) -> None:
     h = env.h(env.key(Scope.read))
     r = env.c.get("/health", headers={**h, "Origin": "http://evil.example"})
     assert "access-control-allow-origin" not in r.headers
-    r = env.c.options("/v1/classify", headers={"Origin": "http://lab.example",
-                                               "Access-Control-Request-Method": "POST"})
+    r = env.c.options(
+        "/v1/classify",
+        headers={"Origin": "http://lab.example", "Access-Control-Request-Method": "POST"},
+    )
     assert "access-control-allow-origin" not in r.headers
 
 
@@ -244,10 +265,14 @@ def test_cors_allowed_origins_from_setting(env: Env, monkeypatch: pytest.MonkeyP
     monkeypatch.setenv("RSF_CORS_ORIGINS", "http://lab.example, http://other.example")
     app = create_app()
     with TestClient(app) as c:
-        r = c.options("/v1/classify", headers={"Origin": "http://lab.example",
-                                               "Access-Control-Request-Method": "POST",
-                                               "Access-Control-Request-Headers":
-                                                   "authorization,content-type"})
+        r = c.options(
+            "/v1/classify",
+            headers={
+                "Origin": "http://lab.example",
+                "Access-Control-Request-Method": "POST",
+                "Access-Control-Request-Headers": "authorization,content-type",
+            },
+        )
         assert r.status_code == 200
         assert r.headers["access-control-allow-origin"] == "http://lab.example"
         assert "authorization" in r.headers["access-control-allow-headers"].lower()
@@ -262,8 +287,12 @@ def test_keys_never_in_responses_or_logs(env: Env, caplog: pytest.LogCaptureFixt
     caplog.set_level(logging.DEBUG)
     seen: list[str] = []
     for k in (key, revoked, "rsf_" + "B" * 43):
-        for method, path, body in (("GET", "/health", None), ("POST", "/v1/classify", {"x": 1}),
-                                   ("POST", "/v1/sweeps", {}), ("GET", "/v1/cache/stats", None)):
+        for method, path, body in (
+            ("GET", "/health", None),
+            ("POST", "/v1/classify", {"x": 1}),
+            ("POST", "/v1/sweeps", {}),
+            ("GET", "/v1/cache/stats", None),
+        ):
             r = env.c.request(method, path, json=body, headers=env.h(k))
             seen.append(r.text + json.dumps(dict(r.headers)))
     text = "\n".join(seen) + "\n".join(rec.getMessage() for rec in caplog.records)
@@ -275,8 +304,9 @@ def test_keys_never_in_responses_or_logs(env: Env, caplog: pytest.LogCaptureFixt
         assert key.encode() not in blob and revoked.encode() not in blob
 
 
-def test_auto_mode_open_on_loopback_until_a_key_exists(tmp_path: Path,
-                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+def test_auto_mode_open_on_loopback_until_a_key_exists(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     for k in [k for k in os.environ if k.startswith("RSF_")]:
         monkeypatch.delenv(k)
     monkeypatch.setenv("RSF_DATA_DIR", str(tmp_path))
@@ -290,8 +320,9 @@ def test_auto_mode_open_on_loopback_until_a_key_exists(tmp_path: Path,
         assert "loopback" in p["detail"] and "rsf keys create" in p["detail"]
         key = KeyStore(stores_for(get_settings()).db).create("first", Scope.read)
         assert_problem(c.get("/v1/cache/stats"), 401)
-        assert c.get("/v1/cache/stats", headers={"Authorization": f"Bearer {key}"}
-                     ).status_code == 200
+        assert (
+            c.get("/v1/cache/stats", headers={"Authorization": f"Bearer {key}"}).status_code == 200
+        )
 
 
 def test_auto_mode_refuses_anonymous_requests_on_other_interfaces() -> None:
@@ -300,8 +331,10 @@ def test_auto_mode_refuses_anonymous_requests_on_other_interfaces() -> None:
     from service.auth import _local
 
     def req(server: tuple[str, int] | None) -> Request:
-        return Request({"type": "http", "server": server, "headers": [], "method": "GET",
-                        "path": "/"})
+        return Request(
+            {"type": "http", "server": server, "headers": [], "method": "GET", "path": "/"}
+        )
+
     assert _local(req(("127.0.0.1", 8000))) and _local(req(("::1", 8000)))
     assert _local(req(None))  # unix socket
     assert not _local(req(("10.1.2.3", 8000))) and not _local(req(("192.168.0.7", 80)))
@@ -347,12 +380,14 @@ def test_concurrent_sweeps_quota(env: Env) -> None:
 def test_points_per_day_quota(env: Env) -> None:
     key = env.key(Scope.submit, points_per_day=5)
     h = env.h(key)
-    assert env.c.post("/v1/sweeps", json=sweep(0.31, 0.32, 0.33, 0.34), headers=h
-                      ).status_code == 202
+    assert (
+        env.c.post("/v1/sweeps", json=sweep(0.31, 0.32, 0.33, 0.34), headers=h).status_code == 202
+    )
     assert env.keys.points_used(env.names[key]) == 4
     # the same sweep again costs nothing (it exists); a new 2-point sweep is refused
-    assert env.c.post("/v1/sweeps", json=sweep(0.31, 0.32, 0.33, 0.34), headers=h
-                      ).status_code == 202
+    assert (
+        env.c.post("/v1/sweeps", json=sweep(0.31, 0.32, 0.33, 0.34), headers=h).status_code == 202
+    )
     assert env.keys.points_used(env.names[key]) == 4
     r = env.c.post("/v1/sweeps", json=sweep(0.35, 0.36), headers=h)
     p = assert_problem(r, 429)
@@ -380,11 +415,13 @@ def test_python_client_takes_the_key_from_rsf_api_key(monkeypatch: pytest.Monkey
     def handler(request: httpx.Request) -> httpx.Response:
         seen.append(request.headers.get("authorization"))
         return httpx.Response(200, json={"status": "ok"})
+
     monkeypatch.setenv("RSF_API_KEY", "rsf_from_env")
     with Client("http://lab:8000", transport=httpx.MockTransport(handler)) as c:
         c.request("GET", "/health")
-    with Client("http://lab:8000", api_key="rsf_explicit",
-                transport=httpx.MockTransport(handler)) as c:
+    with Client(
+        "http://lab:8000", api_key="rsf_explicit", transport=httpx.MockTransport(handler)
+    ) as c:
         c.request("GET", "/health")
     monkeypatch.delenv("RSF_API_KEY")
     with Client("http://lab:8000", transport=httpx.MockTransport(handler)) as c:

@@ -1,6 +1,7 @@
 """Batch queries over HTTP: every answered item equals the single endpoint's answer for
 the same item (bit for bit: the same compiled decision runs), invalid items get their own
 error entry naming index and field, the others are answered."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -10,8 +11,14 @@ from fastapi.testclient import TestClient
 
 pytestmark = pytest.mark.timeout(300)
 
-PHYS = {"a": 0.01, "b": 0.015, "Dc_m": 1e-5, "sigma_Pa": 1e8, "k_Pa_per_m": 6e10,
-        "V_star_m_s": 1e-6}
+PHYS = {
+    "a": 0.01,
+    "b": 0.015,
+    "Dc_m": 1e-5,
+    "sigma_Pa": 1e8,
+    "k_Pa_per_m": 6e10,
+    "V_star_m_s": 1e-6,
+}
 
 
 def _strip(d: dict[str, Any]) -> dict[str, Any]:
@@ -19,19 +26,19 @@ def _strip(d: dict[str, Any]) -> dict[str, Any]:
 
 
 CRITICAL_ITEMS: list[dict[str, Any]] = [
-    {"ba": 3.0, "kappa": 2.5, "eps": 0.3},                       # separatrix
+    {"ba": 3.0, "kappa": 2.5, "eps": 0.3},  # separatrix
     {"ba": 3.0, "kappa": 4.0, "eps": 0.3, "perturbation": "load-point-jump"},
-    {"ba": 2.0, "kappa": 0.5, "eps": 0.5},                       # zero (kappa < kappa_crit)
-    {"ba": 2.0, "kappa": 1.0, "eps": 0.2},                       # closed form at kappa_crit
-    {"ba": 2.0, "kappa": 5.0, "eps": 0.5},                       # infinite (eps kappa >= kc)
-    {"ba": 2.0, "kappa": 2.0, "eps": 0.1, "vo": 0.0},             # v_o = 0 closed form
-    {"ba": 0.5},                                                 # invalid: ba
+    {"ba": 2.0, "kappa": 0.5, "eps": 0.5},  # zero (kappa < kappa_crit)
+    {"ba": 2.0, "kappa": 1.0, "eps": 0.2},  # closed form at kappa_crit
+    {"ba": 2.0, "kappa": 5.0, "eps": 0.5},  # infinite (eps kappa >= kc)
+    {"ba": 2.0, "kappa": 2.0, "eps": 0.1, "vo": 0.0},  # v_o = 0 closed form
+    {"ba": 0.5},  # invalid: ba
     {"ba": 2.0, "kappa": 1.5, "eps": 0.1, "vo": 3.0, "rtol": 1e-8},
-    {"physical": PHYS, "eps": 0.25},                              # SI
-    {"physical": {**PHYS, "b": 0.001}},                           # invalid: physical.b
-    {"physical": PHYS, "ba": 2.0},                                # invalid: both
-    {"vo": 0.0, "perturbation": "load-point-jump"},               # invalid: vo
-    {"ba": 2.0, "kappa": 1.5, "eps": 0.1, "bogus": 1},            # invalid: extra field
+    {"physical": PHYS, "eps": 0.25},  # SI
+    {"physical": {**PHYS, "b": 0.001}},  # invalid: physical.b
+    {"physical": PHYS, "ba": 2.0},  # invalid: both
+    {"vo": 0.0, "perturbation": "load-point-jump"},  # invalid: vo
+    {"ba": 2.0, "kappa": 1.5, "eps": 0.1, "bogus": 1},  # invalid: extra field
 ]
 BAD = {6: "ba", 9: "physical.b", 10: "ba", 11: "vo", 12: "bogus"}
 
@@ -51,7 +58,7 @@ def test_critical_batch_equals_single(c: TestClient) -> None:
             assert single.status_code == 422 and single.json()["field"] == BAD[i]
         else:
             assert single.status_code == 200, single.text
-            assert _strip(got) == _strip(single.json()), i   # exact equality
+            assert _strip(got) == _strip(single.json()), i  # exact equality
     kinds = {res[i]["kind"] for i in range(len(res)) if i not in BAD}
     assert kinds == {"zero", "finite", "infinite"}
     assert res[8]["si"]["velocity_jump"]["new_slip_rate_m_s"] > 0
@@ -59,8 +66,11 @@ def test_critical_batch_equals_single(c: TestClient) -> None:
 
 def test_classify_batch_equals_single(c: TestClient) -> None:
     items = [{"ba": 3.0, "kappa": 2.5, "eps": 0.3, "size": s} for s in (0.5, 2.5, 4.0)]
-    items += [{"kappa": -1}, {"physical": PHYS, "eps": 0.3, "factor": 20.0},
-              {"physical": PHYS, "new_load_point_velocity_m_s": 1e-5}]
+    items += [
+        {"kappa": -1},
+        {"physical": PHYS, "eps": 0.3, "factor": 20.0},
+        {"physical": PHYS, "new_load_point_velocity_m_s": 1e-5},
+    ]
     r = c.post("/v1/classify/batch", json={"items": items})
     assert r.status_code == 200, r.text
     res = r.json()["results"]

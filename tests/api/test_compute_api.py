@@ -1,5 +1,6 @@
 """The HTTP API in process (TestClient, real SQLite): caching, 422 problem+json, every
 endpoint."""
+
 from __future__ import annotations
 
 import json
@@ -17,8 +18,10 @@ pytestmark = pytest.mark.timeout(120)
 def db_rows(data: Path) -> dict[str, int]:
     con = sqlite3.connect(data / "cache.sqlite3", timeout=30)
     try:
-        return {t: con.execute(f"SELECT count(*) FROM {t}").fetchone()[0]
-                for t in ("results", "sweeps", "sweep_chunks", "sweep_points")}
+        return {
+            t: con.execute(f"SELECT count(*) FROM {t}").fetchone()[0]
+            for t in ("results", "sweeps", "sweep_chunks", "sweep_points")
+        }
     finally:
         con.close()
 
@@ -31,9 +34,19 @@ def test_health_and_openapi(c: TestClient) -> None:
     assert ba["exclusiveMinimum"] == 1 and ba["maximum"] == 1e6
     assert "Valid range: (1, 1e6]" in ba["description"]
     paths = set(spec["paths"])
-    assert {"/v1/classify", "/v1/trajectory", "/v1/critical", "/v1/analytic/u",
-            "/v1/boundaries", "/v1/stiffness", "/v1/sweeps", "/v1/sweeps/{sweep_id}",
-            "/v1/sweeps/{sweep_id}/points", "/v1/cache/stats", "/health"} <= paths
+    assert {
+        "/v1/classify",
+        "/v1/trajectory",
+        "/v1/critical",
+        "/v1/analytic/u",
+        "/v1/boundaries",
+        "/v1/stiffness",
+        "/v1/sweeps",
+        "/v1/sweeps/{sweep_id}",
+        "/v1/sweeps/{sweep_id}/points",
+        "/v1/cache/stats",
+        "/health",
+    } <= paths
 
 
 def test_cache_hit_on_repeat(c: TestClient, api_stack) -> None:
@@ -57,6 +70,7 @@ def test_cache_hit_on_repeat(c: TestClient, api_stack) -> None:
     # The answer is rsfcore's.
     from rsfcore import trajectory
     from rsfcore.params import Params
+
     ref = trajectory.classify(Params(3.0, 1.7, 0.3, 1.0), "velocity-jump", 2.5).to_dict()
     assert a["outcome"] == ref["outcome"] and a["certificate"] == ref["certificate"]
 
@@ -69,40 +83,78 @@ BAD: list[tuple[str, str, Any, str, str]] = [
     ("post", "/v1/classify", {"perturbation": "kick"}, "perturbation", "velocity-jump"),
     ("post", "/v1/classify", {"size": "big"}, "size", "[-1e3, 1e3]"),
     ("post", "/v1/trajectory", {"n_points": 1}, "n_points", "[2, 10000]"),
-    ("post", "/v1/trajectory", {"physical": {"a": 0.01, "Dc": -1, "sigma": 1e6,
-                                             "V_star": 1e-6}}, "scales.Dc", "(0, 1e3] m"),
+    (
+        "post",
+        "/v1/trajectory",
+        {"physical": {"a": 0.01, "Dc": -1, "sigma": 1e6, "V_star": 1e-6}},
+        "scales.Dc",
+        "(0, 1e3] m",
+    ),
     ("post", "/v1/critical", {"vo": -1}, "vo", "0 or (0, 1e300]"),
     ("post", "/v1/stiffness", {"case": "F"}, "case", "'A'..'E'"),
-    ("post", "/v1/stiffness", {"case": "C", "physical": {"mu": 3e10, "sigma": 1e8,
-                                                         "a": 0.01, "b": 0.015, "Dc": 1e-4}},
-     "h", "depth"),
-    ("post", "/v1/stiffness", {"case": "B", "physical": {"mu": 3e10, "sigma": 1e8,
-                                                         "a": 0.02, "b": 0.015, "Dc": 1e-4}},
-     "b", ""),
+    (
+        "post",
+        "/v1/stiffness",
+        {"case": "C", "physical": {"mu": 3e10, "sigma": 1e8, "a": 0.01, "b": 0.015, "Dc": 1e-4}},
+        "h",
+        "depth",
+    ),
+    (
+        "post",
+        "/v1/stiffness",
+        {"case": "B", "physical": {"mu": 3e10, "sigma": 1e8, "a": 0.02, "b": 0.015, "Dc": 1e-4}},
+        "b",
+        "",
+    ),
     ("post", "/v1/analytic/u", {"grid": {"n_phi": 0}}, "grid.n_phi", "[1, 500]"),
     ("get", "/v1/boundaries?ba=1", None, "ba", "(1, 1e6]"),
-    ("post", "/v1/sweeps", {"x": {"name": "ba", "values": [2.0, 0.5]},
-                            "y": {"name": "eps", "values": [0.1]}}, "x.values[1]", "(1, 1e6]"),
-    ("post", "/v1/sweeps", {"x": {"name": "eps", "start": 0, "stop": 2, "n": 3},
-                            "y": {"name": "ba", "values": [2]}}, "x.stop", "[0, 1]"),
-    ("post", "/v1/sweeps", {"x": {"name": "eps", "values": [0.1]},
-                            "y": {"name": "eps", "values": [0.2]}}, "y.name", "kappa_ratio"),
-    ("post", "/v1/sweeps", {"x": {"name": "eps", "start": 0, "stop": 1, "n": 100_000},
-                            "y": {"name": "ba", "start": 2, "stop": 3, "n": 10_000}},
-     "y.values", "<= 100000000 points"),
-    ("post", "/v1/sweeps", {"x": {"name": "kappa_ratio", "values": [1e6]},
-                            "y": {"name": "ba", "values": [3.0]}}, "x.values",
-     "kappa_ratio*(ba-1) <= 1e6"),
+    (
+        "post",
+        "/v1/sweeps",
+        {"x": {"name": "ba", "values": [2.0, 0.5]}, "y": {"name": "eps", "values": [0.1]}},
+        "x.values[1]",
+        "(1, 1e6]",
+    ),
+    (
+        "post",
+        "/v1/sweeps",
+        {"x": {"name": "eps", "start": 0, "stop": 2, "n": 3}, "y": {"name": "ba", "values": [2]}},
+        "x.stop",
+        "[0, 1]",
+    ),
+    (
+        "post",
+        "/v1/sweeps",
+        {"x": {"name": "eps", "values": [0.1]}, "y": {"name": "eps", "values": [0.2]}},
+        "y.name",
+        "kappa_ratio",
+    ),
+    (
+        "post",
+        "/v1/sweeps",
+        {
+            "x": {"name": "eps", "start": 0, "stop": 1, "n": 100_000},
+            "y": {"name": "ba", "start": 2, "stop": 3, "n": 10_000},
+        },
+        "y.values",
+        "<= 100000000 points",
+    ),
+    (
+        "post",
+        "/v1/sweeps",
+        {"x": {"name": "kappa_ratio", "values": [1e6]}, "y": {"name": "ba", "values": [3.0]}},
+        "x.values",
+        "kappa_ratio*(ba-1) <= 1e6",
+    ),
     ("get", "/v1/sweeps/not-an-id", None, "sweep_id", None),
     ("get", "/v1/sweeps/" + "a" * 32 + "/points?limit=0", None, "limit", None),
 ]
 
 
-@pytest.mark.parametrize("method,path,body,field,valid", BAD,
-                         ids=[f"{b[1]}:{b[3]}" for b in BAD])
+@pytest.mark.parametrize("method,path,body,field,valid", BAD, ids=[f"{b[1]}:{b[3]}" for b in BAD])
 def test_bad_input_is_422_problem_json_and_writes_nothing(
-        c: TestClient, api_stack, method: str, path: str, body: Any, field: str,
-        valid: str | None) -> None:
+    c: TestClient, api_stack, method: str, path: str, body: Any, field: str, valid: str | None
+) -> None:
     data = api_stack[1]
     c.get("/health")  # make sure the database exists
     before = db_rows(data)
@@ -126,8 +178,14 @@ def test_malformed_json_and_nan_are_422(c: TestClient) -> None:
 
 
 def test_trajectory_downsampled_with_physical_units(c: TestClient) -> None:
-    body = {"ba": 2.0, "kappa": 0.8, "eps": 0.5, "size": 0.5, "n_points": 57,
-            "physical": {"a": 0.01, "Dc": 1e-4, "sigma": 1e8, "V_star": 1e-6}}
+    body = {
+        "ba": 2.0,
+        "kappa": 0.8,
+        "eps": 0.5,
+        "size": 0.5,
+        "n_points": 57,
+        "physical": {"a": 0.01, "Dc": 1e-4, "sigma": 1e8, "V_star": 1e-6},
+    }
     r = c.post("/v1/trajectory", json=body)
     assert r.status_code == 200, r.text
     tr = r.json()["trajectory"]
@@ -139,23 +197,35 @@ def test_trajectory_downsampled_with_physical_units(c: TestClient) -> None:
 def test_stiffness_and_critical_dimension(c: TestClient) -> None:
     r = c.post("/v1/stiffness", json={"case": "A"})
     assert r.status_code == 200 and math.isclose(r.json()["eigenvalue"], 2 * math.pi)
-    phys = {"mu": 3e10, "nu": 0.25, "mode_of_slip": "II", "sigma": 1e8, "a": 0.01,
-            "b": 0.015, "Dc": 1e-4}
+    phys = {
+        "mu": 3e10,
+        "nu": 0.25,
+        "mode_of_slip": "II",
+        "sigma": 1e8,
+        "a": 0.01,
+        "b": 0.015,
+        "Dc": 1e-4,
+    }
     r = c.post("/v1/stiffness", json={"case": "B", "physical": phys})
     body = r.json()
     assert r.status_code == 200 and body["critical_dimension_name"] == "L_c"
     from rsfcore.stiffness import critical_dimension
+
     assert math.isclose(body["critical_dimension_m"], critical_dimension("B", **phys))
 
 
 def test_analytic_points_and_grid(c: TestClient) -> None:
     from rsfcore.analytic import U_kcrit, U_vo0
-    r = c.post("/v1/analytic/u", json={"points": [{"phi": 0.5, "psi": 0.2},
-                                                  {"phi": -1, "psi": 0.0}], "eps": 0.3})
+
+    r = c.post(
+        "/v1/analytic/u",
+        json={"points": [{"phi": 0.5, "psi": 0.2}, {"phi": -1, "psi": 0.0}], "eps": 0.3},
+    )
     assert r.status_code == 200, r.text
     assert r.json()["U"] == pytest.approx(list(U_kcrit([0.5, -1], [0.2, 0.0], 2.0, 0.3)))
-    r = c.post("/v1/analytic/u", json={"function": "vo0", "kappa": 0.5,
-                                       "grid": {"n_phi": 3, "n_psi": 4}})
+    r = c.post(
+        "/v1/analytic/u", json={"function": "vo0", "kappa": 0.5, "grid": {"n_phi": 3, "n_psi": 4}}
+    )
     g = r.json()
     assert r.status_code == 200 and g["shape"] == [3, 4] and len(g["U"]) == 3
     assert g["U"][1][2] == pytest.approx(float(U_vo0(g["phi"][1], g["psi"][2], 2.0, 0.5, 0.0)))
@@ -172,8 +242,10 @@ def test_boundaries_get_and_post(c: TestClient) -> None:
 
 def test_critical_same_fields_as_cli(c: TestClient) -> None:
     pytest.importorskip("rsfcore.critical")
-    r = c.post("/v1/critical", json={"ba": 2.0, "kappa": 0.5, "eps": 0.5, "vo": 1.0,
-                                     "perturbation": "velocity-jump"})
+    r = c.post(
+        "/v1/critical",
+        json={"ba": 2.0, "kappa": 0.5, "eps": 0.5, "vo": 1.0, "perturbation": "velocity-jump"},
+    )
     assert r.status_code == 200, r.text
     d = r.json()
     assert {"kind", "critical_size", "rel_accuracy", "method"} <= set(d)
@@ -198,6 +270,7 @@ def test_docs_pages_use_local_assets_only(c: TestClient) -> None:
         text = html.text
         assert "cdn." not in text and "googleapis" not in text, page
         import re
+
         refs = re.findall(r'(?:src|href)="(/docs-assets/[^"]+)"', text)
         assert refs, f"{page} references no local asset"
         for ref in refs:
@@ -217,7 +290,13 @@ def test_long_query_goes_to_the_queue(tiny_budget: TestClient) -> None:
     API process: it is recorded as a job and sent to the queue (202 + Location), and
     polling its location says it is queued."""
     c = tiny_budget
-    body = {"ba": 2.0, "kappa": 2.0, "eps": 0.25, "vo": 1.0, "size": 2.65}  # ~60 steps; asked only here
+    body = {
+        "ba": 2.0,
+        "kappa": 2.0,
+        "eps": 0.25,
+        "vo": 1.0,
+        "size": 2.65,
+    }  # ~60 steps; asked only here
     r = c.post("/v1/classify", json=body)
     assert r.status_code == 202, r.text
     loc = r.headers["location"]

@@ -1,6 +1,7 @@
 """POST /v1/fits round trip on a synthetic record: 202 + Location, the queued message run
 by the worker's task body in process, then the fit (recovering the true parameters of the
 noise-free record), its plot and CSV, the law comparison and the cache by record hash."""
+
 from __future__ import annotations
 
 import csv
@@ -15,7 +16,7 @@ from rsfcore.fit import fit_record, synthetic_record
 pytestmark = pytest.mark.timeout(300)
 
 TRUE = {"mu0": 0.6, "a": 0.01, "b": 0.015, "Dc_m": 1e-5, "eps": 1.0}
-K_PER_M = 2000.0     # 4x the critical stiffness (b - a)/Dc = 500 1/m: stable machine
+K_PER_M = 2000.0  # 4x the critical stiffness (b - a)/Dc = 500 1/m: stable machine
 
 
 def _record_csv() -> str:
@@ -39,12 +40,14 @@ def test_fit_round_trip(c: TestClient) -> None:
 
     from rsfapp.config import get_settings
     from rsfapp.store import stores_for
+
     stores_for(get_settings()).jobs.set_progress(key, "fitting (test)")
     running = c.get(loc)
     assert running.status_code == 202 and running.json()["status"] == "running"
     assert running.json()["progress"] == "fitting (test)"
 
     from worker.tasks import fit_record_body
+
     fit_record_body(*queue.fits[-1])
 
     g = c.get(loc)
@@ -57,7 +60,11 @@ def test_fit_round_trip(c: TestClient) -> None:
     assert set(res["stderr"]) >= {"mu0", "a", "b", "Dc_m"}
     comp = res["law_comparison"]
     assert comp["best"] == "aging" and {s["law"] for s in comp["scores"]} == {
-        "aging", "slip", "nagata", "eps"}
+        "aging",
+        "slip",
+        "nagata",
+        "eps",
+    }
     st = res["stability"]
     assert st["critical_stiffness_per_m"] == pytest.approx(500.0, rel=1e-6)
     assert st["kappa_ratio"] == pytest.approx(4.0, rel=1e-6)
@@ -73,13 +80,16 @@ def test_fit_round_trip(c: TestClient) -> None:
     assert len(rows) == 601 and set(rows[0]) == {"t_s", "v_lp_m_s", "mu", "model", "residuals"}
 
 
-@pytest.mark.parametrize("body,field", [
-    ({"record": "t_s,mu\n0,0.6\n1,0.6\n"}, "record"),
-    ({"record": "x"}, "record"),
-    ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "law": "magic"}, "law"),
-    ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "compare": False}, "law"),
-    ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "stiffness_per_m": -1}, "stiffness_per_m"),
-])
+@pytest.mark.parametrize(
+    "body,field",
+    [
+        ({"record": "t_s,mu\n0,0.6\n1,0.6\n"}, "record"),
+        ({"record": "x"}, "record"),
+        ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "law": "magic"}, "law"),
+        ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "compare": False}, "law"),
+        ({"record": "t_s,v_lp_m_s,mu\n0,1e-6,0.6\n", "stiffness_per_m": -1}, "stiffness_per_m"),
+    ],
+)
 def test_fit_bad_input(c: TestClient, body: dict, field: str) -> None:
     r = c.post("/v1/fits", json=body)
     assert r.status_code == 422, r.text
@@ -97,9 +107,14 @@ def test_fit_with_posterior() -> None:
     from rsfapp import adapter
     from rsfapp.requests.fits import FitRequest
 
-    req = FitRequest(record=_record_csv(), law="aging", compare=False,
-                     stiffness_per_m=K_PER_M, uncertainty_samples=20,
-                     posterior={"n_walkers": 10, "n_steps": 40, "burn": 10, "thin": 2})
+    req = FitRequest(
+        record=_record_csv(),
+        law="aging",
+        compare=False,
+        stiffness_per_m=K_PER_M,
+        uncertainty_samples=20,
+        posterior={"n_walkers": 10, "n_steps": 40, "burn": 10, "thin": 2},
+    )
     out = adapter.fit(req)
     post = out["posterior"]
     assert post is not None and "error" not in post, post

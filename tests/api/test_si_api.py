@@ -9,6 +9,7 @@ produce while still catching any wrong conversion (those are O(1) errors).  The 
 answers are checked against the definitions t = T Dc/V_*, V = V_* e^phi,
 tau - tau_* = a sigma psi computed here independently.
 """
+
 from __future__ import annotations
 
 import csv
@@ -22,10 +23,17 @@ from fastapi.testclient import TestClient
 pytestmark = pytest.mark.timeout(300)
 
 A, B, DC, SIGMA, VS = 0.01, 0.025, 2e-5, 5e7, 1e-6
-K = 1.8 * 1.5 * A * SIGMA / DC          # kappa = 1.8 kappa_crit (kappa_crit = 1.5)
+K = 1.8 * 1.5 * A * SIGMA / DC  # kappa = 1.8 kappa_crit (kappa_crit = 1.5)
 VL = 3e-6
-PHYS = {"a": A, "b": B, "Dc_m": DC, "sigma_Pa": SIGMA, "k_Pa_per_m": K, "V_star_m_s": VS,
-        "V_load_m_s": VL}
+PHYS = {
+    "a": A,
+    "b": B,
+    "Dc_m": DC,
+    "sigma_Pa": SIGMA,
+    "k_Pa_per_m": K,
+    "V_star_m_s": VS,
+    "V_load_m_s": VL,
+}
 DIMLESS = {"ba": B / A, "kappa": K * DC / (A * SIGMA), "vo": VL / VS}
 TOL = 1e-12
 
@@ -47,8 +55,9 @@ def close(x: Any, y: Any, path: str = "") -> None:
 
 
 def _core(d: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in d.items() if k not in ("cached", "cache_key", "si", "n_steps",
-                                                    "n_rhs")}
+    return {
+        k: v for k, v in d.items() if k not in ("cached", "cache_key", "si", "n_steps", "n_rhs")
+    }
 
 
 @pytest.mark.parametrize("eps", [0.0, 0.4, 1.0])
@@ -70,24 +79,39 @@ def test_classify_si_equals_dimensionless(c: TestClient, eps: float, factor: flo
         assert math.isclose(blk["peak_slip_rate_m_s"], VS * math.exp(d["peak_phi"]), rel_tol=TOL)
     vj = blk["velocity_jump"]
     assert math.isclose(vj["new_slip_rate_m_s"], VL * factor, rel_tol=TOL)
-    assert math.isclose(vj["shear_stress_jump_Pa"], A * SIGMA * math.log(factor),
-                        rel_tol=TOL, abs_tol=1e-9)
-    assert math.isclose(blk["start_shear_stress_change_Pa"], A * SIGMA * d["start"]["psi"],
-                        rel_tol=TOL, abs_tol=1e-9)
+    assert math.isclose(
+        vj["shear_stress_jump_Pa"], A * SIGMA * math.log(factor), rel_tol=TOL, abs_tol=1e-9
+    )
+    assert math.isclose(
+        blk["start_shear_stress_change_Pa"],
+        A * SIGMA * d["start"]["psi"],
+        rel_tol=TOL,
+        abs_tol=1e-9,
+    )
 
 
 def test_classify_si_new_slip_rate_and_load_point(c: TestClient) -> None:
-    a = c.post("/v1/classify", json={"physical": PHYS, "eps": 0.3,
-                                     "new_slip_rate_m_s": 40 * VL}).json()
+    a = c.post(
+        "/v1/classify", json={"physical": PHYS, "eps": 0.3, "new_slip_rate_m_s": 40 * VL}
+    ).json()
     b = c.post("/v1/classify", json={"physical": PHYS, "eps": 0.3, "factor": 40.0}).json()
     close(_core(a), _core(b))
-    lp = c.post("/v1/classify", json={"physical": PHYS, "eps": 0.3, "perturbation":
-                                      "load-point-jump", "new_load_point_velocity_m_s": 9 * VL})
-    dl = c.post("/v1/classify", json={**DIMLESS, "eps": 0.3, "perturbation": "load-point-jump",
-                                      "size": 8.0})
+    lp = c.post(
+        "/v1/classify",
+        json={
+            "physical": PHYS,
+            "eps": 0.3,
+            "perturbation": "load-point-jump",
+            "new_load_point_velocity_m_s": 9 * VL,
+        },
+    )
+    dl = c.post(
+        "/v1/classify", json={**DIMLESS, "eps": 0.3, "perturbation": "load-point-jump", "size": 8.0}
+    )
     close(_core(lp.json()), _core(dl.json()))
-    assert math.isclose(lp.json()["si"]["load_point_jump"]["new_load_point_velocity_m_s"],
-                        9 * VL, rel_tol=TOL)
+    assert math.isclose(
+        lp.json()["si"]["load_point_jump"]["new_load_point_velocity_m_s"], 9 * VL, rel_tol=TOL
+    )
 
 
 @pytest.mark.parametrize("pert", ["velocity-jump", "load-point-jump"])
@@ -116,12 +140,12 @@ def test_trajectory_si_sampling_and_csv(c: TestClient) -> None:
     dt = [b - a for a, b in zip(t, t[1:], strict=False)]
     # evenly spaced: differences agree to rounding of t (~1e-16 relative of t_end)
     assert max(dt) - min(dt) <= 1e-12 * t[-1]
-    assert all(math.isclose(ts, Ti * DC / VS, rel_tol=1e-14)
-               for ts, Ti in zip(t, T, strict=True))
-    dl = c.post("/v1/trajectory", json={**DIMLESS, "eps": 0.5, "size": math.log(3.0),
-                                        "n_points": 41, "sampling": "T"}).json()
-    close({k: v for k, v in res["trajectory"].items() if k in dl["trajectory"]},
-          dl["trajectory"])
+    assert all(math.isclose(ts, Ti * DC / VS, rel_tol=1e-14) for ts, Ti in zip(t, T, strict=True))
+    dl = c.post(
+        "/v1/trajectory",
+        json={**DIMLESS, "eps": 0.5, "size": math.log(3.0), "n_points": 41, "sampling": "T"},
+    ).json()
+    close({k: v for k, v in res["trajectory"].items() if k in dl["trajectory"]}, dl["trajectory"])
     tau = c.post("/v1/trajectory", json={**body, "sampling": "tau"}).json()
     Tt = tau["trajectory"]["T"]
     dT = [b - a for a, b in zip(Tt, Tt[1:], strict=False)]
@@ -132,20 +156,31 @@ def test_trajectory_si_sampling_and_csv(c: TestClient) -> None:
     assert len(rows) == 41 and [float(x["t_s"]) for x in rows] == t
 
 
-@pytest.mark.parametrize("body,field", [
-    ({"physical": PHYS, "ba": 2.0}, "ba"),
-    ({"physical": PHYS, "kappa": 2.0}, "kappa"),
-    ({"physical": PHYS, "factor": 2.0, "size": 1.0}, "size"),
-    ({"factor": 2.0}, "factor"),
-    ({"physical": PHYS, "factor": 2.0, "new_slip_rate_m_s": 1e-6}, "new_slip_rate_m_s"),
-    ({"physical": {**PHYS, "b": 0.005}}, "physical.b"),
-    ({"physical": {**PHYS, "Dc": 1e-5}}, "physical.Dc"),
-    ({"physical": {k: v for k, v in PHYS.items() if k != "sigma_Pa"}}, "physical.sigma_Pa"),
-    ({"physical": PHYS, "perturbation": "load-point-jump", "new_slip_rate_m_s": 1e-5},
-     "new_slip_rate_m_s"),
-    ({"physical": {**PHYS, "V_load_m_s": 0.0}, "perturbation": "load-point-jump",
-      "factor": 2.0}, "physical.V_load_m_s"),
-])
+@pytest.mark.parametrize(
+    "body,field",
+    [
+        ({"physical": PHYS, "ba": 2.0}, "ba"),
+        ({"physical": PHYS, "kappa": 2.0}, "kappa"),
+        ({"physical": PHYS, "factor": 2.0, "size": 1.0}, "size"),
+        ({"factor": 2.0}, "factor"),
+        ({"physical": PHYS, "factor": 2.0, "new_slip_rate_m_s": 1e-6}, "new_slip_rate_m_s"),
+        ({"physical": {**PHYS, "b": 0.005}}, "physical.b"),
+        ({"physical": {**PHYS, "Dc": 1e-5}}, "physical.Dc"),
+        ({"physical": {k: v for k, v in PHYS.items() if k != "sigma_Pa"}}, "physical.sigma_Pa"),
+        (
+            {"physical": PHYS, "perturbation": "load-point-jump", "new_slip_rate_m_s": 1e-5},
+            "new_slip_rate_m_s",
+        ),
+        (
+            {
+                "physical": {**PHYS, "V_load_m_s": 0.0},
+                "perturbation": "load-point-jump",
+                "factor": 2.0,
+            },
+            "physical.V_load_m_s",
+        ),
+    ],
+)
 def test_si_errors_name_the_field(c: TestClient, body: dict[str, Any], field: str) -> None:
     r = c.post("/v1/classify", json=body)
     assert r.status_code == 422 and r.json()["field"] == field, r.text
@@ -173,14 +208,19 @@ def test_si_request_dump_validates_again() -> None:
 
 def test_boundaries_si_equals_dimensionless(c: TestClient) -> None:
     s = c.post("/v1/boundaries", json={"physical": PHYS, "eps": 0.3, "phi": [0.5, 2.0]})
-    d = c.post("/v1/boundaries", json={"ba": DIMLESS["ba"], "kappa": DIMLESS["kappa"],
-                                       "eps": 0.3, "phi": [0.5, 2.0]})
+    d = c.post(
+        "/v1/boundaries",
+        json={"ba": DIMLESS["ba"], "kappa": DIMLESS["kappa"], "eps": 0.3, "phi": [0.5, 2.0]},
+    )
     assert s.status_code == 200 and d.status_code == 200, s.text + d.text
     sj, dj = s.json(), d.json()
-    assert math.isclose(sj["si"]["kappa_ratio"], DIMLESS["kappa"] / (DIMLESS["ba"] - 1),
-                        rel_tol=TOL)
+    assert math.isclose(
+        sj["si"]["kappa_ratio"], DIMLESS["kappa"] / (DIMLESS["ba"] - 1), rel_tol=TOL
+    )
     assert math.isclose(sj["si"]["k_crit_Pa_per_m"], SIGMA * (B - A) / DC, rel_tol=TOL)
-    close({k: v for k, v in sj.items() if k not in ("si", "cached", "cache_key")},
-          {k: v for k, v in dj.items() if k not in ("cached", "cache_key")})
+    close(
+        {k: v for k, v in sj.items() if k not in ("si", "cached", "cache_key")},
+        {k: v for k, v in dj.items() if k not in ("cached", "cache_key")},
+    )
     bad = c.post("/v1/boundaries", json={"physical": PHYS, "kappa": 1.0})
     assert bad.status_code == 422 and bad.json()["field"] == "kappa"

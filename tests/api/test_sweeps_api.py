@@ -1,6 +1,7 @@
 """Sweeps in process (TestClient, real SQLite; chunks computed by calling the worker's
 task body directly): N-D grids, scattered points, validation, lifecycle, data formats.
 The same flows through real uvicorn + Celery workers are in tests/e2e/test_worker_sweeps.py."""
+
 from __future__ import annotations
 
 import io
@@ -37,26 +38,37 @@ def submit(c: TestClient, body: dict[str, Any], code: int = 202) -> dict[str, An
 def rows(data: Path) -> dict[str, int]:
     con = sqlite3.connect(data / "cache.sqlite3", timeout=30)
     try:
-        return {t: con.execute(f"SELECT count(*) FROM {t}").fetchone()[0]
-                for t in ("sweeps", "sweep_chunks", "sweep_blocks", "sweep_inputs")}
+        return {
+            t: con.execute(f"SELECT count(*) FROM {t}").fetchone()[0]
+            for t in ("sweeps", "sweep_chunks", "sweep_blocks", "sweep_inputs")
+        }
     finally:
         con.close()
 
 
-def ref_critical(ba: float, kappa: float, eps: float, vo: float,
-                 pert: str = "velocity-jump") -> critical.CriticalResult:
+def ref_critical(
+    ba: float, kappa: float, eps: float, vo: float, pert: str = "velocity-jump"
+) -> critical.CriticalResult:
     return critical.critical_perturbation(Params(ba, kappa, eps, vo), pert, rtol=1e-10)
 
 
 def test_3d_grid_with_vo_axis_matches_rsfcore(c: TestClient) -> None:
-    body = {"axes": [{"name": "kappa_ratio", "start": 0.5, "stop": 4.0, "n": 5},
-                     {"name": "eps", "values": [0.0, 0.3, 0.6]},
-                     {"name": "vo", "values": [0.0, 1.0]}],
-            "fixed": {"ba": 2.5}, "chunk_points": 7}
+    body = {
+        "axes": [
+            {"name": "kappa_ratio", "start": 0.5, "stop": 4.0, "n": 5},
+            {"name": "eps", "values": [0.0, 0.3, 0.6]},
+            {"name": "vo", "values": [0.0, 1.0]},
+        ],
+        "fixed": {"ba": 2.5},
+        "chunk_points": 7,
+    }
     st = submit(c, body)
     assert st["created"] is True and st["resumed"] is False and st["n_total"] == 30
-    assert st["dims"] == [{"name": "kappa_ratio", "n": 5}, {"name": "eps", "n": 3},
-                          {"name": "vo", "n": 2}]
+    assert st["dims"] == [
+        {"name": "kappa_ratio", "n": 5},
+        {"name": "eps", "n": 3},
+        {"name": "vo", "n": 2},
+    ]
     assert "axes" not in st and "spec" not in st  # polls do not resend axis values
     sid = st["id"]
     run_all(c, sid)
@@ -85,10 +97,20 @@ def test_scattered_points_and_data_formats(c: TestClient) -> None:
 
     rng = np.random.default_rng(5)
     n = 40
-    pts = {"ba": rng.uniform(1.2, 6.0, n).tolist(), "kappa": rng.uniform(0.0, 8.0, n).tolist(),
-           "eps": rng.uniform(0.0, 0.9, n).tolist()}
-    st = submit(c, {"points": pts, "fixed": {"vo": 2.0}, "perturbation": "load-point-jump",
-                    "chunk_points": 16})
+    pts = {
+        "ba": rng.uniform(1.2, 6.0, n).tolist(),
+        "kappa": rng.uniform(0.0, 8.0, n).tolist(),
+        "eps": rng.uniform(0.0, 0.9, n).tolist(),
+    }
+    st = submit(
+        c,
+        {
+            "points": pts,
+            "fixed": {"vo": 2.0},
+            "perturbation": "load-point-jump",
+            "chunk_points": 16,
+        },
+    )
     sid = st["id"]
     assert st["dims"] == [{"name": "point", "n": n, "parameters": ["ba", "kappa", "eps"]}]
     run_all(c, sid)
@@ -96,12 +118,20 @@ def test_scattered_points_and_data_formats(c: TestClient) -> None:
     assert r.status_code == 200 and r.headers["x-sweep-progress"] == f"{n}/{n}"
     ds = xr.open_dataset(io.BytesIO(r.content), engine="scipy")
     assert ds["critical_size"].dims == ("point",)
-    for v in ("critical_size", "kind", "outcome", "rel_accuracy", "failed", "method",
-              "outcome_uncertain", "ba", "eps"):
+    for v in (
+        "critical_size",
+        "kind",
+        "outcome",
+        "rel_accuracy",
+        "failed",
+        "method",
+        "outcome_uncertain",
+        "ba",
+        "eps",
+    ):
         assert v in ds
     for i in range(n):
-        ref = ref_critical(pts["ba"][i], pts["kappa"][i], pts["eps"][i], 2.0,
-                           "load-point-jump")
+        ref = ref_critical(pts["ba"][i], pts["kappa"][i], pts["eps"][i], 2.0, "load-point-jump")
         got = float(ds["critical_size"][i])
         assert ds["ba"][i] == pts["ba"][i]
         if ref.kind == "finite":
@@ -120,11 +150,17 @@ def test_scattered_points_and_data_formats(c: TestClient) -> None:
 def test_grid_netcdf_coordinates_and_partial_data(c: TestClient) -> None:
     import xarray as xr
 
-    body = {"axes": [{"name": "eps", "start": 0.0, "stop": 0.8, "n": 3},
-                     {"name": "kappa_ratio", "start": 1.0, "stop": 9.0, "n": 4, "log": True}],
-            "fixed": {"ba": 3.0}, "chunk_points": 5}
+    body = {
+        "axes": [
+            {"name": "eps", "start": 0.0, "stop": 0.8, "n": 3},
+            {"name": "kappa_ratio", "start": 1.0, "stop": 9.0, "n": 4, "log": True},
+        ],
+        "fixed": {"ba": 3.0},
+        "chunk_points": 5,
+    }
     sid = submit(c, body)["id"]
     from worker.tasks import run_chunk_body
+
     run_chunk_body(sid, 0)  # one chunk of three: partial data
     r = c.get(f"/v1/sweeps/{sid}/data")
     ds = xr.open_dataset(io.BytesIO(r.content), engine="scipy")
@@ -140,10 +176,14 @@ def test_grid_netcdf_coordinates_and_partial_data(c: TestClient) -> None:
 
 
 def test_diagram_slice_of_3d_grid(c: TestClient) -> None:
-    body = {"axes": [{"name": "ba", "values": [2.0, 3.0]},
-                     {"name": "kappa_ratio", "start": 0.5, "stop": 3.0, "n": 4},
-                     {"name": "eps", "start": 0.0, "stop": 0.9, "n": 3}],
-            "fixed": {"size": 0.7}}
+    body = {
+        "axes": [
+            {"name": "ba", "values": [2.0, 3.0]},
+            {"name": "kappa_ratio", "start": 0.5, "stop": 3.0, "n": 4},
+            {"name": "eps", "start": 0.0, "stop": 0.9, "n": 3},
+        ],
+        "fixed": {"size": 0.7},
+    }
     sid = submit(c, body)["id"]
     run_all(c, sid)
     d = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3.0"}).json()
@@ -156,26 +196,68 @@ def test_diagram_slice_of_3d_grid(c: TestClient) -> None:
     assert r.status_code == 422 and r.json()["field"] == "slice"
 
 
-@pytest.mark.parametrize("body,field,valid", [
-    ({"axes": [{"name": "ba", "values": [2.0]}, {"name": "eps", "values": [0.1]},
-               {"name": "eps", "start": 0, "stop": 2, "n": 3}]}, "axes[2].name", "not already"),
-    ({"axes": [{"name": "ba", "values": [2.0]}, {"name": "kappa", "values": [0.1]},
-               {"name": "eps", "start": 0, "stop": 2, "n": 3}]}, "axes[2].stop", "[0, 1]"),
-    ({"points": {"ba": [2.0] * 20, "eps": [0.1] * 17 + [1.5, 0.1, 0.1]}}, "points.eps[17]",
-     "[0, 1]"),
-    ({"points": {"ba": [2.0, 3.0], "eps": [0.1]}}, "points.eps", "length 2"),
-    ({"axes": [{"name": "kappa", "values": [2.0]}], "fixed": {"kappa_ratio": 1.0}},
-     "fixed.kappa_ratio", "null"),
-    ({"axes": [{"name": "vo", "values": [1.0, 0.0]}], "perturbation": "load-point-jump"},
-     "axes[0].values[1]", "(0, 1e300]"),
-    ({"axes": [{"name": "eps", "start": 0, "stop": 1, "n": 1000},
-               {"name": "ba", "start": 2, "stop": 3, "n": 1000},
-               {"name": "vo", "start": 1, "stop": 3, "n": 1000}]}, "axes", "<= 100000000"),
-    ({"axes": [{"name": "eps", "values": [0.1]}], "x": {"name": "ba", "values": [2.0]}},
-     "x", "one of"),
-])
+@pytest.mark.parametrize(
+    "body,field,valid",
+    [
+        (
+            {
+                "axes": [
+                    {"name": "ba", "values": [2.0]},
+                    {"name": "eps", "values": [0.1]},
+                    {"name": "eps", "start": 0, "stop": 2, "n": 3},
+                ]
+            },
+            "axes[2].name",
+            "not already",
+        ),
+        (
+            {
+                "axes": [
+                    {"name": "ba", "values": [2.0]},
+                    {"name": "kappa", "values": [0.1]},
+                    {"name": "eps", "start": 0, "stop": 2, "n": 3},
+                ]
+            },
+            "axes[2].stop",
+            "[0, 1]",
+        ),
+        (
+            {"points": {"ba": [2.0] * 20, "eps": [0.1] * 17 + [1.5, 0.1, 0.1]}},
+            "points.eps[17]",
+            "[0, 1]",
+        ),
+        ({"points": {"ba": [2.0, 3.0], "eps": [0.1]}}, "points.eps", "length 2"),
+        (
+            {"axes": [{"name": "kappa", "values": [2.0]}], "fixed": {"kappa_ratio": 1.0}},
+            "fixed.kappa_ratio",
+            "null",
+        ),
+        (
+            {"axes": [{"name": "vo", "values": [1.0, 0.0]}], "perturbation": "load-point-jump"},
+            "axes[0].values[1]",
+            "(0, 1e300]",
+        ),
+        (
+            {
+                "axes": [
+                    {"name": "eps", "start": 0, "stop": 1, "n": 1000},
+                    {"name": "ba", "start": 2, "stop": 3, "n": 1000},
+                    {"name": "vo", "start": 1, "stop": 3, "n": 1000},
+                ]
+            },
+            "axes",
+            "<= 100000000",
+        ),
+        (
+            {"axes": [{"name": "eps", "values": [0.1]}], "x": {"name": "ba", "values": [2.0]}},
+            "x",
+            "one of",
+        ),
+    ],
+)
 def test_bad_sweep_is_422_naming_field_and_writes_nothing(
-        c: TestClient, api_stack, body: dict[str, Any], field: str, valid: str) -> None:
+    c: TestClient, api_stack, body: dict[str, Any], field: str, valid: str
+) -> None:
     data = api_stack[1]
     c.get("/health")
     before = rows(data)
@@ -189,12 +271,17 @@ def test_bad_sweep_is_422_naming_field_and_writes_nothing(
 
 
 def test_lifecycle_cancel_resume_delete(c: TestClient, api_stack) -> None:
-    body = {"axes": [{"name": "eps", "start": 0.0, "stop": 0.9, "n": 10},
-                     {"name": "kappa_ratio", "start": 1.0, "stop": 5.0, "n": 10}],
-            "chunk_points": 10}
+    body = {
+        "axes": [
+            {"name": "eps", "start": 0.0, "stop": 0.9, "n": 10},
+            {"name": "kappa_ratio", "start": 1.0, "stop": 5.0, "n": 10},
+        ],
+        "chunk_points": 10,
+    }
     st = submit(c, body)
     sid = st["id"]
     from worker.tasks import run_chunk_body
+
     run_chunk_body(sid, 0)
     r1 = c.delete(f"/v1/sweeps/{sid}")
     assert r1.status_code == 200 and r1.json()["status"] == "cancelled" and r1.json()["changed"]
@@ -214,18 +301,30 @@ def test_lifecycle_cancel_resume_delete(c: TestClient, api_stack) -> None:
     con = sqlite3.connect(api_stack[1] / "cache.sqlite3")
     try:
         for t in ("sweep_blocks", "sweep_chunks", "sweeps"):
-            assert con.execute(f"SELECT count(*) FROM {t} WHERE "
-                               f"{'id' if t == 'sweeps' else 'sweep_id'} = ?",
-                               (sid,)).fetchone()[0] == 0
+            assert (
+                con.execute(
+                    f"SELECT count(*) FROM {t} WHERE {'id' if t == 'sweeps' else 'sweep_id'} = ?",
+                    (sid,),
+                ).fetchone()[0]
+                == 0
+            )
     finally:
         con.close()
 
 
 def test_huge_sweep_is_accepted_lazily(c: TestClient, api_stack) -> None:
     """10^8 points: 202 at once, a few thousand chunk rows at most, a window queued."""
-    body = {"axes": [{"name": n, "start": lo, "stop": hi, "n": 100} for n, lo, hi in
-                     (("ba", 1.5, 5.0), ("kappa_ratio", 0.5, 5.0), ("eps", 0.0, 0.9),
-                      ("vo", 0.0, 10.0))]}
+    body = {
+        "axes": [
+            {"name": n, "start": lo, "stop": hi, "n": 100}
+            for n, lo, hi in (
+                ("ba", 1.5, 5.0),
+                ("kappa_ratio", 0.5, 5.0),
+                ("eps", 0.0, 0.9),
+                ("vo", 0.0, 10.0),
+            )
+        ]
+    }
     q = c.app.state.recording_queue
     before = len(q.chunks)
     st = submit(c, body)
@@ -241,11 +340,16 @@ def test_sweep_of_the_pre_array_layout_is_410(c: TestClient, api_stack) -> None:
     sid = "0123456789abcdef" * 2
     con = sqlite3.connect(api_stack[1] / "cache.sqlite3")
     try:
-        con.execute("INSERT INTO sweeps (id, spec, status, n_total, n_chunks, numerics_version,"
-                    " created_at) VALUES (?, ?, 'done', 4, 1, '1', 0)",
-                    (sid, '{"x": {"name": "eps", "values": [0.1, 0.2]}, "y": {"name": "ba", '
-                          '"values": [2.0, 3.0]}, "fixed": {}, "perturbation": '
-                          '"velocity-jump", "rtol": 1e-10}'))
+        con.execute(
+            "INSERT INTO sweeps (id, spec, status, n_total, n_chunks, numerics_version,"
+            " created_at) VALUES (?, ?, 'done', 4, 1, '1', 0)",
+            (
+                sid,
+                '{"x": {"name": "eps", "values": [0.1, 0.2]}, "y": {"name": "ba", '
+                '"values": [2.0, 3.0]}, "fixed": {}, "perturbation": '
+                '"velocity-jump", "rtol": 1e-10}',
+            ),
+        )
         con.commit()
     finally:
         con.close()

@@ -6,6 +6,7 @@ Checked on every ``import`` statement of every module (including imports inside
 functions), so a lazy import cannot hide a back-edge.  Also checked in a fresh
 interpreter: importing the worker's tasks loads neither FastAPI nor matplotlib.
 """
+
 from __future__ import annotations
 
 import ast
@@ -60,10 +61,13 @@ def test_imports_point_one_way(package: str) -> None:
 
 
 def test_worker_process_loads_no_web_or_plot_code() -> None:
-    code = ("import sys, worker.tasks; "
-            "print(sorted(m for m in ('fastapi', 'starlette', 'matplotlib', 'service', "
-            "'rsfplots') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
-                         text=True, timeout=300)
+    code = (
+        "import sys, worker.tasks; "
+        "print(sorted(m for m in ('fastapi', 'starlette', 'matplotlib', 'service', "
+        "'rsfplots') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "[]"

@@ -1,4 +1,5 @@
 """rsfapp.grid (specs, lazy flat-index map, chunk plan) and rsfapp.sweepdata.compute_chunk."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -28,9 +29,15 @@ def test_axis_values_exact_end_points_and_spacing() -> None:
 
 
 def test_flat_index_is_c_order_and_matches_outer_product() -> None:
-    sp = spec_of({"axes": [{"name": "ba", "values": [2.0, 3.0]},
-                           {"name": "eps", "values": [0.1, 0.2, 0.3]},
-                           {"name": "kappa_ratio", "start": 1.0, "stop": 2.0, "n": 2}]})
+    sp = spec_of(
+        {
+            "axes": [
+                {"name": "ba", "values": [2.0, 3.0]},
+                {"name": "eps", "values": [0.1, 0.2, 0.3]},
+                {"name": "kappa_ratio", "start": 1.0, "stop": 2.0, "n": 2},
+            ]
+        }
+    )
     assert sp.shape == (2, 3, 2) and sp.n_total == 12
     p = sp.params(0, 12)
     B, E, K = np.meshgrid([2.0, 3.0], [0.1, 0.2, 0.3], [1.0, 2.0], indexing="ij")
@@ -43,30 +50,60 @@ def test_flat_index_is_c_order_and_matches_outer_product() -> None:
 
 
 def test_spec_json_round_trip_is_small() -> None:
-    sp = spec_of({"axes": [{"name": n, "start": 0.5, "stop": 0.9, "n": 100} for n in
-                           ("eps", "kappa_ratio", "vo", "size")]})
+    sp = spec_of(
+        {
+            "axes": [
+                {"name": n, "start": 0.5, "stop": 0.9, "n": 100}
+                for n in ("eps", "kappa_ratio", "vo", "size")
+            ]
+        }
+    )
     d = sp.to_json()
     assert sp.n_total == 10**8 and len(str(d)) < 1000
     back = SweepSpec.from_json(d)
-    assert back.to_json() == d and back.params(123456, 123460)["size"].tolist() == \
-        sp.params(123456, 123460)["size"].tolist()
+    assert (
+        back.to_json() == d
+        and back.params(123456, 123460)["size"].tolist()
+        == sp.params(123456, 123460)["size"].tolist()
+    )
 
 
 def test_chunk_plan() -> None:
     s = Settings()
-    assert plan_chunks(spec_of({"axes": [{"name": "eps", "start": 0, "stop": 1, "n": 100},
-                                         {"name": "ba", "start": 2, "stop": 3, "n": 100}]}),
-                       s) == 1250  # 10^4 points: 8 chunks
-    big = spec_of({"axes": [{"name": n, "start": 0.5, "stop": 0.9, "n": 100} for n in
-                            ("eps", "kappa_ratio", "vo", "size")]})
+    assert (
+        plan_chunks(
+            spec_of(
+                {
+                    "axes": [
+                        {"name": "eps", "start": 0, "stop": 1, "n": 100},
+                        {"name": "ba", "start": 2, "stop": 3, "n": 100},
+                    ]
+                }
+            ),
+            s,
+        )
+        == 1250
+    )  # 10^4 points: 8 chunks
+    big = spec_of(
+        {
+            "axes": [
+                {"name": n, "start": 0.5, "stop": 0.9, "n": 100}
+                for n in ("eps", "kappa_ratio", "vo", "size")
+            ]
+        }
+    )
     c = plan_chunks(big, s)
-    assert 1000 <= -(-10**8 // c) <= s.sweep_max_chunks
+    assert 1000 <= -(-(10**8) // c) <= s.sweep_max_chunks
     assert plan_chunks(big, s, 7) == 1000  # at most sweep_max_chunks chunks
 
 
 def test_compute_chunk_isolates_a_point_that_breaks_the_batch(monkeypatch) -> None:
-    sp = spec_of({"axes": [{"name": "eps", "values": [0.1, 0.2, 0.3, 0.4]}],
-                  "fixed": {"ba": 2.0, "kappa_ratio": 2.0}})
+    sp = spec_of(
+        {
+            "axes": [{"name": "eps", "values": [0.1, 0.2, 0.3, 0.4]}],
+            "fixed": {"ba": 2.0, "kappa_ratio": 2.0},
+        }
+    )
     orig = batch.critical_points
 
     def fragile(ba, kappa, eps, vo, **kw):
@@ -82,10 +119,17 @@ def test_compute_chunk_isolates_a_point_that_breaks_the_batch(monkeypatch) -> No
     assert arrays["critical_size"][3] == ref and np.isnan(arrays["critical_size"][2])
 
 
-@pytest.mark.parametrize("body", [
-    {"x": {"name": "eps", "values": [0.1]}, "y": {"name": "ba", "values": [2.0]}},
-    {"axes": [{"name": "eps", "values": [0.1]}, {"name": "ba", "values": [2.0]}]},
-])
+@pytest.mark.parametrize(
+    "body",
+    [
+        {"x": {"name": "eps", "values": [0.1]}, "y": {"name": "ba", "values": [2.0]}},
+        {"axes": [{"name": "eps", "values": [0.1]}, {"name": "ba", "values": [2.0]}]},
+    ],
+)
 def test_xy_form_is_the_same_sweep_as_two_axes(body: dict) -> None:
-    assert spec_of(body).to_json() == spec_of(
-        {"axes": [{"name": "eps", "values": [0.1]}, {"name": "ba", "values": [2.0]}]}).to_json()
+    assert (
+        spec_of(body).to_json()
+        == spec_of(
+            {"axes": [{"name": "eps", "values": [0.1]}, {"name": "ba", "values": [2.0]}]}
+        ).to_json()
+    )

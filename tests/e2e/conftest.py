@@ -1,6 +1,7 @@
 """Every test in this directory runs real processes (uvicorn, Celery, redis-server,
 PostgreSQL, chromium, the ``rsf`` CLI): all are marked ``e2e`` and run as the second
 stage of .ci/run."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -1,6 +1,7 @@
 """API keys on a real server: uvicorn bound to 127.0.0.1 with RSF_AUTH=on, keys made and
 revoked with the real ``rsf keys`` CLI in another process, and ``rsf serve`` refusing a
 non-loopback interface without a key."""
+
 from __future__ import annotations
 
 import json
@@ -33,9 +34,22 @@ class AuthServer(Proc):
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.env = service_env(data, RSF_AUTH="on", RSF_INLINE_BUDGET_S="60", **extra)
-        super().__init__([sys.executable, "-m", "uvicorn", "service.app:app", "--host",
-                          "127.0.0.1", "--port", str(self.port), "--log-level", "info"],
-                         self.env, data / f"uvicorn-{self.port}.log")
+        super().__init__(
+            [
+                sys.executable,
+                "-m",
+                "uvicorn",
+                "service.app:app",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--log-level",
+                "info",
+            ],
+            self.env,
+            data / f"uvicorn-{self.port}.log",
+        )
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:  # up = answers /health, here with 401
             if not self.alive():
@@ -51,8 +65,14 @@ class AuthServer(Proc):
 
     def rsf(self, *args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
         """The real `rsf` CLI on this server's data directory."""
-        r = subprocess.run([RSF, *args, "--data-dir", str(self.data)], env=self.env,
-                           capture_output=True, text=True, timeout=120, cwd=ROOT)
+        r = subprocess.run(
+            [RSF, *args, "--data-dir", str(self.data)],
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            cwd=ROOT,
+        )
         if check:
             assert r.returncode == 0, r.stderr
         return r
@@ -66,8 +86,11 @@ class AuthServer(Proc):
 
 @pytest.fixture(scope="module")
 def srv(tmp_path_factory: pytest.TempPathFactory) -> Iterator[AuthServer]:
-    s = AuthServer(tmp_path_factory.mktemp("rsf-auth-e2e"), RSF_QUOTA_FRESH_PER_S="1000",
-                   RSF_QUOTA_CONCURRENT_REQUESTS="100")
+    s = AuthServer(
+        tmp_path_factory.mktemp("rsf-auth-e2e"),
+        RSF_QUOTA_FRESH_PER_S="1000",
+        RSF_QUOTA_CONCURRENT_REQUESTS="100",
+    )
     yield s
     s.stop()
 
@@ -92,8 +115,12 @@ def test_every_schema_operation_401_without_a_valid_key(srv: AuthServer) -> None
             concrete = re.sub(r"\{(\w+)\}", lambda m: PATH_VALUES[m.group(1)], path)
             for method in item:
                 for headers in ({}, h(revoked), h("rsf_" + "x" * 43)):
-                    r = c.request(method.upper(), concrete, headers=headers,
-                                  json={} if method == "post" else None)
+                    r = c.request(
+                        method.upper(),
+                        concrete,
+                        headers=headers,
+                        json={} if method == "post" else None,
+                    )
                     problem(r, 401)
                     assert r.headers["www-authenticate"].startswith("Bearer")
                     n += 1
@@ -140,9 +167,12 @@ def test_body_refused_before_it_is_read(srv: AuthServer) -> None:
     """A 100 MB Content-Length is answered 413 while the client has sent no body byte."""
     k = srv.key("bodies")
     with socket.create_connection(("127.0.0.1", srv.port), timeout=10) as s:
-        s.sendall((f"POST /v1/classify HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {k}\r\n"
-                   "Content-Type: application/json\r\nContent-Length: 100000000\r\n\r\n")
-                  .encode())
+        s.sendall(
+            (
+                f"POST /v1/classify HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {k}\r\n"
+                "Content-Type: application/json\r\nContent-Length: 100000000\r\n\r\n"
+            ).encode()
+        )
         s.sendall(b"{" + b" " * 1000)  # a first sliver; the rest never comes
         data = b""
         while b"\r\n\r\n" not in data:
@@ -168,10 +198,12 @@ def test_keys_never_in_logs_or_responses(srv: AuthServer) -> None:
     k = srv.key("secretive")
     bodies = []
     with httpx.Client(base_url=srv.url, timeout=60, headers=h(k)) as c:
-        for method, path, body in (("GET", "/health", None),
-                                   ("POST", "/v1/classify", {"no": 1}),
-                                   ("GET", "/v1/sweeps", None),
-                                   ("GET", "/v1/results/" + "1" * 64, None)):
+        for method, path, body in (
+            ("GET", "/health", None),
+            ("POST", "/v1/classify", {"no": 1}),
+            ("GET", "/v1/sweeps", None),
+            ("GET", "/v1/results/" + "1" * 64, None),
+        ):
             r = c.request(method, path, json=body)
             bodies.append(r.text + json.dumps(dict(r.headers)))
     logs = srv.tail(10**7) + "".join(bodies)
@@ -182,9 +214,23 @@ def test_keys_never_in_logs_or_responses(srv: AuthServer) -> None:
 
 def test_serve_refuses_a_non_loopback_host_without_a_key(tmp_path: Path) -> None:
     env = service_env(tmp_path)
-    r = subprocess.run([RSF, "serve", "--host", "0.0.0.0", "--port", str(free_port()),
-                        "--data-dir", str(tmp_path)], env=env, capture_output=True, text=True,
-                       timeout=120, cwd=ROOT)
+    r = subprocess.run(
+        [
+            RSF,
+            "serve",
+            "--host",
+            "0.0.0.0",
+            "--port",
+            str(free_port()),
+            "--data-dir",
+            str(tmp_path),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+    )
     assert r.returncode == 2, r.stderr
     assert "refusing to serve on 0.0.0.0" in r.stderr and "--insecure" in r.stderr
     assert "rsf keys create" in r.stderr
@@ -219,23 +265,35 @@ def test_dashboard_asks_for_the_key_once_and_sends_it(srv: AuthServer, tmp_path:
         browser.navigate(srv.url + "/")
         browser.wait("!document.querySelector('#key-form').hidden", 30, "the key form")
         assert not browser.js("document.querySelector('#health').classList.contains('ok')")
-        browser.js(f"document.querySelector('#key-input').value = {json.dumps(k)};"
-                   " document.querySelector('#key-form').requestSubmit(); true")
-        browser.wait("document.querySelector('#health').classList.contains('ok')", 30,
-                     "/health with the key")
+        browser.js(
+            f"document.querySelector('#key-input').value = {json.dumps(k)};"
+            " document.querySelector('#key-form').requestSubmit(); true"
+        )
+        browser.wait(
+            "document.querySelector('#health').classList.contains('ok')", 30, "/health with the key"
+        )
         assert browser.js("document.querySelector('#key-form').hidden")
         assert browser.js("sessionStorage.getItem('rsf-api-key')") == k
         assert browser.js("localStorage.length") == 0 and browser.js("document.cookie") == ""
-        browser.wait("document.querySelectorAll('#figure-select option').length >= 5", 30,
-                     "the list of paper figures")
+        browser.wait(
+            "document.querySelectorAll('#figure-select option').length >= 5",
+            30,
+            "the list of paper figures",
+        )
         browser.js("document.querySelector('#query-submit').click(), true")
-        browser.wait("document.querySelector('#phase-img').naturalWidth > 0 && "
-                     "!document.querySelector('#phase-figure').hidden", 90,
-                     "the phase-plane plot")
+        browser.wait(
+            "document.querySelector('#phase-img').naturalWidth > 0 && "
+            "!document.querySelector('#phase-figure').hidden",
+            90,
+            "the phase-plane plot",
+        )
         # a reload keeps the key for this tab's session: no prompt again
         browser.navigate(srv.url + "/")
-        browser.wait("document.querySelector('#health').classList.contains('ok')", 30,
-                     "/health after a reload")
+        browser.wait(
+            "document.querySelector('#health').classList.contains('ok')",
+            30,
+            "/health after a reload",
+        )
         assert browser.js("document.querySelector('#key-form').hidden")
         assert not browser.exceptions(), browser.exceptions()
     finally:
@@ -254,7 +312,13 @@ def test_client_and_cli_use_the_key(srv: AuthServer, monkeypatch: pytest.MonkeyP
     with Client(srv.url, retries=0) as c:
         assert c.request("GET", "/v1/cache/stats").status_code == 200
     env = {**srv.env, "RSF_API_KEY": k}
-    r = subprocess.run([RSF, "sweep", "status", "--url", srv.url, "0" * 32], env=env,
-                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    r = subprocess.run(
+        [RSF, "sweep", "status", "--url", srv.url, "0" * 32],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+    )
     out = r.stdout + r.stderr
     assert "no sweep with id" in out and "401" not in out, out  # authenticated: a 404

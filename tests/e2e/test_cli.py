@@ -1,4 +1,5 @@
 """The `rsf` command line, run as a real subprocess (what a lab script would do)."""
+
 from __future__ import annotations
 
 import json
@@ -14,7 +15,9 @@ from rsfcore.critical import critical_perturbation
 
 
 def rsf(*args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
-    p = subprocess.run([sys.executable, "-m", "rsfcli.main", *args], capture_output=True, text=True, timeout=300)
+    p = subprocess.run(
+        [sys.executable, "-m", "rsfcli.main", *args], capture_output=True, text=True, timeout=300
+    )
     if check and p.returncode != 0:
         raise AssertionError(f"rsf {' '.join(args)} failed ({p.returncode}): {p.stderr}")
     return p
@@ -32,8 +35,28 @@ COMMON = ["--ba", "2", "--kappa", "2", "--eps", "0.25", "--vo", "1"]
 
 
 def test_classify_json_matches_library() -> None:
-    d = json.loads(rsf("classify", *COMMON, "--perturbation", "velocity-jump", "--size", "2.75", "--rtol", "1e-10", "--json").stdout)
-    for key in ("outcome", "certificate", "blowup_time", "return_time", "peak_phi", "peak_time", "rel_accuracy"):
+    d = json.loads(
+        rsf(
+            "classify",
+            *COMMON,
+            "--perturbation",
+            "velocity-jump",
+            "--size",
+            "2.75",
+            "--rtol",
+            "1e-10",
+            "--json",
+        ).stdout
+    )
+    for key in (
+        "outcome",
+        "certificate",
+        "blowup_time",
+        "return_time",
+        "peak_phi",
+        "peak_time",
+        "rel_accuracy",
+    ):
         assert key in d
     lib = classify(Params(2, 2, 0.25, 1), "velocity-jump", 2.75)
     assert d["outcome"] == "unstable" == lib.outcome
@@ -43,7 +66,11 @@ def test_classify_json_matches_library() -> None:
 
 def test_trajectory_json_and_csv(tmp_path: Path) -> None:
     out = tmp_path / "t.csv"
-    d = json.loads(rsf("trajectory", *COMMON, "--size", "2.0", "--n-points", "25", "--out", str(out), "--json").stdout)
+    d = json.loads(
+        rsf(
+            "trajectory", *COMMON, "--size", "2.0", "--n-points", "25", "--out", str(out), "--json"
+        ).stdout
+    )
     assert d["outcome"] == "stable" and len(d["trajectory"]["T"]) == 25
     rows = out.read_text().strip().splitlines()
     assert rows[0].startswith("T,phi,psi") and len(rows) == 26
@@ -54,14 +81,32 @@ def test_critical_json_matches_library() -> None:
     for key in ("kind", "critical_size", "rel_accuracy", "method"):
         assert key in d
     assert d["kind"] == "finite"
-    assert d["critical_size"] == pytest.approx(critical_perturbation(Params(2, 2, 0.25, 1), "load-point-jump").critical_size, rel=1e-14)
+    assert d["critical_size"] == pytest.approx(
+        critical_perturbation(Params(2, 2, 0.25, 1), "load-point-jump").critical_size, rel=1e-14
+    )
     inf = json.loads(rsf("critical", "--ba", "2", "--kappa", "5", "--eps", "0.25", "--json").stdout)
     assert inf["kind"] == "infinite" and inf["critical_size"] is None
 
 
 def test_diagram_npz_layout(tmp_path: Path) -> None:
     out = tmp_path / "d.npz"
-    rsf("diagram", "--x", "kappa_ratio", "1", "5", "9", "--y", "eps", "0", "0.99", "7", "--ba", "2", "--out", str(out))
+    rsf(
+        "diagram",
+        "--x",
+        "kappa_ratio",
+        "1",
+        "5",
+        "9",
+        "--y",
+        "eps",
+        "0",
+        "0.99",
+        "7",
+        "--ba",
+        "2",
+        "--out",
+        str(out),
+    )
     z = np.load(out)
     assert z["x"].shape == (9,) and z["y"].shape == (7,) and z["critical_size"].shape == (9, 7)
     # critical_size[i, j] at x[i], y[j]
@@ -76,9 +121,30 @@ def test_diagram_npz_layout(tmp_path: Path) -> None:
 def test_stiffness_json() -> None:
     d = json.loads(rsf("stiffness", "--case", "E", "--json").stdout)
     assert d["eigenvalue"] == pytest.approx(1.0030595164694487, rel=1e-12)
-    d = json.loads(rsf("stiffness", "--case", "A", "--mu", "3e10", "--nu", "0.25", "--sigma", "1e8", "--a", "0.01", "--b", "0.015", "--dc", "1e-5", "--json").stdout)
+    d = json.loads(
+        rsf(
+            "stiffness",
+            "--case",
+            "A",
+            "--mu",
+            "3e10",
+            "--nu",
+            "0.25",
+            "--sigma",
+            "1e8",
+            "--a",
+            "0.01",
+            "--b",
+            "0.015",
+            "--dc",
+            "1e-5",
+            "--json",
+        ).stdout
+    )
     mu_p = 3e10 / (2 * 0.75)
-    assert d["critical_dimension_m"] == pytest.approx(2 * np.pi * mu_p * 1e-5 / (1e8 * 0.015) / (1 - 0.01 / 0.015), rel=1e-12)
+    assert d["critical_dimension_m"] == pytest.approx(
+        2 * np.pi * mu_p * 1e-5 / (1e8 * 0.015) / (1 - 0.01 / 0.015), rel=1e-12
+    )
 
 
 def test_bad_input_exits_2_naming_the_field() -> None:

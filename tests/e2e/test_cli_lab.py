@@ -1,6 +1,7 @@
 """`rsf si`, `rsf protocol` and `rsf fit` as real subprocesses: the answers equal the
 HTTP adapter's / rsfcore's for the same inputs, files are written, bad input exits 2
 naming the field."""
+
 from __future__ import annotations
 
 import csv
@@ -20,13 +21,26 @@ from rsfcore.units import PhysicalInputs
 
 A, B, DC, SIGMA, VS = 0.01, 0.015, 1e-5, 1e8, 1e-6
 K = 6e10
-MACHINE = ["--a", str(A), "--b", str(B), "--dc-m", str(DC), "--sigma-pa", str(SIGMA),
-           "--k-pa-per-m", str(K), "--v-star-m-s", str(VS)]
+MACHINE = [
+    "--a",
+    str(A),
+    "--b",
+    str(B),
+    "--dc-m",
+    str(DC),
+    "--sigma-pa",
+    str(SIGMA),
+    "--k-pa-per-m",
+    str(K),
+    "--v-star-m-s",
+    str(VS),
+]
 
 
 def rsf(*args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
-    p = subprocess.run([sys.executable, "-m", "rsfcli.main", *args], capture_output=True,
-                       text=True, timeout=300)
+    p = subprocess.run(
+        [sys.executable, "-m", "rsfcli.main", *args], capture_output=True, text=True, timeout=300
+    )
     if check and p.returncode != 0:
         raise AssertionError(f"rsf {' '.join(args)} failed ({p.returncode}): {p.stderr}")
     return p
@@ -38,18 +52,37 @@ def test_si_critical_equals_dimensionless() -> None:
     # tests/api/test_si_api.py (rounding of the groups ~1e-16, condition O(1-100))
     ref = critical_perturbation(Params(B / A, K * DC / (A * SIGMA), 0.5, 1.0), "velocity-jump")
     assert math.isclose(d["critical_size"], ref.critical_size, rel_tol=1e-12)
-    assert math.isclose(d["si"]["velocity_jump"]["new_slip_rate_m_s"],
-                        VS * math.exp(ref.critical_size), rel_tol=1e-12)
+    assert math.isclose(
+        d["si"]["velocity_jump"]["new_slip_rate_m_s"],
+        VS * math.exp(ref.critical_size),
+        rel_tol=1e-12,
+    )
 
 
 def test_si_classify_and_trajectory_csv(tmp_path: Path) -> None:
-    d = json.loads(rsf("si", "classify", *MACHINE, "--eps", "0.5", "--factor", "100",
-                       "--json").stdout)
+    d = json.loads(
+        rsf("si", "classify", *MACHINE, "--eps", "0.5", "--factor", "100", "--json").stdout
+    )
     assert d["outcome"] == "unstable" and d["si"]["blowup_time_s"] > 0
     out = tmp_path / "tr.csv"
-    t = json.loads(rsf("si", "trajectory", *MACHINE, "--eps", "0.5", "--factor", "2",
-                       "--n-points", "21", "--sampling", "seconds", "--out", str(out),
-                       "--json").stdout)
+    t = json.loads(
+        rsf(
+            "si",
+            "trajectory",
+            *MACHINE,
+            "--eps",
+            "0.5",
+            "--factor",
+            "2",
+            "--n-points",
+            "21",
+            "--sampling",
+            "seconds",
+            "--out",
+            str(out),
+            "--json",
+        ).stdout
+    )
     rows = list(csv.DictReader(out.read_text().splitlines()))
     assert len(rows) == 21 and [float(r["t_s"]) for r in rows] == t["trajectory"]["t_s"]
     assert t["sampling"]["kind"] == "seconds"
@@ -64,21 +97,50 @@ def test_si_bad_input_names_the_field() -> None:
 
 def test_protocol_velocity_step_equals_rsfcore(tmp_path: Path) -> None:
     png = tmp_path / "vs.png"
-    d = json.loads(rsf("protocol", "velocity-step", *MACHINE, "--eps", "1", "--v1-m-s", "1e-6",
-                       "--v2-m-s", "1e-5", "--n-points", "100", "--out", str(png),
-                       "--json").stdout)
+    d = json.loads(
+        rsf(
+            "protocol",
+            "velocity-step",
+            *MACHINE,
+            "--eps",
+            "1",
+            "--v1-m-s",
+            "1e-6",
+            "--v2-m-s",
+            "1e-5",
+            "--n-points",
+            "100",
+            "--out",
+            str(png),
+            "--json",
+        ).stdout
+    )
     ph = PhysicalInputs(A, B, DC, SIGMA, K, VS).to_physical_params(1.0, 0.6)
     ref = protocols.velocity_step(ph, 1e-6, 1e-5, n_points=100).to_dict()
     assert d["protocol"] == ref["protocol"] and d["max_deviation"] == ref["max_deviation"]
-    assert math.isclose(d["friction_changes"]["steady_state_delta_f"],
-                        (A - B) * math.log(10.0), rel_tol=1e-12)
+    assert math.isclose(
+        d["friction_changes"]["steady_state_delta_f"], (A - B) * math.log(10.0), rel_tol=1e-12
+    )
     assert png.read_bytes()[:4] == b"\x89PNG"
 
 
 def test_protocol_load_history_csv(tmp_path: Path) -> None:
     out = tmp_path / "h.csv"
-    rsf("protocol", "load-history", *MACHINE, "--segment", "20:1e-6", "--segment", "5:1e-5",
-        "--segment", "20:0", "--n-points-per-segment", "20", "--out", str(out))
+    rsf(
+        "protocol",
+        "load-history",
+        *MACHINE,
+        "--segment",
+        "20:1e-6",
+        "--segment",
+        "5:1e-5",
+        "--segment",
+        "20:0",
+        "--n-points-per-segment",
+        "20",
+        "--out",
+        str(out),
+    )
     rows = list(csv.DictReader(out.read_text().splitlines()))
     assert rows and {r["segment"] for r in rows} == {"0", "1", "2"}
     p = rsf("protocol", "load-history", *MACHINE, "--segment", "20", check=False)
@@ -93,8 +155,19 @@ def test_fit_json(tmp_path: Path) -> None:
     rec = synthetic_record(t, v, mu0=0.6, a=0.01, b=0.015, Dc_m=1e-5, eps=0.0, k_per_m=2000.0)
     f = tmp_path / "rec.csv"
     f.write_text(rec.to_csv())
-    d = json.loads(rsf("fit", str(f), "--law", "slip", "--stiffness", "2000", "--json",
-                       "--uncertainty-samples", "50").stdout)
+    d = json.loads(
+        rsf(
+            "fit",
+            str(f),
+            "--law",
+            "slip",
+            "--stiffness",
+            "2000",
+            "--json",
+            "--uncertainty-samples",
+            "50",
+        ).stdout
+    )
     assert {"params", "stderr", "stability", "law_comparison"} <= set(d)
     for k, val in {"mu0": 0.6, "a": 0.01, "b": 0.015, "Dc_m": 1e-5}.items():
         assert d["params"][k] == pytest.approx(val, rel=1e-6)

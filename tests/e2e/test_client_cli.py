@@ -1,4 +1,5 @@
 """rsfclient and `rsf sweep` against a real uvicorn + Celery worker."""
+
 from __future__ import annotations
 
 import json
@@ -27,13 +28,20 @@ def test_client_and_cli(tmp_path: Path, procs: list) -> None:
         one = c.critical(ba=2.0, kappa=3.0, eps=0.2)
         ref = critical.critical_perturbation(Params(2.0, 3.0, 0.2, 1.0))
         assert one["critical_size"] == ref.critical_size
-        assert c.classify(ba=2.0, kappa=3.0, eps=0.2, size=2 * ref.critical_size)[
-            "outcome"] == "unstable"
+        assert (
+            c.classify(ba=2.0, kappa=3.0, eps=0.2, size=2 * ref.critical_size)["outcome"]
+            == "unstable"
+        )
         with pytest.raises(ProblemError) as e:
             c.sweep(axes=[{"name": "eps", "start": 0, "stop": 2, "n": 3}])
         assert e.value.status == 422 and e.value.field == "axes[0].stop"
-        s = c.sweep(axes=[{"name": "kappa_ratio", "start": 1.0, "stop": 4.0, "n": 5},
-                          {"name": "eps", "values": [0.0, 0.5]}], fixed={"ba": 3.0})
+        s = c.sweep(
+            axes=[
+                {"name": "kappa_ratio", "start": 1.0, "stop": 4.0, "n": 5},
+                {"name": "eps", "values": [0.0, 0.5]},
+            ],
+            fixed={"ba": 3.0},
+        )
         st = s.wait(progress=True, poll=0.1, timeout=60)
         assert st["n_done"] == 10
         ds = s.to_xarray()
@@ -46,14 +54,28 @@ def test_client_and_cli(tmp_path: Path, procs: list) -> None:
 
     # the CLI: submit --wait, status, download -o f.nc
     spec = tmp_path / "spec.json"
-    spec.write_text(json.dumps({"axes": [{"name": "vo", "values": [0.0, 1.0]},
-                                         {"name": "eps", "values": [0.1, 0.3, 0.6]}],
-                                "fixed": {"ba": 2.0, "kappa_ratio": 2.0}}))
+    spec.write_text(
+        json.dumps(
+            {
+                "axes": [
+                    {"name": "vo", "values": [0.0, 1.0]},
+                    {"name": "eps", "values": [0.1, 0.3, 0.6]},
+                ],
+                "fixed": {"ba": 2.0, "kappa_ratio": 2.0},
+            }
+        )
+    )
     env = service_env(tmp_path, RSF_URL=srv.url)
 
     def rsf(*args: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run([sys.executable, "-m", "rsfcli.main", "sweep", *args], env=env,
-                              cwd=ROOT, capture_output=True, text=True, timeout=120)
+        return subprocess.run(
+            [sys.executable, "-m", "rsfcli.main", "sweep", *args],
+            env=env,
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
 
     r = rsf("submit", str(spec), "--wait")
     assert r.returncode == 0, r.stderr

@@ -4,6 +4,7 @@ Every paper figure is fetched at draft quality (coarse grids, a few seconds in a
 checked to be a real PNG; the image cache, SVG, ``?format=png`` of trajectories, U grids
 and sweep diagrams (partial and finished), and the 404/422 problem+json answers.
 """
+
 from __future__ import annotations
 
 import math
@@ -84,11 +85,17 @@ def test_unknown_figure_is_404_listing_names(c: httpx.Client) -> None:
     assert all(n in p["detail"] for n in FIGURES)
 
 
-@pytest.mark.parametrize("query,field", [({"format": "gif"}, "format"),
-                                         ({"format": "json"}, "format"),
-                                         ({"quality": "best"}, "quality")])
-def test_bad_figure_query_is_422(c: httpx.Client, fs_stack, query: dict[str, str],
-                                 field: str) -> None:
+@pytest.mark.parametrize(
+    "query,field",
+    [
+        ({"format": "gif"}, "format"),
+        ({"format": "json"}, "format"),
+        ({"quality": "best"}, "quality"),
+    ],
+)
+def test_bad_figure_query_is_422(
+    c: httpx.Client, fs_stack, query: dict[str, str], field: str
+) -> None:
     before = images(fs_stack[1])
     p = assert_problem(c.get("/v1/figures/rate-neutral", params=query), 422, field)
     assert p["valid"] and "'" in p["valid"]
@@ -110,17 +117,27 @@ def test_trajectory_png(c: httpx.Client, fs_stack) -> None:
     assert again.headers["x-cache"] == "hit" and again.content == r.content
     # format is validated before anything is computed or stored.
     before = images(fs_stack[1])
-    assert_problem(c.post("/v1/trajectory", params={"format": "svg"}, json=body), 422,
-                   "format")
-    assert_problem(c.post("/v1/trajectory", params={"format": "png"},
-                          json={**body, "eps": 2}), 422, "eps")
+    assert_problem(c.post("/v1/trajectory", params={"format": "svg"}, json=body), 422, "format")
+    assert_problem(
+        c.post("/v1/trajectory", params={"format": "png"}, json={**body, "eps": 2}), 422, "eps"
+    )
     assert images(fs_stack[1]) == before
 
 
 def test_analytic_u_png(c: httpx.Client) -> None:
-    grid = {"function": "kcrit", "ba": 1.25, "eps": 0.3,
-            "grid": {"phi_min": -3, "phi_max": 3, "n_phi": 61, "psi_min": -2, "psi_max": 2,
-                     "n_psi": 41}}
+    grid = {
+        "function": "kcrit",
+        "ba": 1.25,
+        "eps": 0.3,
+        "grid": {
+            "phi_min": -3,
+            "phi_max": 3,
+            "n_phi": 61,
+            "psi_min": -2,
+            "psi_max": 2,
+            "n_psi": 41,
+        },
+    }
     r = c.post("/v1/analytic/u", params={"format": "png"}, json=grid)
     assert r.status_code == 200 and r.headers["content-type"] == "image/png", r.text[:300]
     w, h = png_size(r.content)
@@ -128,20 +145,20 @@ def test_analytic_u_png(c: httpx.Client) -> None:
     # JSON stays the default.
     assert c.post("/v1/analytic/u", json=grid).json()["shape"] == [61, 41]
     pts = {"points": [{"phi": 0.5, "psi": 0.1}]}
-    p = assert_problem(c.post("/v1/analytic/u", params={"format": "png"}, json=pts), 422,
-                       "format")
+    p = assert_problem(c.post("/v1/analytic/u", params={"format": "png"}, json=pts), 422, "format")
     assert "grid" in p["detail"]
     thin = {**grid, "grid": {**grid["grid"], "n_phi": 1}}
-    assert_problem(c.post("/v1/analytic/u", params={"format": "png"}, json=thin), 422,
-                   "grid.n_phi")
+    assert_problem(c.post("/v1/analytic/u", params={"format": "png"}, json=thin), 422, "grid.n_phi")
 
 
 def test_openapi_documents_formats(c: httpx.Client) -> None:
     spec = c.get("/openapi.json").json()["paths"]
-    for path, method, enum in (("/v1/trajectory", "post", ["json", "png"]),
-                               ("/v1/analytic/u", "post", ["json", "png"]),
-                               ("/v1/sweeps/{sweep_id}/diagram", "get", ["json", "png"]),
-                               ("/v1/figures/{name}", "get", ["png", "svg"])):
+    for path, method, enum in (
+        ("/v1/trajectory", "post", ["json", "png"]),
+        ("/v1/analytic/u", "post", ["json", "png"]),
+        ("/v1/sweeps/{sweep_id}/diagram", "get", ["json", "png"]),
+        ("/v1/figures/{name}", "get", ["png", "svg"]),
+    ):
         op = spec[path][method]
         fmt = next(p for p in op["parameters"] if p["name"] == "format")
         assert fmt["in"] == "query" and fmt["schema"]["enum"] == enum, fmt
@@ -161,9 +178,12 @@ def wait_done(c: httpx.Client, sid: str, timeout: float = 90) -> dict[str, Any]:
 
 def test_sweep_diagram_partial_then_finished(c: httpx.Client, fs_stack, procs: list) -> None:
     data = fs_stack[1]
-    body = {"x": {"name": "kappa_ratio", "start": 0.5, "stop": 2.5, "n": 4},
-            "y": {"name": "eps", "values": [0.0, 0.4, 0.8]},
-            "fixed": {"ba": 2.0, "vo": 1.0}, "perturbation": "velocity-jump"}
+    body = {
+        "x": {"name": "kappa_ratio", "start": 0.5, "stop": 2.5, "n": 4},
+        "y": {"name": "eps", "values": [0.0, 0.4, 0.8]},
+        "fixed": {"ba": 2.0, "vo": 1.0},
+        "perturbation": "velocity-jump",
+    }
     r = c.post("/v1/sweeps", json=body)
     assert r.status_code == 202, r.text
     sid = r.json()["id"]
@@ -184,6 +204,7 @@ def test_sweep_diagram_partial_then_finished(c: httpx.Client, fs_stack, procs: l
     assert d["present"] == [[True] * 3] * 4
     # The assembled grid is rsfcore's stability diagram of the same grid.
     from rsfcore.diagram import stability_diagram
+
     ref = stability_diagram("kappa_ratio", d["x"], "eps", d["y"], ba=2.0, vo=1.0).to_dict()
     assert d["kind"] == ref["kind"]
     for row, ref_row in zip(d["critical_size"], ref["critical_size"]):
@@ -204,15 +225,16 @@ def test_sweep_diagram_partial_then_finished(c: httpx.Client, fs_stack, procs: l
     d2 = c.get(f"/v1/sweeps/{sid2}/diagram").json()
     from rsfcore import trajectory
     from rsfcore.params import Params
+
     for i, x in enumerate(d2["x"]):
         for j, y in enumerate(d2["y"]):
-            out = trajectory.classify(Params.from_ratio(2.0, x, y, 1.0), "velocity-jump",
-                                      1.5).outcome
+            out = trajectory.classify(
+                Params.from_ratio(2.0, x, y, 1.0), "velocity-jump", 1.5
+            ).outcome
             assert d2["outcome"][i][j] == {"stable": 0, "unstable": 1}[out]
     assert png_size(c.get(f"/v1/sweeps/{sid2}/diagram?format=png").content)[0] >= 400
 
-    assert_problem(c.get(f"/v1/sweeps/{sid}/diagram", params={"format": "svg"}), 422,
-                   "format")
+    assert_problem(c.get(f"/v1/sweeps/{sid}/diagram", params={"format": "svg"}), 422, "format")
     r404 = c.get(f"/v1/sweeps/{'e' * 32}/diagram", params={"format": "png"})
     assert r404.status_code == 404
     assert r404.headers["content-type"].startswith("application/problem+json")

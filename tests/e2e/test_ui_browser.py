@@ -14,6 +14,7 @@ chromium is required under CI=true (.ci/run installs it): missing, the test fail
 locally it is skipped with the reason.  ``RSF_UI_SCREENSHOT=<path>`` also copies the
 screenshot there (docs/ui-screenshot.png is made that way).
 """
+
 from __future__ import annotations
 
 import base64
@@ -25,8 +26,9 @@ import os
 import shutil
 import struct
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import httpx
 import pytest
@@ -35,11 +37,22 @@ from tests.conftest import Proc, Server, Worker
 
 pytestmark = pytest.mark.timeout(240)
 
-CHROME_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                "--no-first-run", "--disable-background-networking",
-                "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
-                "--disable-extensions", "--mute-audio", "--hide-scrollbars",
-                "--remote-allow-origins=*", "--window-size=1400,1000"]
+CHROME_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+    "--disable-extensions",
+    "--mute-audio",
+    "--hide-scrollbars",
+    "--remote-allow-origins=*",
+    "--window-size=1400,1000",
+]
 
 
 @pytest.fixture(scope="session")
@@ -65,9 +78,17 @@ class Browser:
         profile.mkdir(parents=True, exist_ok=True)
         (profile / "DevToolsActivePort").unlink(missing_ok=True)
         env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
-        self.proc = Proc([exe, *CHROME_FLAGS, f"--user-data-dir={profile}",
-                          "--remote-debugging-port=0", "about:blank"],
-                         env, workdir / "chromium.log")
+        self.proc = Proc(
+            [
+                exe,
+                *CHROME_FLAGS,
+                f"--user-data-dir={profile}",
+                "--remote-debugging-port=0",
+                "about:blank",
+            ],
+            env,
+            workdir / "chromium.log",
+        )
         self._stack = contextlib.ExitStack()
         try:
             self._connect(profile)
@@ -89,15 +110,17 @@ class Browser:
         while not pages:
             if time.monotonic() > deadline:
                 raise RuntimeError("chromium has no page target:\n" + self.proc.tail())
-            try:
-                pages = [t for t in httpx.get(f"http://127.0.0.1:{port}/json/list",
-                                              timeout=10).json() if t.get("type") == "page"]
-            except httpx.HTTPError:
-                pass
+            with contextlib.suppress(httpx.HTTPError):
+                pages = [
+                    t
+                    for t in httpx.get(f"http://127.0.0.1:{port}/json/list", timeout=10).json()
+                    if t.get("type") == "page"
+                ]
             if not pages:
                 time.sleep(0.1)
-        self.ws = self._stack.enter_context(connect(pages[0]["webSocketDebuggerUrl"],
-                                                    max_size=None, open_timeout=20))
+        self.ws = self._stack.enter_context(
+            connect(pages[0]["webSocketDebuggerUrl"], max_size=None, open_timeout=20)
+        )
         self._ids = itertools.count(1)
         self.events: list[dict[str, Any]] = []
         self.call("Page.enable")
@@ -131,14 +154,14 @@ class Browser:
 
     def js(self, expr: str) -> Any:
         """Evaluate ``expr`` in the page (promises awaited) and return its value."""
-        r = self.call("Runtime.evaluate", expression=expr, returnByValue=True,
-                      awaitPromise=True)
+        r = self.call("Runtime.evaluate", expression=expr, returnByValue=True, awaitPromise=True)
         if "exceptionDetails" in r:
             raise RuntimeError(f"{expr!r} raised: {r['exceptionDetails']}")
         return r["result"].get("value")
 
-    def wait(self, expr: str, timeout: float, what: str,
-             each: Callable[[Any], None] | None = None) -> Any:
+    def wait(
+        self, expr: str, timeout: float, what: str, each: Callable[[Any], None] | None = None
+    ) -> Any:
         """Poll ``expr`` every 0.1 s until truthy; ``each`` sees every value."""
         deadline = time.monotonic() + timeout
         error = None
@@ -152,27 +175,44 @@ class Browser:
             if v:
                 return v
             time.sleep(0.1)
-        raise AssertionError(f"timed out after {timeout} s waiting for {what} (last error: "
-                             f"{error}); page says: "
-                             + str(self.js("document.body.innerText.slice(0, 1500)")))
+        raise AssertionError(
+            f"timed out after {timeout} s waiting for {what} (last error: "
+            f"{error}); page says: " + str(self.js("document.body.innerText.slice(0, 1500)"))
+        )
 
     def exceptions(self) -> list[str]:
         """JavaScript exceptions thrown in the page so far."""
-        return [json.dumps(e["params"])[:500] for e in self.events
-                if e["method"] == "Runtime.exceptionThrown"]
+        return [
+            json.dumps(e["params"])[:500]
+            for e in self.events
+            if e["method"] == "Runtime.exceptionThrown"
+        ]
 
     def screenshot(self, width: int = 1400, scale: float = 1.0) -> bytes:
         """A PNG of the whole page laid out ``width`` CSS pixels wide, scaled by ``scale``."""
-        self.call("Emulation.setDeviceMetricsOverride", width=width, height=1000,
-                  deviceScaleFactor=1, mobile=False)
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            width=width,
+            height=1000,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
         time.sleep(0.3)
         height = int(self.js("Math.ceil(document.documentElement.scrollHeight)"))
-        self.call("Emulation.setDeviceMetricsOverride", width=width, height=height,
-                  deviceScaleFactor=1, mobile=False)
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            width=width,
+            height=height,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
         time.sleep(0.3)
-        shot = self.call("Page.captureScreenshot", format="png", captureBeyondViewport=True,
-                         clip={"x": 0, "y": 0, "width": width, "height": height,
-                               "scale": scale})
+        shot = self.call(
+            "Page.captureScreenshot",
+            format="png",
+            captureBeyondViewport=True,
+            clip={"x": 0, "y": 0, "width": width, "height": height, "scale": scale},
+        )
         return base64.b64decode(shot["data"])
 
     def close(self) -> None:
@@ -226,26 +266,42 @@ def test_dashboard_in_headless_chromium(chromium_exe: str, tmp_path: Path, procs
     try:
         # -- the page loads, talks to the API, lists the paper figures
         browser.navigate(srv.url + "/")
-        browser.wait("document.readyState === 'complete' && "
-                     "document.querySelector('#health').classList.contains('ok')", 30,
-                     "the page to load and reach /health")
+        browser.wait(
+            "document.readyState === 'complete' && "
+            "document.querySelector('#health').classList.contains('ok')",
+            30,
+            "the page to load and reach /health",
+        )
         assert browser.js("document.title").startswith("rsf-stability")
-        browser.wait("document.querySelectorAll('#figure-select option').length >= 10", 30,
-                      "the list of paper figures")
-        assert browser.js("document.querySelector('#sweeps-table tbody').innerText"
-                          ".includes('no sweeps yet')")
+        browser.wait(
+            "document.querySelectorAll('#figure-select option').length >= 10",
+            30,
+            "the list of paper figures",
+        )
+        assert browser.js(
+            "document.querySelector('#sweeps-table tbody').innerText.includes('no sweeps yet')"
+        )
 
         # -- a single query: outcome and the phase-plane PNG
         browser.js("document.querySelector('#query-submit').click(), true")
-        browser.wait("document.querySelector('#phase-img').naturalWidth > 0 && "
-                      "!document.querySelector('#phase-figure').hidden", 60,
-                      "the phase-plane plot")
+        browser.wait(
+            "document.querySelector('#phase-img').naturalWidth > 0 && "
+            "!document.querySelector('#phase-figure').hidden",
+            60,
+            "the phase-plane plot",
+        )
         outcome = browser.js("document.querySelector('#outcome-badge').textContent")
-        ref = httpx.post(srv.url + "/v1/classify", json={"ba": 2, "kappa": 2, "eps": 0.25,
-                                                         "vo": 1, "size": 2.7}, timeout=60)
+        ref = httpx.post(
+            srv.url + "/v1/classify",
+            json={"ba": 2, "kappa": 2, "eps": 0.25, "vo": 1, "size": 2.7},
+            timeout=60,
+        )
         assert outcome == ref.json()["outcome"], (outcome, ref.text)
-        browser.wait("!/\\u2026/.test(document.querySelector('#critical-size').textContent)",
-                     60, "the critical size")
+        browser.wait(
+            "!/\\u2026/.test(document.querySelector('#critical-size').textContent)",
+            60,
+            "the critical size",
+        )
 
         # -- submit a 3 x 3 sweep from the form; the list shows its progress
         browser.js(SET_SWEEP_FORM)
@@ -256,9 +312,13 @@ def test_dashboard_in_headless_chromium(chromium_exe: str, tmp_path: Path, procs
             if row and (not seen or row != seen[-1]):
                 seen.append(row)
 
-        browser.wait("(() => { const tr = document.querySelector('#sweeps-table tr.sweep');"
-                     " return !!tr && tr.dataset.status === 'done'; })()", 120,
-                     "the sweep to finish in the list", each=record)
+        browser.wait(
+            "(() => { const tr = document.querySelector('#sweeps-table tr.sweep');"
+            " return !!tr && tr.dataset.status === 'done'; })()",
+            120,
+            "the sweep to finish in the list",
+            each=record,
+        )
         sid = seen[-1]["id"]
         assert len(sid) == 32 and seen[-1]["total"] == 9 and seen[-1]["done"] == 9
         assert seen[-1]["label"].startswith("9 / 9"), seen[-1]
@@ -266,32 +326,41 @@ def test_dashboard_in_headless_chromium(chromium_exe: str, tmp_path: Path, procs
         assert any(0 < s["done"] < 9 for s in seen), f"no partial progress shown: {seen}"
         st = httpx.get(f"{srv.url}/v1/sweeps/{sid}", timeout=30).json()
         assert st["status"] == "done" and st["n_done"] == 9
-        data = httpx.get(f"{srv.url}/v1/sweeps/{sid}/data", params={"format": "json"},
-                         timeout=30).json()
+        data = httpx.get(
+            f"{srv.url}/v1/sweeps/{sid}/data", params={"format": "json"}, timeout=30
+        ).json()
         assert data["coords"][st["dims"][0]["name"]] == [1.1, 2.05, 3.0]
 
         # -- then the finished stability diagram
         diagram = browser.wait(
             f"(() => {{ const d = {DIAGRAM_STATE}; return d.sweep === '{sid}' && "
             "d.status === 'done' && d.complete && d.width > 0 && !d.hidden ? d : null; })()",
-            60, "the finished diagram image")
+            60,
+            "the finished diagram image",
+        )
         assert diagram["width"] >= 400 and diagram["height"] >= 300, diagram
         assert diagram["progress"] == "9/9" and "done" in diagram["caption"], diagram
         png = httpx.get(f"{srv.url}/v1/sweeps/{sid}/diagram?format=png", timeout=30)
-        assert png.status_code == 200 and png_size(png.content) == (diagram["width"],
-                                                                      diagram["height"])
+        assert png.status_code == 200 and png_size(png.content) == (
+            diagram["width"],
+            diagram["height"],
+        )
 
         # -- a paper figure, then a screenshot of the whole page
-        browser.js("(() => { const s = document.querySelector('#figure-select');"
-                   " s.value = 'stability-diagram-velocity';"
-                   " s.dispatchEvent(new Event('change')); return true; })()")
-        browser.wait("document.querySelector('#figure-img').naturalWidth > 0", 90,
-                     "the paper figure")
+        browser.js(
+            "(() => { const s = document.querySelector('#figure-select');"
+            " s.value = 'stability-diagram-velocity';"
+            " s.dispatchEvent(new Event('change')); return true; })()"
+        )
+        browser.wait(
+            "document.querySelector('#figure-img').naturalWidth > 0", 90, "the paper figure"
+        )
         shot = browser.screenshot()
         (tmp_path / "ui.png").write_bytes(shot)
         w, h = png_size(shot)
         assert w == 1400 and h >= 900 and len(shot) > 50_000, (w, h, len(shot))
         from matplotlib.image import imread
+
         px = imread(io.BytesIO(shot), format="png")
         assert px.std() > 0.05, "screenshot looks blank"
         if os.environ.get("RSF_UI_SCREENSHOT"):

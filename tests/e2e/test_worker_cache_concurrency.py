@@ -1,4 +1,5 @@
 """Several processes write the same SQLite cache at once: nothing lost, nothing corrupt."""
+
 from __future__ import annotations
 
 import json
@@ -38,20 +39,35 @@ print("ok", wid)
 
 def test_concurrent_writers_lose_nothing(tmp_path: Path) -> None:
     import time
+
     env = service_env(tmp_path)
     # Create the schema and one sweep (blocks reference it).
-    subprocess.run([sys.executable, "-c",
-                    "from rsfapp.config import get_settings; from rsfapp.store import stores_for; "
-                    "from rsfapp.grid import expand; from rsfapp.requests import SweepRequest; "
-                    "spec = expand(SweepRequest(axes=[{'name': 'eps', 'start': 0, 'stop': 1, "
-                    "'n': 10000}]), 10**8); "
-                    "stores_for(get_settings()).sweeps.create('s'*32, spec, 1, 'v')"],
-                   env=env, cwd=ROOT, check=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from rsfapp.config import get_settings; from rsfapp.store import stores_for; "
+            "from rsfapp.grid import expand; from rsfapp.requests import SweepRequest; "
+            "spec = expand(SweepRequest(axes=[{'name': 'eps', 'start': 0, 'stop': 1, "
+            "'n': 10000}]), 10**8); "
+            "stores_for(get_settings()).sweeps.create('s'*32, spec, 1, 'v')",
+        ],
+        env=env,
+        cwd=ROOT,
+        check=True,
+    )
     n_proc, n = 4, 200
     start = str(time.time() + 1.5)
-    ps = [subprocess.Popen([sys.executable, "-c", WRITER, str(w), str(n), start], env=env,
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-          for w in range(n_proc)]
+    ps = [
+        subprocess.Popen(
+            [sys.executable, "-c", WRITER, str(w), str(n), start],
+            env=env,
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        for w in range(n_proc)
+    ]
     for p in ps:
         out, err = p.communicate(timeout=100)
         assert p.returncode == 0, err.decode()[-3000:]
@@ -64,8 +80,9 @@ def test_concurrent_writers_lose_nothing(tmp_path: Path) -> None:
         got = {json.loads(r)["k"]: json.loads(v)["value"] for r, v in rows}
         assert len(rows) == len(expected) and set(got) == expected
         assert all(v == k * k for k, v in got.items())
-        cnt, distinct = con.execute("SELECT count(*), count(DISTINCT idx) FROM sweep_blocks"
-                                    ).fetchone()
+        cnt, distinct = con.execute(
+            "SELECT count(*), count(DISTINCT idx) FROM sweep_blocks"
+        ).fetchone()
         assert cnt == distinct == len(expected)
     finally:
         con.close()

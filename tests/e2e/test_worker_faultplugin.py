@@ -13,6 +13,7 @@ tests start real Celery workers with ``--include test_worker_faultplugin`` and:
 
 Nothing happens unless those variables are set; the module holds no tests itself.
 """
+
 from __future__ import annotations
 
 import os

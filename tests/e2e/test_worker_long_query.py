@@ -1,4 +1,5 @@
 """A long single integration goes through the queue to a real worker, not the API process."""
+
 from __future__ import annotations
 
 import time
@@ -13,8 +14,14 @@ from tests.conftest import Server, Worker
 def test_long_classification_is_queued_to_a_worker(tmp_path: Path, procs: list) -> None:
     # kappa = 1e4 kappa_crit: a creep on a stiff slow manifold needing ~2e6 explicit steps
     # (~5 s), far beyond the API's quick in-process budget (3e5 steps).
-    body = {"ba": 100.0, "kappa": 990000.0, "eps": 0.0, "vo": 1.0,
-            "perturbation": "load-point-jump", "size": 700.0}
+    body = {
+        "ba": 100.0,
+        "kappa": 990000.0,
+        "eps": 0.0,
+        "vo": 1.0,
+        "perturbation": "load-point-jump",
+        "size": 700.0,
+    }
     procs.append(srv := Server(tmp_path))
     with httpx.Client(base_url=srv.url, timeout=60) as c:
         r = c.post("/v1/classify", json=body)

@@ -3,6 +3,7 @@ form on Redis, SIGKILL mid-sweep, cancel of a 10^8-point sweep, failing points, 
 
 Each test starts its own uvicorn + worker processes on a fresh data directory.
 """
+
 from __future__ import annotations
 
 import io
@@ -46,16 +47,18 @@ def submit(c: httpx.Client, body: dict[str, Any]) -> str:
 
 
 def done(c: httpx.Client, sid: str, timeout: float = 90) -> dict[str, Any]:
-    return wait_for(lambda: (s := status(c, sid))["status"] == "done" and s, timeout,
-                    f"sweep {sid} done")
+    return wait_for(
+        lambda: (s := status(c, sid))["status"] == "done" and s, timeout, f"sweep {sid} done"
+    )
 
 
 def exactly_once(data: Path, sid: str, n_total: int) -> None:
     """The stored blocks tile [0, n_total) exactly: every point stored once."""
     con = sqlite3.connect(data / "cache.sqlite3", timeout=30)
     try:
-        rng = con.execute("SELECT i0, i1 FROM sweep_blocks WHERE sweep_id = ? ORDER BY i0",
-                          (sid,)).fetchall()
+        rng = con.execute(
+            "SELECT i0, i1 FROM sweep_blocks WHERE sweep_id = ? ORDER BY i0", (sid,)
+        ).fetchall()
     finally:
         con.close()
     edge = 0
@@ -91,17 +94,28 @@ def test_nd_and_scattered_sweeps_match_rsfcore(tmp_path: Path, procs: list, clie
     procs.append(Worker(tmp_path))
     c = client_for(srv.url)
     # 3-D grid over kappa (not the ratio), eps and v_o (0 included: closed form)
-    grid = {"axes": [{"name": "kappa", "start": 0.5, "stop": 6.0, "n": 6},
-                     {"name": "eps", "values": [0.0, 0.25, 0.5]},
-                     {"name": "vo", "values": [0.0, 0.5, 3.0]}],
-            "fixed": {"ba": 2.5}, "chunk_points": 10}
+    grid = {
+        "axes": [
+            {"name": "kappa", "start": 0.5, "stop": 6.0, "n": 6},
+            {"name": "eps", "values": [0.0, 0.25, 0.5]},
+            {"name": "vo", "values": [0.0, 0.5, 3.0]},
+        ],
+        "fixed": {"ba": 2.5},
+        "chunk_points": 10,
+    }
     rng = np.random.default_rng(11)
     n = 30
-    pts = {"ba": rng.uniform(1.5, 4.0, n).tolist(),
-           "kappa_ratio": rng.uniform(0.5, 4.0, n).tolist(),
-           "eps": rng.uniform(0.0, 0.9, n).tolist()}
-    scattered = {"points": pts, "fixed": {"vo": 2.0}, "perturbation": "load-point-jump",
-                 "chunk_points": 8}
+    pts = {
+        "ba": rng.uniform(1.5, 4.0, n).tolist(),
+        "kappa_ratio": rng.uniform(0.5, 4.0, n).tolist(),
+        "eps": rng.uniform(0.0, 0.9, n).tolist(),
+    }
+    scattered = {
+        "points": pts,
+        "fixed": {"vo": 2.0},
+        "perturbation": "load-point-jump",
+        "chunk_points": 8,
+    }
     sid_g, sid_p = submit(c, grid), submit(c, scattered)
     st_g, st_p = done(c, sid_g), done(c, sid_p)
     assert st_g["n_done"] == 54 and st_g["n_failed"] == 0 and st_g["eta_s"] == 0
@@ -119,8 +133,10 @@ def test_nd_and_scattered_sweeps_match_rsfcore(tmp_path: Path, procs: list, clie
     assert check_against_rsfcore(js, gp, "velocity-jump") == {"zero", "finite", "infinite"}
     js = c.get(f"/v1/sweeps/{sid_p}/data", params={"format": "json"}).json()
     assert check_against_rsfcore(
-        js, lambda i: (pts["ba"][i], pts["kappa_ratio"][i] * (pts["ba"][i] - 1.0),
-                       pts["eps"][i], 2.0), "load-point-jump")
+        js,
+        lambda i: (pts["ba"][i], pts["kappa_ratio"][i] * (pts["ba"][i] - 1.0), pts["eps"][i], 2.0),
+        "load-point-jump",
+    )
 
     # NetCDF: axes as named coordinates, the variables of every point
     r = c.get(f"/v1/sweeps/{sid_g}/data", params={"format": "netcdf"})
@@ -136,8 +152,7 @@ def test_nd_and_scattered_sweeps_match_rsfcore(tmp_path: Path, procs: list, clie
     assert r.status_code == 200 and r.headers["x-cache"] == "hit"
 
 
-def test_xy_outcome_sweep_on_redis(tmp_path: Path, procs: list, client_for,
-                                   redis_exe: str) -> None:
+def test_xy_outcome_sweep_on_redis(tmp_path: Path, procs: list, client_for, redis_exe: str) -> None:
     """The original 2-D body keeps working; outcomes agree with stability_diagram."""
     from rsfcore.diagram import stability_diagram
 
@@ -145,9 +160,12 @@ def test_xy_outcome_sweep_on_redis(tmp_path: Path, procs: list, client_for,
     procs.append(srv := Server(tmp_path, red.url))
     procs.append(Worker(tmp_path, red.url))
     c = client_for(srv.url)
-    body = {"x": {"name": "kappa_ratio", "start": 0.2, "stop": 3.0, "n": 6},
-            "y": {"name": "eps", "values": [0.05, 0.4, 0.8]},
-            "fixed": {"ba": 2.0, "vo": 1.0, "size": 1.0}, "chunk_points": 7}
+    body = {
+        "x": {"name": "kappa_ratio", "start": 0.2, "stop": 3.0, "n": 6},
+        "y": {"name": "eps", "values": [0.05, 0.4, 0.8]},
+        "fixed": {"ba": 2.0, "vo": 1.0, "size": 1.0},
+        "chunk_points": 7,
+    }
     sid = submit(c, body)
     done(c, sid)
     exactly_once(tmp_path, sid, 18)
@@ -158,8 +176,9 @@ def test_xy_outcome_sweep_on_redis(tmp_path: Path, procs: list, client_for,
 
 
 @pytest.mark.parametrize("broker", ["filesystem", "redis"])
-def test_sigkill_mid_sweep_then_restart(tmp_path: Path, procs: list, client_for, broker: str,
-                                        request: pytest.FixtureRequest) -> None:
+def test_sigkill_mid_sweep_then_restart(
+    tmp_path: Path, procs: list, client_for, broker: str, request: pytest.FixtureRequest
+) -> None:
     url = ""
     if broker == "redis":
         procs.append(red := Redis(request.getfixturevalue("redis_exe"), tmp_path))
@@ -168,9 +187,14 @@ def test_sigkill_mid_sweep_then_restart(tmp_path: Path, procs: list, client_for,
     c = client_for(srv.url)
     w = Worker(tmp_path, url, plugin=True, RSF_TEST_POINT_DELAY_S="0.005")
     procs.append(w)
-    body = {"axes": [{"name": "kappa_ratio", "start": 0.5, "stop": 4.0, "n": 20},
-                     {"name": "eps", "start": 0.0, "stop": 0.9, "n": 15}],
-            "fixed": {"vo": 0.9}, "chunk_points": 20}
+    body = {
+        "axes": [
+            {"name": "kappa_ratio", "start": 0.5, "stop": 4.0, "n": 20},
+            {"name": "eps", "start": 0.0, "stop": 0.9, "n": 15},
+        ],
+        "fixed": {"vo": 0.9},
+        "chunk_points": 20,
+    }
     sid = submit(c, body)
     # Progress and an ETA are visible while the sweep runs.
     st = wait_for(lambda: (s := status(c, sid))["n_done"] >= 60 and s, 60, "progress")
@@ -190,15 +214,25 @@ def test_sigkill_mid_sweep_then_restart(tmp_path: Path, procs: list, client_for,
     assert all(js["data"]["computed"]) and None not in js["data"]["rel_accuracy"]
 
 
-def test_cancel_of_1e8_point_sweep_stops_within_one_chunk(tmp_path: Path, procs: list,
-                                                          client_for) -> None:
+def test_cancel_of_1e8_point_sweep_stops_within_one_chunk(
+    tmp_path: Path, procs: list, client_for
+) -> None:
     procs.append(srv := Server(tmp_path))
     procs.append(Worker(tmp_path))
     c = client_for(srv.url)
     chunk = 20_000
-    body = {"axes": [{"name": n, "start": lo, "stop": hi, "n": 100} for n, lo, hi in
-                     (("ba", 1.5, 5.0), ("kappa_ratio", 0.5, 5.0), ("eps", 0.0, 0.9),
-                      ("vo", 0.1, 10.0))], "chunk_points": chunk}
+    body = {
+        "axes": [
+            {"name": n, "start": lo, "stop": hi, "n": 100}
+            for n, lo, hi in (
+                ("ba", 1.5, 5.0),
+                ("kappa_ratio", 0.5, 5.0),
+                ("eps", 0.0, 0.9),
+                ("vo", 0.1, 10.0),
+            )
+        ],
+        "chunk_points": chunk,
+    }
     t0 = time.monotonic()
     sid = submit(c, body)
     assert time.monotonic() - t0 < 10  # accepted at once (generous: a loaded CI machine)
@@ -208,8 +242,19 @@ def test_cancel_of_1e8_point_sweep_stops_within_one_chunk(tmp_path: Path, procs:
     assert r.status_code == 200 and r.json()["status"] == "cancelled" and r.json()["changed"]
     n_at_cancel = r.json()["n_done"]
     # the running chunk (at most one: a solo worker) may still be stored, nothing after it
-    n1 = wait_for(lambda: (n := status(c, sid)["n_done"]) >= 0 and time.sleep(1.0) is None
-                  and status(c, sid)["n_done"] == n and n + 1, 30, "work to stop") - 1
+    n1 = (
+        wait_for(
+            lambda: (
+                (n := status(c, sid)["n_done"]) >= 0
+                and time.sleep(1.0) is None
+                and status(c, sid)["n_done"] == n
+                and n + 1
+            ),
+            30,
+            "work to stop",
+        )
+        - 1
+    )
     assert n1 - n_at_cancel <= chunk, (n_at_cancel, n1)
     time.sleep(1.0)
     st = status(c, sid)
@@ -224,9 +269,14 @@ def test_failing_points_recorded_rest_go_on(tmp_path: Path, procs: list, client_
     procs.append(srv := Server(tmp_path))
     procs.append(Worker(tmp_path, plugin=True, RSF_TEST_FAIL_EPS="0.5"))
     c = client_for(srv.url)
-    body = {"axes": [{"name": "kappa_ratio", "values": [1.5, 2.0, 3.0, 4.0]},
-                     {"name": "eps", "values": [0.1, 0.5, 0.9]}],
-            "fixed": {"vo": 0.7}, "chunk_points": 5}
+    body = {
+        "axes": [
+            {"name": "kappa_ratio", "values": [1.5, 2.0, 3.0, 4.0]},
+            {"name": "eps", "values": [0.1, 0.5, 0.9]},
+        ],
+        "fixed": {"vo": 0.7},
+        "chunk_points": 5,
+    }
     sid = submit(c, body)
     st = done(c, sid, 60)
     assert st["n_done"] == 12 and st["n_failed"] == 4
@@ -238,8 +288,9 @@ def test_failing_points_recorded_rest_go_on(tmp_path: Path, procs: list, client_
     assert sum(failed) == 4 and all(js["data"]["kind"][i] == -1 for i in range(12) if failed[i])
     ok = [i for i in range(12) if not failed[i]]
     assert all(js["data"]["kind"][i] >= 0 for i in ok)
-    assert not any(js["data"]["critical_size"][i] is None and js["data"]["kind"][i] != 2
-                   for i in ok)
+    assert not any(
+        js["data"]["critical_size"][i] is None and js["data"]["kind"][i] != 2 for i in ok
+    )
     csv = c.get(f"/v1/sweeps/{sid}/data", params={"format": "csv"}).text.splitlines()
     assert sum("injected failure" in line for line in csv) == 4
     assert math.isfinite(len(csv))
