@@ -66,14 +66,14 @@ asymptotic start is ~1e-3 rtol (z0 chosen from rtol; measured to scale as z0^3).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numba as nb
 import numpy as np
 
 from . import limits as lim
-from .analytic import _vjump_kcrit
+from .analytic import L_star_acc, _ljump_kcrit_acc, _vjump_kcrit_acc
 from .errors import UndecidedError
 from .laws import L_star
 from .limits import DEFAULT_RTOL, RTOL_RANGE
@@ -108,7 +108,7 @@ M_CF_VO0 = 4
 M_SEPARATRIX = 5
 M_BISECTION = 6
 M_ZERO_VO0 = 7
-M_INF_BEYOND_RANGE = 8
+M_FINITE_BEYOND_RANGE = 8
 METHODS: tuple[str, ...] = (
     "zero: kappa < kappa_crit with a moving load point (linear instability)",
     "infinite: eps*kappa >= kappa_crit, no runaway possible (eq: critical trajectory condition)",
@@ -119,8 +119,8 @@ METHODS: tuple[str, ...] = (
     "separatrix: backward integration of the separatrix from its asymptote (compiled DOP853)",
     "bisection on certified classify() outcomes",
     "zero: kappa = 0 with a stationary load point (L* = 0)",
-    "infinite within double range: the separatrix reaches L = 0 only beyond ln(1 + dv) = 709"
-    " (dv > 8e307), so no representable load-point jump runs away",
+    "separatrix: finite beyond the double range, ln(1 + dv) > 709 (dv > 8e307): reported by"
+    " log_critical_size = ln(1 + dv)",
 )
 
 # flag bits of the compiled kernel (_critical_point, critical_batch; they call the separatrix
@@ -129,6 +129,9 @@ METHODS: tuple[str, ...] = (
 FLAG_ON_X1 = 1  # eps*kappa/kappa_crit = 1 up to rounding
 FLAG_ON_KCRIT = 2  # kappa = kappa_crit up to rounding
 FLAG_FALLBACK = 4  # separatrix method failed: use bisection
+#: _critical_point only: value is l = ln(1 + dv) (dv beyond the double range); critical_batch
+#: writes inf (kind finite) there
+FLAG_LOG_VALUE = 8
 
 #: Relative band within which x = eps kappa/kappa_crit = 1 or kappa = kappa_crit are taken
 #: as exact (rounding of the inputs: ~450 ulp).  Points inside are flagged ``on_boundary``.
@@ -157,22 +160,25 @@ def _critical_point(ba, kappa, eps, vo, pert, rtol, K):
         return KIND_INFINITE, math.inf, 0.0, M_INF_NO_RUNAWAY, flags, 0
     if vo == 0.0:
         # velocity jump only (the caller rejects load-point jumps with v_o = 0)
-        Ls = L_star(kappa, kc, eps)
+        Ls, acc = L_star_acc(kappa, kc, eps)
         if Ls == 0.0:
             return KIND_ZERO, 0.0, 0.0, M_ZERO_VO0, flags, 0
-        return KIND_FINITE, Ls, 4.0e-16, M_CF_VO0, flags, 0
+        return KIND_FINITE, Ls, acc, M_CF_VO0, flags, 0
     if on_kc:
-        # closed forms evaluated at kappa = kappa_crit; inside the rounding band the
-        # error is |r - 1| times the sensitivity d ln(size)/d r at r = 1, measured (separatrix
-        # at r = 1 + h) to stay below 20 + 2/(1 - eps) + 2 sqrt(b/a)
-        sens = 20.0 + 2.0 / (1.0 - eps) + 2.0 * math.sqrt(ba)
-        acc = max(4.0e-16, sens * abs(r - 1.0))
+        # closed forms evaluated at kappa = kappa_crit, with their tested rounding bounds
+        # (rsfcore.analytic, derived from each formula's conditioning); inside the rounding
+        # band add |r - 1| times the sensitivity d ln(size)/d r at r = 1, measured
+        # (separatrix at r = 1 + h) to stay below 20 + 2/(1 - eps) + 2 sqrt(b/a)
+        sens = (20.0 + 2.0 / (1.0 - eps) + 2.0 * math.sqrt(ba)) * abs(r - 1.0)
         if pert == 0:
-            return KIND_FINITE, _vjump_kcrit(ba, eps), acc, M_CF_VJUMP_KCRIT, flags, 0
-        return KIND_FINITE, 1.0 / (kc * (1.0 - eps)), acc, M_CF_LJUMP_KCRIT, flags, 0
+            d, acc = _vjump_kcrit_acc(ba, eps)
+            return KIND_FINITE, d, acc + sens, M_CF_VJUMP_KCRIT, flags, 0
+        dv, _, acc = _ljump_kcrit_acc(ba, eps)
+        return KIND_FINITE, dv, acc + sens, M_CF_LJUMP_KCRIT, flags, 0
     st, val, aerr, nr = _separatrix(kappa, kc, eps, pert, rtol, K)
     if st == S_OVERFLOW and pert == 1:
-        return KIND_INFINITE, math.inf, 0.0, M_INF_BEYOND_RANGE, flags, nr
+        # val = l = ln(1 + dv) > 709, aerr its absolute error = the relative error of dv
+        return KIND_FINITE, val, max(aerr, rtol), M_FINITE_BEYOND_RANGE, flags | FLAG_LOG_VALUE, nr
     if st != S_OK:
         return KIND_FINITE, math.nan, math.nan, M_SEPARATRIX, flags | FLAG_FALLBACK, nr
     # reported accuracy: the requested rtol (met by calibration, see _TOL_FACTOR_V) or the
@@ -191,7 +197,7 @@ def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method,
     for i in range(ba.shape[0]):
         k, v, a, m, fl, nr = _critical_point(ba[i], kappa[i], eps[i], vo, pert, rtol, K)
         kind[i] = k
-        value[i] = v
+        value[i] = math.inf if fl & FLAG_LOG_VALUE else v  # finite, beyond the double range
         rel_acc[i] = a
         method[i] = m
         flags[i] = fl
@@ -255,6 +261,12 @@ class CriticalResult:
         params: the parameters.
         on_boundary: the point lies on x = eps kappa/kappa_crit = 1 or kappa = kappa_crit
             up to rounding (BOUNDARY_RTOL), where the kind may flip.
+        log_critical_size: d (velocity jump) or l = ln(1 + dv) (load-point jump); finite for
+            every "finite" and "zero" result, also where dv exceeds the double range
+            (critical_size is then inf; classify(..., log_size=l) checks it); None for
+            "infinite".
+        accuracy_met: rel_accuracy <= the requested rtol (always True for exact decisions).
+        reason: why the requested rtol is not met ("" when it is).
     """
 
     kind: str
@@ -265,18 +277,50 @@ class CriticalResult:
     params: Params
     on_boundary: bool = False
     n_rhs: int = 0
+    log_critical_size: float | None = None
+    accuracy_met: bool = True
+    reason: str = ""
+
+    def __post_init__(self) -> None:
+        if self.log_critical_size is None and self.critical_size is not None:
+            cs = float(self.critical_size)
+            lg = cs if self.perturbation == PERTURBATIONS[0] else math.log1p(cs)
+            object.__setattr__(self, "log_critical_size", lg)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict (no inf/nan)."""
+        """JSON-safe dict (no inf/nan: a size beyond the double range is null, its log kept)."""
+        cs = self.critical_size
         return {
             "kind": self.kind,
-            "critical_size": self.critical_size,
+            "critical_size": cs if cs is None or math.isfinite(cs) else None,
+            "log_critical_size": self.log_critical_size,
             "rel_accuracy": float(self.rel_accuracy),
+            "accuracy_met": bool(self.accuracy_met),
+            "reason": self.reason,
             "method": self.method,
             "perturbation": self.perturbation,
             "params": self.params.as_dict(),
             "on_boundary": bool(self.on_boundary),
         }
+
+
+def _with_accuracy(res: CriticalResult, rtol: float) -> CriticalResult:
+    """Set accuracy_met / reason of a result against the requested rtol."""
+    if res.kind != "finite" or res.rel_accuracy <= rtol:
+        return replace(res, accuracy_met=True, reason="")
+    how = res.method.split(":")[0]
+    why = {
+        "closed form": "the closed form is ill-conditioned here: rounding in double precision"
+        " limits it to",
+        "separatrix": "the separatrix integration's propagated error estimate is",
+        "bisection on certified classify() outcomes": "the bisection bracket (classify could"
+        " not decide closer to the separatrix) is",
+    }.get(how, f"{how} reaches")
+    return replace(
+        res,
+        accuracy_met=False,
+        reason=f"{why} {res.rel_accuracy:.2g} relative, above the requested rtol {rtol:.2g}",
+    )
 
 
 def _pert_code(perturbation: str) -> int:
@@ -321,19 +365,12 @@ def critical_perturbation(
     rtol, kind, val, acc, meth, flags, nr, on_b = _first_decision(params, perturbation, rtol)
     if flags & FLAG_FALLBACK:
         res = bisect_critical(params, perturbation, rtol=rtol)
-        return CriticalResult(
-            res.kind,
-            res.critical_size,
-            res.rel_accuracy,
-            res.method,
-            perturbation,
-            params,
-            on_b,
-            res.n_rhs,
-        )
-    return _make_result(
-        int(kind), float(val), float(acc), int(meth), perturbation, params, on_b, int(nr)
+        return replace(res, on_boundary=on_b)
+    log = float(val) if flags & FLAG_LOG_VALUE else None
+    res = _make_result(
+        int(kind), float(val), float(acc), int(meth), perturbation, params, on_b, int(nr), log
     )
+    return _with_accuracy(res, rtol)
 
 
 def _make_result(
@@ -345,15 +382,19 @@ def _make_result(
     params: Params,
     on_b: bool,
     nr: int = 0,
+    log: float | None = None,
 ) -> CriticalResult:
+    """log: l = ln(1 + dv) when dv is beyond the double range (size inf, kind finite)."""
     size: float | None
     if kind == KIND_INFINITE:
         size = None
     elif kind == KIND_ZERO:
         size = 0.0
     else:
-        size = val
-    return CriticalResult(KINDS[kind], size, acc, METHODS[meth], perturbation, params, on_b, nr)
+        size = math.inf if log is not None else val
+    return CriticalResult(
+        KINDS[kind], size, acc, METHODS[meth], perturbation, params, on_b, nr, log
+    )
 
 
 def bisect_critical(
@@ -377,10 +418,22 @@ def bisect_critical(
 
     integrate_only=True asks classify to certify by integration alone (ignoring its
     closed-form shortcuts at kappa = kappa_crit and v_o = 0), to check closed forms.
+
+    With v_o > 0 the classifications run at v_o = 1: critical sizes are v_o-invariant
+    (module docstring), so the answer is too, exactly (issue 13 measured 1.3 % between
+    v_o = 1 and 1e-12 at b/a = kappa = 1e6 when each v_o was integrated).
     """
+    res = _bisect_critical(params, perturbation, rtol, integrate_only)
+    return _with_accuracy(res, lim.RTOL.check(rtol))
+
+
+def _bisect_critical(
+    params: Params, perturbation: str, rtol: float, integrate_only: bool
+) -> CriticalResult:
     from .trajectory import classify
 
     rtol, kind, val, acc, meth, flags, _, on_b = _first_decision(params, perturbation, rtol)
+    p_run = params.with_(vo=1.0) if params.vo > 0.0 else params
     if kind != KIND_FINITE:
         return _make_result(
             int(kind), float(val), float(acc), int(meth), perturbation, params, on_b
@@ -392,7 +445,7 @@ def bisect_critical(
 
     def unstable(size: float) -> bool:
         nonlocal n_rhs
-        r = classify(params, perturbation, size, rtol=crtol, **kw)
+        r = classify(p_run, perturbation, size, rtol=crtol, **kw)
         n_rhs += r.n_rhs
         return r.outcome == "unstable"
 
@@ -423,8 +476,7 @@ def bisect_critical(
     else:
         # bisection on l = ln(1 + dv)
         l_lo, l_hi = 0.0, math.log(2.0)
-        vmax = 1e300 / params.vo
-        l_max = math.log1p(vmax) if math.isfinite(vmax) else 690.0
+        l_max = math.log1p(1e300)  # the largest load point classify takes, at v_o = 1
         while not unstable(math.expm1(l_hi)):
             l_lo = l_hi
             if l_hi >= l_max:

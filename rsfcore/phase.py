@@ -356,13 +356,13 @@ def _trace(
         return TR_FAIL, 0, 0, nan, nan, nan, nan, nan
     cz = max(abs(c1), math.sqrt(abs(c2)), 1e-300)
     zt = min(max(1.0e-5 * (rtol / 1e-10) ** (1.0 / 3.0), 1e-7), 1e-4)
-    s0 = min(Ls + math.log(zt / cz), -5.0)
+    s0 = Ls + math.log(zt / cz)  # (critical.py caps it at -5 for the jumps; not needed here)
     z0 = math.exp(s0 - Ls)
     u0 = Ls - z0 * (c1 + c2 * z0)
     st, nA, t_sw, u_sw = _branch(
-        0, s0, u0, 700.0, kappa, kc, eps, rtol, _H_MAX_A, 1.0, 0.0, xs, ys, hs, Fs, 0
+        0, s0, u0, math.inf, kappa, kc, eps, rtol, _H_MAX_A, 1.0, 0.0, xs, ys, hs, Fs, 0
     )
-    if st != TR_OK or not (u_sw > 0.0) or t_sw >= 700.0:
+    if st != TR_OK or not (u_sw > 0.0) or not math.isfinite(t_sw):
         return TR_FAIL, nA, 0, s0, t_sw, u_sw, nan, nan
     tail = _TAIL_FRAC * margin_rtol
     st, n, u_end, t_end = _branch(

@@ -90,7 +90,7 @@ class SeparatrixStatus(IntEnum):
     UNDERFLOW = 3
     #: step budget exhausted
     BUDGET = 4
-    #: s_theta - u beyond the double range (no representable load-point jump runs away)
+    #: load-point jump: dv = expm1(l) beyond the double range; the value is l = ln(1 + dv)
     OVERFLOW = 5
     #: asymptotic start not usable
     NO_START = 6
@@ -147,9 +147,11 @@ def _jac(mode, x, y, kappa, kc, eps):
         # f = kappa expm1(t - u)/G(u) - kc, G'(u) = -e^(-eps u)
         e = math.exp(x - y)
         return -kappa * e / g + kappa * math.expm1(x - y) * math.exp(-eps * y) / (g * g)
-    # f = G(u)/(kappa expm1(t - u) - kc G(u)), derivative in t
+    # f = G(u)/(kappa expm1(t - u) - kc G(u)), derivative in t; ~ -G e^(u - t)/kappa -> 0
+    # where e^(t - u) overflows (load-point jumps beyond the double range)
     den = kappa * math.expm1(y - x) - kc * g
-    return -g * kappa * math.exp(y - x) / (den * den)
+    jb = -g * kappa * math.exp(y - x) / (den * den)
+    return jb if math.isfinite(jb) else 0.0
 
 
 @nb.njit(cache=True, nogil=True)
@@ -277,7 +279,9 @@ def _separatrix(kappa, kc, eps, pert, rtol, K):
     # load-point jump: (A) until the slope |du/ds_theta| exceeds 1, then (B) down to u = 0.
     # The relative error of dv is the absolute error of l = ln(1 + dv) times
     # e^l/(e^l - 1), so errors are controlled in absolute terms (scale capped at 1).
-    t_far = 709.0  # s_theta beyond any representable load-point jump (expm1(709) ~ 8e307)
+    # l may exceed 709 (dv beyond the double range): then the status is S_OVERFLOW and the
+    # value returned is l itself, with its absolute error (the relative error of dv).
+    t_far = math.inf
     st, t, u, es, nr, h = _dop853_scalar(
         0, s0, u0, t_far, kappa, kc, eps, rt, rt * 1e-3, 1.0, 1.0, 1.0, K
     )
@@ -285,8 +289,6 @@ def _separatrix(kappa, kc, eps, pert, rtol, K):
         if st == S_NO_START:
             st = S_TURNING
         return st, math.nan, math.nan, nr
-    if t >= t_far:
-        return S_OVERFLOW, math.nan, math.nan, nr
     if not (u > 0.0):
         return S_TURNING, math.nan, math.nan, nr
     st2, u2, t2, es2, nr2, h2 = _dop853_scalar(
@@ -297,12 +299,12 @@ def _separatrix(kappa, kc, eps, pert, rtol, K):
         if st2 == S_NO_START:
             st2 = S_TURNING
         return st2, math.nan, math.nan, nr
-    if t2 > t_far:
-        return S_OVERFLOW, math.nan, math.nan, nr
-    dv = math.expm1(t2)
-    if not (dv > 0.0):
-        return S_TURNING, math.nan, math.nan, nr
     # the phase-A error in u at the switch moves the end point by (dt/du) * du there;
     # propagate it as an error in t through phase B, then d dv = e^t dt
     es_t = es * abs(_f_u(u, t, kappa, kc, eps))
+    dv = math.expm1(t2)
+    if dv == math.inf:
+        return S_OVERFLOW, t2, es_t + es2, nr
+    if not (dv > 0.0):
+        return S_TURNING, math.nan, math.nan, nr
     return S_OK, dv, (es_t + es2) * math.exp(t2), nr

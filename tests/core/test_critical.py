@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from rsfcore import ParameterError, Params, analytic, classify
+from rsfcore.analytic import _vjump_kcrit
 from rsfcore.critical import (
     METHODS,
-    _vjump_kcrit,
     asymptotic_start,
     bisect_critical,
     critical_perturbation,
@@ -325,16 +325,42 @@ def test_kinds_and_boundaries():
 
 
 def test_load_point_jump_beyond_double_range():
-    """For kappa >> kappa_crit the critical load-point jump exceeds e^709: reported infinite
-    (no representable jump runs away); the largest jumps classify() accepts are stable."""
+    """For kappa >> kappa_crit the critical load-point jump exceeds e^709 (dv > 8e307): it is
+    finite, reported by log_critical_size = ln(1 + dv) (critical_size inf, null in JSON)."""
+    from rsfcore.phase import trace_separatrix
+
     p = Params.from_ratio(10.0, 1000.0, 0.0)
     r = critical_perturbation(p, LJ)
-    assert r.kind == "infinite" and "double range" in r.method
-    # the separatrix there reaches L = 0 only at s_theta > 709
-    assert separatrix_raw(p, LJ)[0] != 0
-    # just below: a very large but finite value
+    assert r.kind == "finite" and "double range" in r.method
+    assert r.critical_size == math.inf and r.to_dict()["critical_size"] is None
+    lg = r.log_critical_size
+    assert lg is not None and 709.0 < lg < 1e4 and r.to_dict()["log_critical_size"] == lg
+    # the separatrix reaches L = 0 at s_theta = ln(1 + dv) > 709 (status OVERFLOW, value l)
+    st, val, _, _ = separatrix_raw(p, LJ)
+    assert st == 5 and val == lg
+    # independent tracing of the same curve (rsfcore.phase: own driver, dense output)
+    sep = trace_separatrix(p, 1e-12)
+    assert sep is not None
+    assert float(sep.t_of_u(0.0)[0]) == pytest.approx(lg, rel=1e-9)
+    # below the range: the log is log1p of the size
     r2 = critical_perturbation(Params.from_ratio(2.0, 300.0, 0.0), LJ)
     assert r2.kind == "finite" and 1e100 < r2.critical_size < 1e300
+    assert r2.log_critical_size == pytest.approx(math.log1p(r2.critical_size), rel=1e-15)
+
+
+def test_accuracy_met_and_log_fields():
+    # closed form at kappa = kappa_crit, b/a = 1e6, eps -> 1: ill-conditioned, bound ~3e-12
+    p = Params(1e6, 1e6 - 1.0, 0.9972673220817913)
+    strict = critical_perturbation(p, VJ, rtol=1e-13)
+    assert not strict.accuracy_met and "ill-conditioned" in strict.reason
+    assert strict.rel_accuracy > 1e-13
+    loose = critical_perturbation(p, VJ, rtol=1e-10)
+    assert loose.accuracy_met and loose.reason == ""
+    assert loose.log_critical_size == loose.critical_size  # velocity jump: d is the log
+    lj = critical_perturbation(Params(2.0, 1.0, 0.3), LJ)
+    assert lj.log_critical_size == pytest.approx(math.log1p(lj.critical_size), rel=1e-15)
+    d = critical_perturbation(Params(2.0, 3.0, 0.5), VJ).to_dict()  # infinite
+    assert d["log_critical_size"] is None and d["accuracy_met"] is True
 
 
 def test_invalid_inputs():
