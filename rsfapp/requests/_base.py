@@ -3,9 +3,12 @@ ranges in OpenAPI, the strict base model, and the perturbation kinds."""
 
 from __future__ import annotations
 
+import types
+import typing
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from rsfcore import limits
 from rsfcore.limits import Limit
@@ -29,10 +32,54 @@ def F(default: Any, valid: str, description: str, **kw: Any) -> Any:  # noqa: N8
     )
 
 
+def _has_bool(v: Any) -> bool:
+    if isinstance(v, bool):
+        return True
+    return isinstance(v, list) and any(isinstance(x, bool) for x in v)
+
+
+def _admits_bool(annotation: Any) -> bool:
+    """True when ``bool`` (or Any) is one of the types the annotation accepts."""
+    if annotation is bool or annotation is Any:
+        return True
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _admits_bool(typing.get_args(annotation)[0])
+    if origin in (typing.Union, types.UnionType, list):
+        return any(_admits_bool(a) for a in typing.get_args(annotation))
+    return False
+
+
 class Model(BaseModel):
     """Strict: unknown fields and NaN/inf are rejected."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_booleans_as_numbers(cls, data: Any) -> Any:
+        """JSON true/false is not a number: pydantic's lax mode would read it as 1/0
+        (``"vo": false`` -> v_o = 0, a different physical question), and strict mode would
+        refuse the query strings of GET endpoints.  So booleans are refused here, where
+        a field is numeric, naming the field."""
+        if not isinstance(data, dict):
+            return data
+        for name, field in cls.model_fields.items():
+            key = field.alias or name
+            if key in data and _has_bool(data[key]) and not _admits_bool(field.annotation):
+                raise ValidationError.from_exception_data(
+                    cls.__name__,
+                    [
+                        InitErrorDetails(
+                            type=PydanticCustomError(
+                                "bool_not_number", "a JSON boolean is not a number"
+                            ),
+                            loc=(key,),
+                            input=data[key],
+                        )
+                    ],
+                )
+        return data
 
 
 def bounds(limit: Limit) -> dict[str, float]:

@@ -21,7 +21,9 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from ._base import RTOL, VALID_RTOL, F, Perturbation
+from rsfcore import limits
+
+from ._base import FL, RTOL, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
 
 __all__ = [
@@ -38,12 +40,22 @@ AxisName = Literal["ba", "kappa", "kappa_ratio", "eps", "vo", "size"]
 #: Valid range of each swept parameter (lo, hi, text); checked per value and reported as
 #: e.g. ``axes[2].stop`` or ``points.eps[17]``.
 AXIS_RANGES: dict[str, tuple[float, float, str]] = {
-    "ba": (1.0, 1e6, "(1, 1e6]"),
-    "kappa": (0.0, 1e6, "[0, 1e6]"),
-    "kappa_ratio": (0.0, 1e6, "[0, 1e6] (and kappa_ratio*(ba-1) <= 1e6)"),
-    "eps": (0.0, 1.0, "[0, 1]"),
-    "vo": (0.0, 1e300, "0 or (0, 1e300]"),
-    "size": (-1e3, 1e3, "[-1e3, 1e3] (load-point jump: (-1, 1e3])"),
+    "ba": (1.0, limits.BA_MAX, limits.BA.text),
+    "kappa": (0.0, limits.KAPPA_MAX, limits.KAPPA.text),
+    "kappa_ratio": (
+        0.0,
+        limits.KAPPA_MAX,
+        f"{limits.KAPPA_RATIO.text} (and "
+        f"kappa_ratio*(ba-1) <= {limits.format_number(limits.KAPPA_MAX)})",
+    ),
+    "eps": (0.0, 1.0, limits.EPS.text),
+    "vo": (0.0, limits.VO_MAX, limits.VO.text),
+    "size": (
+        -limits.SIZE_MAX,
+        limits.SIZE_MAX,
+        f"{limits.VELOCITY_JUMP_SIZE.text} "
+        f"(load-point jump: (-1, {limits.format_number(limits.SIZE_MAX)}])",
+    ),
 }
 #: Largest number of explicit values of one axis.
 MAX_AXIS_VALUES = 100_000
@@ -82,7 +94,7 @@ class SweepAxis(_Model):
 class SweepFixed(_Model):
     """Values of the parameters that are not swept (dimensionless)."""
 
-    ba: float = F(2.0, "(1, 1e6]", "b/a (-).", name="ba", gt=1.0, le=1e6)
+    ba: float = FL(limits.BA)
     kappa_ratio: float | None = F(
         None,
         "null or [0, 1e6]",
@@ -99,17 +111,17 @@ class SweepFixed(_Model):
         ge=0,
         le=1e6,
     )
-    eps: float = F(0.0, "[0, 1]", "Evolution-law parameter (-).", name="eps", ge=0, le=1)
-    vo: float = F(1.0, "0 or (0, 1e300]", "v_o (-).", name="vo", ge=0, le=1e300)
+    eps: float = FL(limits.EPS)
+    vo: float = FL(limits.VO)
     size: float | None = F(
         None,
-        "null or [-1e3, 1e3]",
+        f"null or {AXIS_RANGES['size'][2]}",
         "Perturbation size; when given "
         "(or swept) each point gives the outcome instead of the critical "
         "size.",
         name="size",
-        ge=-1e3,
-        le=1e3,
+        ge=-limits.SIZE_MAX,
+        le=limits.SIZE_MAX,
     )
 
 
