@@ -70,7 +70,8 @@ class Settings(BaseSettings):
         max_header_bytes: largest total size of the request headers [bytes], else 431.
         cors_origins: comma-separated origins allowed by CORS (empty: CORS off).
         quota_concurrent_sweeps, quota_points_per_day, quota_fresh_per_s,
-        quota_concurrent_requests, quota_trajectory_points: default quotas of every key
+        quota_concurrent_requests, quota_trajectory_points, quota_step_budget: default
+            quotas of every key
             (:class:`rsfapp.store.keys.Quotas`); ``rsf keys create --quota`` overrides them
             per key.
     """
@@ -108,6 +109,7 @@ class Settings(BaseSettings):
     quota_fresh_per_s: float = Field(default=10.0, gt=0)
     quota_concurrent_requests: int = Field(default=8, ge=1)
     quota_trajectory_points: int = Field(default=100_000, ge=2)
+    quota_step_budget: int = Field(default=10_000_000, ge=10)
 
     @property
     def heartbeat_s(self) -> float:

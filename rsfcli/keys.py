@@ -66,7 +66,7 @@ def create(
         "--quota",
         help="Per-key quota NAME=VALUE, repeatable: "
         "concurrent_sweeps, points_per_day, fresh_per_s, "
-        "concurrent_requests, trajectory_points.",
+        "concurrent_requests, trajectory_points, step_budget.",
     ),
     from_env: str | None = typer.Option(
         None,

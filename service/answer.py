@@ -130,6 +130,7 @@ async def _compute(
     stores: Stores,
     queue: Queue,
     inflight: Inflight,
+    queue_refusal: str | None = None,
 ) -> str | None:
     """Compute, store, return the result JSON text (None: sent to the queue);
     ProblemError on failure."""
@@ -138,6 +139,8 @@ async def _compute(
             result = await run_in_threadpool(fn, req)
         text = canonical(result)
     except NeedsQueue:
+        if queue_refusal is not None:  # not recorded: another key may queue it
+            raise ProblemError(403, "Forbidden", queue_refusal) from None
         # a long integration: computed by a worker through the queue (result -> store)
         await run_in_threadpool(stores.jobs.mark_queued, key, kind)
         await run_in_threadpool(queue.send_single, kind, request, key, version)
@@ -165,8 +168,13 @@ async def answer(
     queue: Queue,
     inflight: Inflight,
     settings: Settings,
+    queue_refusal: str | None = None,
 ) -> Response:
-    """Cached answer to ``req`` of ``kind``, computing ``fn(req)`` on a miss."""
+    """Cached answer to ``req`` of ``kind``, computing ``fn(req)`` on a miss.
+
+    ``queue_refusal``: when set, a query that outgrows the in-process step budget is not
+    sent to the queue but answered 403 with that reason (keys without scope 'submit', or
+    whose step budget quota is spent by the in-process attempt)."""
     request = req.model_dump(mode="json")
     version = numerics_version()
     key = cache_key(kind, request, version)
@@ -188,7 +196,7 @@ async def answer(
     task = inflight.pending.get(key)
     if task is None:
         task = asyncio.ensure_future(
-            _compute(kind, key, version, request, req, fn, stores, queue, inflight)
+            _compute(kind, key, version, request, req, fn, stores, queue, inflight, queue_refusal)
         )
         inflight.pending[key] = task
 

@@ -160,6 +160,7 @@ def quotas_of(settings: Settings, overrides: dict[str, Any] | None = None) -> Qu
         fresh_per_s=settings.quota_fresh_per_s,
         concurrent_requests=settings.quota_concurrent_requests,
         trajectory_points=settings.quota_trajectory_points,
+        step_budget=settings.quota_step_budget,
     )
     return q.with_overrides(overrides or {})
 

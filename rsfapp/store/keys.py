@@ -81,6 +81,8 @@ class Quotas:
             number, at least 1).
         concurrent_requests: computing requests of this key in flight at once, >= 1.
         trajectory_points: largest ``n_points`` of one trajectory request, >= 2.
+        step_budget: most integrator steps one single query of this key may use, in the
+            API process or through the queue, >= 10 (a query needing more is refused).
     """
 
     concurrent_sweeps: int = 4
@@ -88,6 +90,7 @@ class Quotas:
     fresh_per_s: float = 10.0
     concurrent_requests: int = 8
     trajectory_points: int = 100_000
+    step_budget: int = 10_000_000
 
     @classmethod
     def names(cls) -> list[str]:

@@ -29,9 +29,11 @@ from rsfapp.requests import (
     TrajectoryRequest,
 )
 from rsfapp.store import Stores
+from rsfapp.store.keys import Scope
 
 from .. import images
 from ..answer import answer
+from ..auth import Principal, PrincipalDep
 from ..deps import Inflight, InflightDep, QueueDep, SettingsDep, StoresDep
 from ..errors import ProblemError
 from ..images import choice, format_query, image, image_response, png_content
@@ -48,6 +50,28 @@ class Ctx:
     queue: Queue
     inflight: Inflight
     settings: Settings
+    principal: Principal
+
+    @property
+    def quick_steps(self) -> int:
+        """Step budget of the in-process attempt: the setting, capped by the key's quota."""
+        return min(self.settings.quick_steps, self.principal.quotas.step_budget)
+
+    @property
+    def queue_refusal(self) -> str | None:
+        """Why a long integration of this key may not go to the queue (None: it may)."""
+        p = self.principal
+        if not p.scope.allows(Scope.submit):
+            return (
+                "this query needs a long integration through the queue, which needs a key "
+                f"with scope 'submit' (this key has '{p.scope.value}')"
+            )
+        if p.quotas.step_budget <= self.settings.quick_steps:
+            return (
+                "this query needs more integrator steps than this key's step budget "
+                f"({p.quotas.step_budget}; quota step_budget)"
+            )
+        return None
 
     async def answer(
         self, kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]]
@@ -61,11 +85,18 @@ class Ctx:
             queue=self.queue,
             inflight=self.inflight,
             settings=self.settings,
+            queue_refusal=self.queue_refusal,
         )
 
 
-def _ctx(stores: StoresDep, queue: QueueDep, inflight: InflightDep, settings: SettingsDep) -> Ctx:
-    return Ctx(stores, queue, inflight, settings)
+def _ctx(
+    stores: StoresDep,
+    queue: QueueDep,
+    inflight: InflightDep,
+    settings: SettingsDep,
+    principal: PrincipalDep,
+) -> Ctx:
+    return Ctx(stores, queue, inflight, settings, principal)
 
 
 CtxDep = Annotated[Ctx, Depends(_ctx)]
@@ -85,9 +116,7 @@ _R: dict[int | str, dict[str, Any]] = {
 async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
     """Certified outcome of one perturbation (outcome, certificate, peak_phi, blow-up or
     return time T = V_* t/Dc, rel_accuracy). Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer(
-        "classify", req, partial(adapter.classify, max_steps=ctx.settings.quick_steps)
-    )
+    return await ctx.answer("classify", req, partial(adapter.classify, max_steps=ctx.quick_steps))
 
 
 _JSON_OR_PNG = ("json", "png")
@@ -145,7 +174,7 @@ async def trajectory(
     ``?format=csv``: the samples as CSV."""
     fmt = choice(format, _TRAJ_FORMATS, "format")
     resp = await ctx.answer(
-        "trajectory", req, partial(adapter.trajectory, max_steps=ctx.settings.quick_steps)
+        "trajectory", req, partial(adapter.trajectory, max_steps=ctx.quick_steps)
     )
     if fmt == "csv":
         return _as_csv(resp)

@@ -439,3 +439,42 @@ def test_daily_points_reset_with_the_utc_day(env: Env) -> None:
     assert env.keys.reserve_points(name, 10, 10, day=day + 1) == 0
     env.keys.refund_points(name, 100, day=day)  # never below zero
     assert env.keys.points_used(name, day=day) == 0
+
+
+def test_long_integration_needs_submit_scope_and_step_budget(tmp_path, monkeypatch) -> None:
+    """A single query that outgrows the in-process step budget goes to the queue only for
+    a key with scope 'submit' whose step budget allows it; a read key gets 403 (nothing
+    queued), a submit key with a small step budget gets 403 naming the quota."""
+    from fastapi.testclient import TestClient
+
+    from rsfapp.config import get_settings
+    from rsfapp.store import stores_for
+    from rsfapp.store.keys import Scope
+    from service.app import create_app
+    from service.auth import get_key_store
+    from service.deps import get_queue
+    from tests.api.conftest import RecordingQueue
+
+    for k in [k for k in __import__("os").environ if k.startswith("RSF_")]:
+        monkeypatch.delenv(k)
+    monkeypatch.setenv("RSF_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("RSF_AUTH", "on")
+    monkeypatch.setenv("RSF_QUICK_STEPS", "10")  # every real integration exceeds it
+    keys = get_key_store(stores_for(get_settings()))
+    read = keys.create("reader", Scope.read)
+    submit = keys.create("submitter", Scope.submit)
+    small = keys.create("small", Scope.submit, {"step_budget": 10})
+    app = create_app()
+    queue = RecordingQueue()
+    app.dependency_overrides[get_queue] = lambda: queue
+    body = {"ba": 2.0, "kappa": 2.0, "eps": 0.25, "size": 2.61}
+    with TestClient(app) as c:
+        r = c.post("/v1/classify", json=body, headers={"Authorization": f"Bearer {read}"})
+        assert r.status_code == 403, r.text
+        assert "scope 'submit'" in r.json()["detail"] and not queue.singles
+        r = c.post("/v1/classify", json=body, headers={"Authorization": f"Bearer {small}"})
+        assert r.status_code == 403 and "step_budget" in r.json()["detail"]
+        assert not queue.singles
+        r = c.post("/v1/classify", json=body, headers={"Authorization": f"Bearer {submit}"})
+        assert r.status_code == 202, r.text
+        assert [s[0] for s in queue.singles] == ["classify"]
