@@ -145,7 +145,7 @@ def get_key_store(stores: Stores) -> KeyStore:
     return ks
 
 
-def _key_store_dep(stores: StoresDep) -> KeyStore:
+async def _key_store_dep(stores: StoresDep) -> KeyStore:  # async: no thread hop
     return get_key_store(stores)
 
 
@@ -196,6 +196,23 @@ def needed_scope(request: Request) -> Scope:
     return scope_for(getattr(route, "path_format", None) or request.url.path, request.method)
 
 
+_ACTIVE_TTL_S = 2.0
+_active_seen: dict[int, float] = {}
+
+
+async def _any_active(keys: KeyStore) -> bool:
+    """Whether any key is active.  A True answer is remembered for 2 s (keys exist, so a
+    request without a key is refused: caching that direction can only refuse, never admit);
+    a False answer is always re-read, so a key created a moment ago is enforced at once."""
+    now = time.monotonic()
+    if now - _active_seen.get(id(keys), -1e9) < _ACTIVE_TTL_S:
+        return True
+    if await run_in_threadpool(keys.any_active):
+        _active_seen[id(keys)] = now
+        return True
+    return False
+
+
 async def _authenticate(
     request: Request, creds: HTTPAuthorizationCredentials | None, settings: Settings, keys: KeyStore
 ) -> Principal:
@@ -205,7 +222,7 @@ async def _authenticate(
     if creds is None or not creds.credentials:
         if given:  # another scheme, or an empty token
             raise AuthError(401, _UNAUTHORIZED)
-        if settings.auth == "auto" and not await run_in_threadpool(keys.any_active):
+        if settings.auth == "auto" and not await _any_active(keys):
             if _local(request):
                 return Principal(None, Scope.admin, quotas_of(settings))
             raise AuthError(401, _NO_KEYS_REMOTE)

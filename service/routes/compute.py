@@ -89,7 +89,7 @@ class Ctx:
         )
 
 
-def _ctx(
+async def _ctx(  # async: no thread hop for a dependency without I/O
     stores: StoresDep,
     queue: QueueDep,
     inflight: InflightDep,
