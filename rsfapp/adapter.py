@@ -514,12 +514,23 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
             else:
                 # the layout of rsfcore.critical.CriticalResult.to_dict (tested equal to the
                 # single endpoint's answer item by item)
+                size = (
+                    None
+                    if k == _critical.KIND_INFINITE
+                    else (0.0 if k == _critical.KIND_ZERO else value_l[j])
+                )
+                met, reason = _critical.accuracy_verdict(
+                    kinds[k], methods[meth_l[j]], acc_l[j], rtol
+                )
                 out = {
                     "kind": kinds[k],
-                    "critical_size": None
-                    if k == _critical.KIND_INFINITE
-                    else (0.0 if k == _critical.KIND_ZERO else value_l[j]),
+                    "critical_size": size,
+                    "log_critical_size": None
+                    if size is None
+                    else (size if pert == 0 else math.log1p(size)),
                     "rel_accuracy": acc_l[j],
+                    "accuracy_met": met,
+                    "reason": reason,
                     "method": methods[meth_l[j]],
                     "perturbation": name,
                     "params": pds[j],

@@ -83,6 +83,7 @@ from .separatrix import N_WORK, S_OK, S_OVERFLOW, _asym_coeffs, _separatrix
 __all__ = [
     "CriticalResult",
     "critical_perturbation",
+    "accuracy_verdict",
     "bisect_critical",
     "asymptotic_start",
     "separatrix_raw",
@@ -304,11 +305,17 @@ class CriticalResult:
         }
 
 
-def _with_accuracy(res: CriticalResult, rtol: float) -> CriticalResult:
-    """Set accuracy_met / reason of a result against the requested rtol."""
-    if res.kind != "finite" or res.rel_accuracy <= rtol:
-        return replace(res, accuracy_met=True, reason="")
-    how = res.method.split(":")[0]
+def accuracy_verdict(kind: str, method: str, rel_accuracy: float, rtol: float) -> tuple[bool, str]:
+    """(accuracy_met, reason) of a critical size against the requested ``rtol``.
+
+    Shared by :func:`critical_perturbation` and the batch paths, so both say the same.
+    Exact decisions (kind zero/infinite) always meet it; otherwise the reason names what
+    limits the accuracy (the closed form's conditioning, the separatrix integration's
+    error estimate, or the bisection bracket).
+    """
+    if kind != "finite" or rel_accuracy <= rtol:
+        return True, ""
+    how = method.split(":")[0]
     why = {
         "closed form": "the closed form is ill-conditioned here: rounding in double precision"
         " limits it to",
@@ -316,11 +323,13 @@ def _with_accuracy(res: CriticalResult, rtol: float) -> CriticalResult:
         "bisection on certified classify() outcomes": "the bisection bracket (classify could"
         " not decide closer to the separatrix) is",
     }.get(how, f"{how} reaches")
-    return replace(
-        res,
-        accuracy_met=False,
-        reason=f"{why} {res.rel_accuracy:.2g} relative, above the requested rtol {rtol:.2g}",
-    )
+    return False, f"{why} {rel_accuracy:.2g} relative, above the requested rtol {rtol:.2g}"
+
+
+def _with_accuracy(res: CriticalResult, rtol: float) -> CriticalResult:
+    """Set accuracy_met / reason of a result against the requested rtol."""
+    met, reason = accuracy_verdict(res.kind, res.method, res.rel_accuracy, rtol)
+    return replace(res, accuracy_met=met, reason=reason)
 
 
 def _pert_code(perturbation: str) -> int:
