@@ -54,10 +54,20 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from .laws import G_clipped
+from .laws import EXP_CLIP, G_clipped
 from .ode import rk
+from .ode import rodas4_tableau as _ro
 
-__all__ = ["Status", "EngineResult", "run", "integrate", "blowup_tail", "STATUS", "NSTATE"]
+__all__ = [
+    "Status",
+    "Integrator",
+    "EngineResult",
+    "run",
+    "integrate",
+    "blowup_tail",
+    "STATUS",
+    "NSTATE",
+]
 
 NSTATE = 5
 _I_PHI, _I_LTH, _I_T, _I_S, _I_SO = 0, 1, 2, 3, 4
@@ -105,6 +115,17 @@ _STEP_UNDERFLOW = int(Status.STEP_UNDERFLOW)
 _CONVERGED = int(Status.CONVERGED)
 
 
+class Integrator(IntEnum):
+    """Which method :func:`integrate` uses (the kernel takes the int)."""
+
+    #: DOP853 throughout (the reference for the explicit method)
+    EXPLICIT = 0
+    #: DOP853, switching to RODAS4 in stiff phases and back (the default)
+    AUTO = 1
+    #: RODAS4 throughout (for tests and comparison)
+    ROSENBROCK = 2
+
+
 class EngineResult(NamedTuple):
     """Result of one :func:`integrate` run (dimensionless; T = V_* t/Dc).
 
@@ -119,6 +140,7 @@ class EngineResult(NamedTuple):
         n_steps, n_rhs, n_rejected: accepted steps, right-hand-side evaluations, rejections.
         err_sum: sum over accepted steps of rtol times the normalised local error estimate.
         n_filled: number of sample rows written.
+        n_stiff_steps: accepted steps taken by RODAS4 (stiff phases); n_jacobians: Jacobians.
     """
 
     status: Status
@@ -135,6 +157,8 @@ class EngineResult(NamedTuple):
     n_rejected: int
     err_sum: float
     n_filled: int
+    n_stiff_steps: int = 0
+    n_jacobians: int = 0
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -193,12 +217,16 @@ def _dense_coeffs(K, y0, y1, f0, f1, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
+def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, lnc, poly_h=0.0):
     """Root in (x0, x1) on the dense output, bracketed by g0 = g(x0), g1 = g(x1) (Illinois).
 
     idx >= 0: g(x) = y_idx(x) - target (an event on a state component);
     idx = -1: g(x) = d phi/dtau at y(x) (a local maximum of phi);
     idx = -2: g(x) = d psi/dtau at y(x) (a local maximum of psi = phi + (b/a) ln theta).
+    With poly_h > 0 (a RODAS4 step of length poly_h, cubic Hermite dense output) the slopes
+    are those of the interpolant, divided by poly_h: evaluating f at interpolated states
+    would multiply the interpolation error by the stiffness |lambda|.  They equal f at the
+    step ends, so the bracket g0, g1 is the same.
     At most 80 trial points; stops when g = 0 or the bracket is below 1e-15.
     """
     if g0 == 0.0:
@@ -212,6 +240,12 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
         rk.dense_eval(F, y0, xm, tmp)
         if idx >= 0:
             gm = tmp[idx] - target
+        elif poly_h > 0.0:
+            w1 = 1.0 - 2.0 * xm
+            w2 = xm * (2.0 - 3.0 * xm)
+            gm = (F[0, 0] + w1 * F[1, 0] + w2 * F[2, 0]) / poly_h
+            if idx == -2:
+                gm += ba * (F[0, 1] + w1 * F[1, 1] + w2 * F[2, 1]) / poly_h
         else:
             _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
             gm = ftmp[0] if idx == -1 else ftmp[0] + ba * ftmp[1]
@@ -219,6 +253,214 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
             break
         x0, x1, g0, g1, side = rk.illinois_update(x0, x1, g0, g1, side, xm, gm)
     return xm
+
+
+# ------------------------------------------------------------------------------------------
+# Stiff phases: analytic Jacobian and the Rosenbrock method RODAS4 (rsfcore.ode.rodas4_tableau)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _jacobian(y, J, ba, kappa, eps, vo, c, lnc):
+    """J[i, 0] = d f_i/d phi, J[i, 1] = d f_i/d ln theta of the hybrid-time RHS (_rhs).
+
+    The right-hand side depends on (phi, ln theta) only (T, s, s_o are quadratures), so
+    these two columns are the whole Jacobian.  Exact derivatives of every branch of _rhs
+    (sigmoid, clipped G, the time change D = hypot(1, z) or |z|); checked against finite
+    differences in tests/core/test_stiff.py.  J has shape (n, 2), n = len(y).
+    """
+    zz = y[0] - lnc
+    e = math.exp(-abs(zz))
+    inv = 1.0 / (1.0 + e)
+    if zz >= 0.0:
+        ap = inv
+        om = e * inv
+    else:
+        ap = e * inv
+        om = inv
+    apom = e * inv * inv  # a_phi (1 - a_phi) = d a_phi / d phi, without cancellation
+    L = y[0] + y[1]
+    g = G_clipped(L, eps)
+    gL = 0.0 if eps * L < -EXP_CLIP else -math.exp(-eps * L)  # G'(L)
+    z = ba * g * ap
+    az = abs(z)
+    z_p = ba * (gL * ap + g * apom)
+    z_t = ba * gL * ap
+    # d inv_d = -(z/(1 + z^2)) inv_d dz, or -(dz/z) inv_d on the |z| branch; grouped so
+    # that nothing underflows for |z| up to the double range
+    if az < 1e150:
+        inv_d = 1.0 / math.sqrt(1.0 + z * z)
+        q = z * inv_d * inv_d
+        id_p = -q * (inv_d * z_p)  # d inv_d / d phi
+        id_t = -q * (inv_d * z_t)  # d inv_d / d ln theta
+    else:
+        inv_d = 1.0 / az
+        id_p = -(z_p / z) * inv_d
+        id_t = -(z_t / z) * inv_d
+    load = vo * om / c
+    load_p = -vo * apom / c
+    n0 = kappa * (load - ap) - z
+    J[0, 0] = (kappa * (load_p - apom) - z_p) * inv_d + n0 * id_p
+    J[0, 1] = -z_t * inv_d + n0 * id_t
+    n1 = g * ap
+    J[1, 0] = (gL * ap + g * apom) * inv_d + n1 * id_p
+    J[1, 1] = gL * ap * inv_d + n1 * id_t
+    J[2, 0] = -apom * inv_d + om * id_p
+    J[2, 1] = om * id_t
+    if y.shape[0] > 3:
+        J[3, 0] = apom * inv_d + ap * id_p
+        J[3, 1] = ap * id_t
+        J[4, 0] = load_p * inv_d + load * id_p
+        J[4, 1] = load * id_t
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _ros_solve(r, out, m00, m01, m10, m11, inv_det, J, fac):
+    """Solve (fac I - J) out = r for the block structure of J (2 x 2 block, quadratures)."""
+    k0 = (m11 * r[0] - m01 * r[1]) * inv_det
+    k1 = (m00 * r[1] - m10 * r[0]) * inv_det
+    out[0] = k0
+    out[1] = k1
+    for i in range(2, r.shape[0]):
+        out[i] = (r[i] + J[i, 0] * k0 + J[i, 1] * k1) / fac
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _rodas_step(y, f0, h, J, R, tmp, ftmp, rhs, ynew, fnew, ba, kappa, eps, vo, c, lnc):
+    """One RODAS4 step of length h from (y, f0 = f(y)) with the Jacobian J at y.
+
+    Fills R (6, n) with the stage increments k_1..k_6, ynew and fnew = f(ynew) (6
+    right-hand sides).  k_6 is the embedded error estimate.  Returns False when the
+    matrix I/(h gamma) - J is singular (the caller then shrinks the step).
+    """
+    n = y.shape[0]
+    fac = 1.0 / (h * _ro.gamma)
+    m00 = fac - J[0, 0]
+    m01 = -J[0, 1]
+    m10 = -J[1, 0]
+    m11 = fac - J[1, 1]
+    det = m00 * m11 - m01 * m10
+    if not (det != 0.0 and math.isfinite(det)):
+        return False
+    inv_det = 1.0 / det
+    _ros_solve(f0, R[0], m00, m01, m10, m11, inv_det, J, fac)
+    # stage 2
+    for j in range(n):
+        tmp[j] = y[j] + _ro.a21 * R[0, j]
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    hc1 = _ro.c21 / h
+    for j in range(n):
+        rhs[j] = ftmp[j] + hc1 * R[0, j]
+    _ros_solve(rhs, R[1], m00, m01, m10, m11, inv_det, J, fac)
+    # stage 3
+    for j in range(n):
+        tmp[j] = y[j] + _ro.a31 * R[0, j] + _ro.a32 * R[1, j]
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    hc1 = _ro.c31 / h
+    hc2 = _ro.c32 / h
+    for j in range(n):
+        rhs[j] = ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j]
+    _ros_solve(rhs, R[2], m00, m01, m10, m11, inv_det, J, fac)
+    # stage 4
+    for j in range(n):
+        tmp[j] = y[j] + _ro.a41 * R[0, j] + _ro.a42 * R[1, j] + _ro.a43 * R[2, j]
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    hc1 = _ro.c41 / h
+    hc2 = _ro.c42 / h
+    hc3 = _ro.c43 / h
+    for j in range(n):
+        rhs[j] = ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j] + hc3 * R[2, j]
+    _ros_solve(rhs, R[3], m00, m01, m10, m11, inv_det, J, fac)
+    # stage 5
+    for j in range(n):
+        tmp[j] = (
+            y[j] + _ro.a51 * R[0, j] + _ro.a52 * R[1, j] + _ro.a53 * R[2, j] + _ro.a54 * R[3, j]
+        )
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    hc1 = _ro.c51 / h
+    hc2 = _ro.c52 / h
+    hc3 = _ro.c53 / h
+    hc4 = _ro.c54 / h
+    for j in range(n):
+        rhs[j] = ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j] + hc3 * R[2, j] + hc4 * R[3, j]
+    _ros_solve(rhs, R[4], m00, m01, m10, m11, inv_det, J, fac)
+    # stage 6 at the embedded solution y5 + k5
+    for j in range(n):
+        tmp[j] += R[4, j]
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    hc1 = _ro.c61 / h
+    hc2 = _ro.c62 / h
+    hc3 = _ro.c63 / h
+    hc4 = _ro.c64 / h
+    hc5 = _ro.c65 / h
+    for j in range(n):
+        rhs[j] = (
+            ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j] + hc3 * R[2, j] + hc4 * R[3, j] + hc5 * R[4, j]
+        )
+    _ros_solve(rhs, R[5], m00, m01, m10, m11, inv_det, J, fac)
+    for j in range(n):
+        ynew[j] = tmp[j] + R[5, j]
+    _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
+    return True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _rodas_error(R, f0, f1, h, sc):
+    """max of two weighted RMS norms over (phi, ln theta, T): the step's embedded estimate
+    k_6, and the distance at mid-step between the cubic Hermite interpolant (the dense
+    output used for events) and RODAS' own continuous extension, both O(h^4): bounding it
+    keeps located events and samples as accurate as the steps."""
+    e_step = 0.0
+    e_dense = 0.0
+    for j in range(3):
+        d2 = (
+            _ro.d21 * R[0, j]
+            + _ro.d22 * R[1, j]
+            + _ro.d23 * R[2, j]
+            + _ro.d24 * R[3, j]
+            + _ro.d25 * R[4, j]
+        )
+        d3 = (
+            _ro.d31 * R[0, j]
+            + _ro.d32 * R[1, j]
+            + _ro.d33 * R[2, j]
+            + _ro.d34 * R[3, j]
+            + _ro.d35 * R[4, j]
+        )
+        dd = 0.125 * h * (f0[j] - f1[j]) - 0.25 * d2 - 0.125 * d3
+        e_step += (R[5, j] / sc[j]) ** 2
+        e_dense += (dd / sc[j]) ** 2
+    return math.sqrt(max(e_step, e_dense) / 3.0)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _hermite_coeffs(y0, y1, f0, f1, h, F):
+    """Dense output of a Rosenbrock step in the layout of rk.dense_eval: the cubic Hermite
+    interpolant of (y0, f0) and (y1, f1) (higher coefficients zero)."""
+    for j in range(y0.shape[0]):
+        dy = y1[j] - y0[j]
+        F[0, j] = dy
+        F[1, j] = h * f0[j] - dy
+        F[2, j] = 2.0 * dy - h * (f1[j] + f0[j])
+        for r in range(3, 7):
+            F[r, j] = 0.0
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _ros_factor(err):
+    """h_new/h from an error of order-4 Rosenbrock (rodas.f: safety 0.9, ratio in [0.2, 6])."""
+    return 1.0 / max(1.0 / 6.0, min(5.0, err**0.25 / 0.9))
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _spectral_radius(J):
+    """Largest |eigenvalue| of the 2 x 2 block of J (the stiff part of the system)."""
+    tr = J[0, 0] + J[1, 1]
+    det = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
+    disc = 0.25 * tr * tr - det
+    if disc >= 0.0:
+        s = math.sqrt(disc)
+        return max(abs(0.5 * tr + s), abs(0.5 * tr - s))
+    return math.sqrt(abs(det))
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -240,6 +482,7 @@ def integrate(
     sample_tau,
     sample_T_in,
     samples,
+    integrator=1,
 ):
     """Integrate from y0 = (phi, ln theta, T, s, s_o) until a certificate or a stop.
 
@@ -260,12 +503,16 @@ def integrate(
         sample_tau: sorted hybrid-time values at which to record the state (may be empty).
         sample_T: sorted physical-time values T at which to record the state (may be empty).
         samples: output array (len(sample_tau) + len(sample_T), 5) filled in order.
+        integrator: 0 = DOP853 only; 1 = automatic (DOP853, switching to RODAS4 when
+            Hairer's stiffness test fires 15 times in a row, and back when h |lambda| < 2
+            for 20 steps); 2 = RODAS4 only.
 
     Returns:
         (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, peak_psi, peak_psi_T,
-         n_steps, n_rhs, n_rejected, err_sum, n_filled) where T_cert is the T of the runaway
-        certificate (nan if none) and err_sum the sum over accepted steps of the
-        normalised local error estimate times rtol (an a-posteriori accuracy indicator).
+         n_steps, n_rhs, n_rejected, err_sum, n_filled, n_stiff_steps, n_jacobians) where
+        T_cert is the T of the runaway certificate (nan if none) and err_sum the sum over
+        accepted steps of the normalised local error estimate times rtol (an a-posteriori
+        accuracy indicator).
     """
     n = y0.shape[0]  # 5, or 3 = (phi, ln theta, T) when slip and load point are not wanted
     c = vo if vo > 0.0 else 1.0
@@ -291,6 +538,9 @@ def integrate(
     fnew = np.empty(n)
     ye = np.empty(n)  # state and slope at the end of the usable part of a step
     fe = np.empty(n)
+    R = np.empty((6, n))  # RODAS4 stage increments
+    J = np.empty((n, 2))  # Jacobian columns d f/d phi, d f/d ln theta
+    rhs = np.empty(n)
 
     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
     n_rhs = 1
@@ -356,6 +606,8 @@ def integrate(
             0,
             0.0,
             n_filled,
+            0,
+            0,
         )
     if check_runaway and y[0] + y[1] > Lstar:
         runaway = True
@@ -365,46 +617,92 @@ def integrate(
     rejected_last = False
     h_acc_prev = 0.0
     err_acc_prev = 1.0
+    # stiffness switching (Hairer's test on DOP853 steps; spectral radius on RODAS4 steps)
+    stiff = integrator == 2
+    n_stiff_hits = 0  # consecutive accepted DOP853 steps with h |lambda| > STIFF_THRESHOLD
+    n_nonstiff = 0
+    n_easy = 0  # consecutive accepted RODAS4 steps with h |lambda| < 2
+    n_stiff_steps = 0
+    n_jac = 0
     while n_steps + n_rej < max_steps:
-        # ---- one DOP853 step --------------------------------------------------
-        for j in range(n):
-            K[0, j] = f[j]
-        for s in range(1, _NS):
-            _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-        rk.step_state(K, y, h, ynew)
-        _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
-        for j in range(n):
-            K[_NS, j] = fnew[j]
-        n_rhs += _NS
+        if stiff:
+            # ---- one RODAS4 step (stiff phase) ----------------------------------
+            _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+            n_jac += 1
+            ok = _rodas_step(y, f, h, J, R, tmp, ftmp, rhs, ynew, fnew, ba, kappa, eps, vo, c, lnc)
+            n_rhs += 6
+            err = math.inf
+            if ok:
+                finite = True
+                for j in range(n):
+                    if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
+                        finite = False
+                if finite:
+                    for j in range(3):
+                        sc[j] = rk.error_scale(
+                            y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf
+                        )
+                    err = _rodas_error(R, f, fnew, h, sc)
+            if not (err <= 1.0):
+                n_rej += 1
+                h *= _ros_factor(err) if math.isfinite(err) else rk.MIN_FACTOR
+                rejected_last = True
+                if not (h > 1e-300):
+                    status = _STEP_UNDERFLOW
+                    break
+                continue
+            _hermite_coeffs(y, ynew, f, fnew, h, F)
+            n_stiff_steps += 1
+        else:
+            # ---- one DOP853 step --------------------------------------------------
+            for j in range(n):
+                K[0, j] = f[j]
+            for s in range(1, _NS):
+                _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+            rk.step_state(K, y, h, ynew)
+            _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
+            for j in range(n):
+                K[_NS, j] = fnew[j]
+            n_rhs += _NS
 
-        finite = True
-        for j in range(n):
-            if not math.isfinite(ynew[j]):
-                finite = False
-        # Error norm over (phi, ln theta, T) only, so that the 3- and 5-component runs
-        # take identical steps (slip and load point are quadratures of the same accuracy).
-        # phi, ln theta: mixed absolute/relative; T (a non-decreasing integral from 0):
-        # purely relative, so that short blow-up times keep their relative accuracy.
-        for j in range(3):
-            sc[j] = rk.error_scale(y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf)
-        err = rk.error_norm(K, h, sc, 3) if finite else math.inf
+            finite = True
+            for j in range(n):
+                if not math.isfinite(ynew[j]):
+                    finite = False
+            # Error norm over (phi, ln theta, T) only, so that the 3- and 5-component runs
+            # take identical steps (slip and load point are quadratures of the same accuracy).
+            # phi, ln theta: mixed absolute/relative; T (a non-decreasing integral from 0):
+            # purely relative, so that short blow-up times keep their relative accuracy.
+            for j in range(3):
+                sc[j] = rk.error_scale(y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf)
+            err = rk.error_norm(K, h, sc, 3) if finite else math.inf
 
-        if not (err <= 1.0):
-            n_rej += 1
-            h *= rk.reject_factor(err)
-            rejected_last = True
-            # The system is autonomous, so a step far below the spacing of tau is still
-            # meaningful (excursions to phi ~ 1e7 at b/a -> 1 need them); only a step that
-            # keeps failing down to ~0 (non-finite states) ends the run.  Also catches NaN.
-            if not (h > 1e-300):
-                status = _STEP_UNDERFLOW
-                break
-            continue
+            if not (err <= 1.0):
+                n_rej += 1
+                h *= rk.reject_factor(err)
+                rejected_last = True
+                # The system is autonomous, so a step far below the spacing of tau is still
+                # meaningful (excursions to phi ~ 1e7 at b/a -> 1 need them); only a step that
+                # keeps failing down to ~0 (non-finite states) ends the run.  Also catches NaN.
+                if not (h > 1e-300):
+                    status = _STEP_UNDERFLOW
+                    break
+                continue
+            # Hairer's stiffness test: h |lambda| from the last two stages (both at c = 1;
+            # tmp still holds the argument of stage 12)
+            if integrator == 1:
+                if rk.stiffness_ratio(K, ynew, tmp, h, 2) > rk.STIFF_THRESHOLD:
+                    n_stiff_hits += 1
+                    n_nonstiff = 0
+                else:
+                    n_nonstiff += 1
+                    if n_nonstiff >= 6:
+                        n_stiff_hits = 0
 
         # ---- accepted: events on [tau, tau + x_end h] ----------------------------
         n_steps += 1
         err_sum += err * rtol
-        dense_ready = False
+        dense_ready = stiff  # a RODAS4 step has its (Hermite) dense output already
         stop_x = 2.0  # fraction of the step where integration stops (2 = none)
         stop_status = -1
 
@@ -412,9 +710,10 @@ def integrate(
         # (peak, certificate) is taken from beyond it.
         x_end = 1.0
         if ynew[2] >= t_end:
-            _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
-            n_rhs += 3
-            dense_ready = True
+            if not dense_ready:
+                _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+                n_rhs += 3
+                dense_ready = True
             x_end = _root(
                 F,
                 y,
@@ -451,7 +750,25 @@ def integrate(
                 _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
                 n_rhs += 3
                 dense_ready = True
-            xp = _root(F, y, -2, 0.0, 0.0, x_end, gp0, gp1, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+            xp = _root(
+                F,
+                y,
+                -2,
+                0.0,
+                0.0,
+                x_end,
+                gp0,
+                gp1,
+                tmp,
+                ftmp,
+                ba,
+                kappa,
+                eps,
+                vo,
+                c,
+                lnc,
+                h if stiff else 0.0,
+            )
             rk.dense_eval(F, y, xp, tmp)
             if tmp[0] + ba * tmp[1] > peak_psi:
                 peak_psi = tmp[0] + ba * tmp[1]
@@ -473,7 +790,23 @@ def integrate(
                     n_rhs += 3
                     dense_ready = True
                 xm = _root(
-                    F, y, -1, 0.0, 0.0, x_end, f[0], fe[0], tmp, ftmp, ba, kappa, eps, vo, c, lnc
+                    F,
+                    y,
+                    -1,
+                    0.0,
+                    0.0,
+                    x_end,
+                    f[0],
+                    fe[0],
+                    tmp,
+                    ftmp,
+                    ba,
+                    kappa,
+                    eps,
+                    vo,
+                    c,
+                    lnc,
+                    h if stiff else 0.0,
                 )
                 rk.dense_eval(F, y, xm, tmp)
                 if tmp[0] > peak_phi:
@@ -516,13 +849,14 @@ def integrate(
                         stop_status = _RETURNED
                     if ye[0] >= phi_ss:
                         above = True
-                    elif (
+                    if (
                         stop_status < 0
                         and abs(ye[0] - phi_ss) < eq_tol
                         and abs(ye[0] + ye[1]) < eq_tol
                     ):
                         # within eq_tol of the (asymptotically stable) steady state
-                        # (phi = ln v_o, L = 0) without crossing it: a node, not a focus.
+                        # (phi = ln v_o, L = 0) without crossing it, from below or above:
+                        # a node, not a focus (stiff machines approach from above)
                         stop_x = x_end
                         stop_status = _CONVERGED
                 elif fe[0] < 0.0 and stop_status < 0:
@@ -616,14 +950,43 @@ def integrate(
         for j in range(n):
             y[j] = ynew[j]
             f[j] = fnew[j]
-        # elementary controller with Gustafsson's predictive correction (Hairer & Wanner
-        # IV.8): when the error constant changes steadily from step to step (approaching
-        # a sharp peak), extrapolate the trend instead of retrying a step that fails.
-        fac, err_c = rk.accept_factor(err, h, h_acc_prev, err_acc_prev, rejected_last)
-        h_acc_prev = h
-        err_acc_prev = err_c
-        rejected_last = False
-        h *= fac
+        if stiff:
+            # RODAS4 controller with Gustafsson's predictive correction (rodas.f)
+            fac = _ros_factor(err)
+            if h_acc_prev > 0.0:
+                gus = (h_acc_prev / h) * (max(err, 1e-12) ** 2 / err_acc_prev) ** 0.25 / 0.9
+                fac = min(fac, 1.0 / max(1.0 / 6.0, min(5.0, gus)))
+            if rejected_last:
+                fac = min(1.0, fac)
+            h_acc_prev = h
+            err_acc_prev = max(1e-2, err)
+            rejected_last = False
+            h *= fac
+            if integrator == 1:
+                # back to DOP853 once the step is well inside its stability region
+                n_easy = n_easy + 1 if h * _spectral_radius(J) < 2.0 else 0
+                if n_easy >= 20:
+                    stiff = False
+                    n_stiff_hits = 0
+                    n_nonstiff = 0
+                    h_acc_prev = 0.0
+                    err_acc_prev = 1.0
+        else:
+            # elementary controller with Gustafsson's predictive correction (Hairer &
+            # Wanner IV.8): when the error constant changes steadily from step to step
+            # (approaching a sharp peak), extrapolate the trend instead of retrying a step
+            # that fails.
+            fac, err_c = rk.accept_factor(err, h, h_acc_prev, err_acc_prev, rejected_last)
+            h_acc_prev = h
+            err_acc_prev = err_c
+            rejected_last = False
+            h *= fac
+            if n_stiff_hits >= 15:
+                # stability, not accuracy, limits the step: continue with RODAS4
+                stiff = True
+                n_easy = 0
+                h_acc_prev = 0.0
+                err_acc_prev = 1.0
 
     if status == _BUDGET and runaway:
         status = _RUNAWAY if y[0] - lnc > phi_stop else _BUDGET
@@ -645,6 +1008,8 @@ def integrate(
         n_rej,
         err_sum,
         n_filled,
+        n_stiff_steps,
+        n_jac,
     )
 
 
@@ -680,12 +1045,14 @@ def run(
     sample_tau: NDArray[np.float64],
     sample_T: NDArray[np.float64],
     samples: NDArray[np.float64],
+    integrator: int = 1,
 ) -> EngineResult:
     """:func:`integrate` with its result as an :class:`EngineResult` (status a :class:`Status`).
 
     Same arguments as :func:`integrate` (validated by the caller: rsfcore.trajectory,
-    rsfcore.protocols).  The compiled kernel itself returns a plain tuple of ints and
-    floats; this thin wrapper names it.
+    rsfcore.protocols); ``integrator`` one of :class:`Integrator` (default AUTO).  The
+    compiled kernel itself returns a plain tuple of ints and floats; this thin wrapper
+    names it.
     """
     res = integrate(
         y0,
@@ -705,6 +1072,7 @@ def run(
         sample_tau,
         sample_T,
         samples,
+        int(integrator),
     )
     # the kernel already returns Python ints and floats: only the status is wrapped
     return EngineResult(_STATUS_OF[res[0]], *res[1:])

@@ -7,8 +7,8 @@ A trajectory of `eq:psi_T` / `eq:phi_T` is integrated with the compiled DOP853 e
   absorbing (dL/ds > g(L) > 0) and leads to blow-up in finite time: exact.
 * ``returned_to_steady_state``: for kappa > kappa_crit, phi fell back below ln v_o
   after its excursion (the trajectory is then inside the basin of steady sliding).
-* ``converged_to_steady_state``: for kappa > kappa_crit, a monotone approach reached
-  |phi - ln v_o|, |L| < 1e-6.
+* ``converged_to_steady_state``: for kappa > kappa_crit, a monotone approach (from below
+  or above, as on stiff machines) reached |phi - ln v_o|, |L| < 1e-6.
 * ``U_negative_closed_orbit`` / ``U_nonnegative_open_orbit``: kappa = kappa_crit, v_o > 0,
   sign of the closed-form U of `eq: trajectories 1` (every orbit closed at eps = 1).
 * ``vo0_L_below_Lstar`` / ``vo0_L_above_Lstar`` / ``vo0_L_on_Lstar``: v_o = 0, where
@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from . import limits as lim
 from .analytic import U_kcrit
-from .engine import EngineResult, Status, blowup_tail, run
+from .engine import EngineResult, Integrator, Status, blowup_tail, run
 from .errors import BudgetExceeded, UndecidedError
 from .jsonsafe import finite_or_none
 from .laws import L_star
@@ -57,6 +57,12 @@ __all__ = [
 
 Perturbation = Literal["velocity-jump", "load-point-jump"]
 PERTURBATIONS: tuple[str, ...] = ("velocity-jump", "load-point-jump")
+IntegratorName = Literal["auto", "explicit", "rosenbrock"]
+_INTEGRATORS: dict[str, Integrator] = {
+    "auto": Integrator.AUTO,
+    "explicit": Integrator.EXPLICIT,
+    "rosenbrock": Integrator.ROSENBROCK,
+}
 
 # DEFAULT_RTOL, RTOL_RANGE and SIZE_MAX (|d| of a velocity jump) come from rsfcore.limits.
 PHI_STOP = 40.0
@@ -108,10 +114,14 @@ class TrajectoryResult:
     phi = ln(V/V_*) up to the decision (inf for a runaway).  ``rel_accuracy`` is the
     estimated relative accuracy of the reported times and peak: 3 x the sum of the
     normalised local error estimates of the accepted steps (floored at rtol), an upper
-    bound on the delivered error in all validation runs against rtol = 1e-14
-    (tests/test_trajectory.py).  ``complete`` is False when the outcome is certain but
-    the step budget ran out before the return/blow-up time (then None) and the final peak
-    (then the largest phi reached so far, a lower bound): stiff corners, kappa ~ 1e6.
+    bound on the delivered error in all validation runs against rtol = 1e-13/1e-14
+    references (tests/core/test_trajectory.py, test_stiff.py); for peak_phi near 0 read it
+    as absolute.  Not covered: the time of a plateau-like peak (phi within 1e-10 of its
+    maximum over a stretch of T, as after a load-point jump on a stiff machine), which is
+    ill-conditioned for any method (measured 1.3e-6 relative off at rtol 1e-10).
+    ``complete`` is False when the outcome is certain but the step budget ran out before
+    the return/blow-up time (then None) and the final peak (then the largest phi reached
+    so far, a lower bound).
     """
 
     outcome: Literal["stable", "unstable"]
@@ -258,6 +268,7 @@ def _run(
     sample_tau: NDArray[np.float64] = _EMPTY,
     sample_T: NDArray[np.float64] = _EMPTY,
     max_steps: int = MAX_STEPS,
+    integrator: Integrator = Integrator.AUTO,
 ) -> tuple[EngineResult, NDArray[np.float64]]:
     n_samp = sample_tau.shape[0] + sample_T.shape[0]
     lth0 = (psi0 - phi0) / p.ba
@@ -284,6 +295,7 @@ def _run(
         sample_tau,
         sample_T,
         samples,
+        integrator,
     )
     return res, samples
 
@@ -297,6 +309,7 @@ def classify(
     rtol: float = DEFAULT_RTOL,
     method: Literal["auto", "integrate"] = "auto",
     max_steps: int = MAX_STEPS,
+    integrator: IntegratorName = "auto",
 ) -> TrajectoryResult:
     """Certified stable/unstable outcome of one perturbation (no trajectory returned).
 
@@ -306,13 +319,23 @@ def classify(
         size: d for a velocity jump ([-1e4, 1e4]) or dv/v_o for a load-point jump ((-1, ..]).
         start: explicit start (phi0, psi0) instead of a named perturbation.
         rtol: relative tolerance of the integrator, [1e-13, 1e-3] (rsfcore.limits.RTOL).
+        integrator: "auto" (DOP853, switching to the Rosenbrock method RODAS4 while the
+            problem is stiff; the default), "explicit" (DOP853 only) or "rosenbrock"
+            (RODAS4 only); see :func:`simulate`.
 
     Returns a TrajectoryResult with outcome, certificate, blow-up or return time and the
     true peak.  Raises UndecidedError if no certificate is reached within the budget
     (1e7 steps, ~10 s), ParameterError on invalid input.
     """
     return simulate(
-        params, perturbation, size, start=start, rtol=rtol, method=method, max_steps=max_steps
+        params,
+        perturbation,
+        size,
+        start=start,
+        rtol=rtol,
+        method=method,
+        max_steps=max_steps,
+        integrator=integrator,
     )
 
 
@@ -330,22 +353,36 @@ def simulate(
     physical: PhysicalParams | None = None,
     method: Literal["auto", "integrate"] = "auto",
     max_steps: int = MAX_STEPS,
+    integrator: IntegratorName = "auto",
 ) -> TrajectoryResult:
     """Classify a perturbation and optionally return its trajectory.
 
     The trajectory is returned when ``n_points > 0`` (evenly spaced in the engine's
     hybrid time when sampling="tau", which resolves both slow creep and the fast
     excursion, or evenly in T when sampling="time") or when ``times`` (dimensionless T,
-    sorted, >= 0) are given.  Samples come from the 7th-order dense output, so they
-    carry the integrator's accuracy.  Without ``t_end`` the trajectory ends at the
-    decision (return to steady state, blow-up, or the passed peak for v_o = 0); with
-    ``t_end`` it runs to that T (or to blow-up if earlier).  ``physical`` adds SI
-    columns: t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m.
+    sorted, >= 0) are given.  Samples come from the dense output (7th order for DOP853
+    steps; for RODAS4 steps a cubic Hermite interpolant whose error the step control
+    bounds like the step's own), so they carry the integrator's accuracy.  Without
+    ``t_end`` the trajectory ends at the decision (return to steady state, blow-up, or the
+    passed peak for v_o = 0); with ``t_end`` it runs to that T (or to blow-up if
+    earlier).  ``physical`` adds SI columns: t_s, V_m_s, tau_change_Pa, friction,
+    theta_s, slip_m, load_point_m.
     ``method="integrate"`` ignores closed-form decisions (kappa = kappa_crit, v_o = 0)
     and certifies by integration alone, to check the closed forms.  ``max_steps``
     (<= 1e7) bounds the work: UndecidedError(reason="budget") when it runs out first.
+
+    ``integrator``: "auto" (default) runs DOP853 and switches to RODAS4 (an L-stable
+    Rosenbrock method of order 4 with the analytic Jacobian) when Hairer's stiffness test
+    (h |lambda| > 6.1 on 15 consecutive steps) shows that stability, not accuracy, limits
+    the step, and back once h |lambda| < 2 for 20 steps: stiff machines (kappa up to 1e6)
+    then take ~1e3 steps instead of ~1e6.  "explicit" and "rosenbrock" force one method
+    (tests/core/test_stiff.py compares them).  Events, certificates and peaks are located
+    the same way with either.
     """
     rtol = lim.RTOL.check(rtol)
+    if integrator not in _INTEGRATORS:
+        raise ParameterError("integrator", integrator, "'auto', 'explicit' or 'rosenbrock'")
+    integ = _INTEGRATORS[integrator]
     max_steps = int(lim.MAX_STEPS.check(max_steps))
     if start is not None:
         phi0 = lim.PHI_START.check(start[0])
@@ -384,7 +421,7 @@ def simulate(
         # grows, and a slow outward spiral near kappa_crit would otherwise use 1e7 steps)
         decided = plan.outcome is not None or (p_run.kappa < p_run.kappa_crit and method == "auto")
         budget = min(DECIDED_BUDGET, max_steps) if decided else max_steps
-        res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget)
+        res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget, integrator=integ)
     status: Status | None
     y_end: NDArray[np.float64] | None
     peak_T: float | None
@@ -465,7 +502,18 @@ def simulate(
     want = n_points > 0 or (times is not None and len(times) > 0)
     if want:
         traj = _sample(
-            p_run, phi0, psi0, rtol, plan, tau_end, t_end, n_points, times, sampling, physical
+            p_run,
+            phi0,
+            psi0,
+            rtol,
+            plan,
+            tau_end,
+            t_end,
+            n_points,
+            times,
+            sampling,
+            physical,
+            integ,
         )
 
     return TrajectoryResult(
@@ -500,6 +548,7 @@ def _sample(
     times: Sequence[float] | None,
     sampling: str,
     physical: PhysicalParams | None,
+    integrator: Integrator = Integrator.AUTO,
 ) -> Trajectory:
     if sampling not in ("tau", "time"):
         raise ParameterError("sampling", sampling, "'tau' or 'time'")
@@ -518,22 +567,41 @@ def _sample(
             t_end=min(te, float(sT[-1])),
             stop_on_return=False,
             sample_T=sT,
+            integrator=integrator,
         )
     else:
         if t_end is not None or sampling == "time":
-            res0, _ = _run(p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor)
+            res0, _ = _run(
+                p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, integrator=integrator
+            )
             tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         else:
             T_end = math.nan
         if sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
             res, samples = _run(
-                p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_T=sT
+                p,
+                phi0,
+                psi0,
+                rtol,
+                plan,
+                t_end=te,
+                stop_on_return=sor,
+                sample_T=sT,
+                integrator=integrator,
             )
         else:
             sTau = np.linspace(0.0, tau_end, n_points)
             res, samples = _run(
-                p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, sample_tau=sTau
+                p,
+                phi0,
+                psi0,
+                rtol,
+                plan,
+                t_end=te,
+                stop_on_return=sor,
+                sample_tau=sTau,
+                integrator=integrator,
             )
     n = res.n_filled
     s = samples[:n]

@@ -62,12 +62,6 @@ def test_matrix_velocity_jumps(vo: float) -> None:
             assert r.blowup_time >= 0
 
 
-#: kappa = kappa_ratio (b/a - 1) = 1e6 at b/a = 100: the stiff corner (a creep on a stiff
-#: slow manifold costs ~2e6 explicit steps, 3-13 s per case on a loaded 2-core machine)
-def _stiff_corner(ba: float, kr: float) -> bool:
-    return ba == 100.0 and kr == 1e4
-
-
 def _check_load_point_jump(
     r: TrajectoryResult, eps: float, ba: float, kr: float, dv: float
 ) -> None:
@@ -75,31 +69,20 @@ def _check_load_point_jump(
     assert r.outcome in ("stable", "unstable"), ctx
     assert _finite_or_none(r.blowup_time, r.return_time, r.peak_time), ctx
     assert not math.isnan(r.peak_phi) and 0 < r.rel_accuracy < 1e-3, ctx
+    assert r.complete or r.certificate == "linear_instability", ctx  # (no blow-up time: by design)
     if 0.0 < kr < 1.0:
         assert r.outcome == "unstable", ctx  # kind "zero": every perturbation grows
 
 
 def test_matrix_load_point_jumps() -> None:
-    """Every (eps, b/a, kappa/kappa_crit, dv) outside the stiff corner, with a step budget
-    (not a time limit): a case that needed more would raise BudgetExceeded."""
+    """Every (eps, b/a, kappa/kappa_crit, dv), with a step budget (not a time limit): a
+    case that needed more would raise BudgetExceeded.  The stiff corner kappa = 1e6 (b/a =
+    100, kappa/kappa_crit = 1e4) took DOP853 alone up to 2.1e6 steps (3-27 s per case, the
+    test once hit pytest-timeout); with the switch to RODAS4 it takes <= 1.1e3 steps."""
     for eps, ba, kr, dv in itertools.product(EPS, BA, KAPPA_RATIO, [1e-12, 1.0, 700.0]):
-        if _stiff_corner(ba, kr):
-            continue
         p = Params.from_ratio(ba, kr, eps, 1.0)
         r = classify(p, "load-point-jump", dv, max_steps=MATRIX_BUDGET)
         _check_load_point_jump(r, eps, ba, kr, dv)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("eps", EPS)
-def test_matrix_load_point_jumps_stiff_corner(eps: float) -> None:
-    """kappa = 1e6, b/a = 100: the explicit engine needs up to 2.1e6 steps (measured); the
-    budget 3e6 bounds the work instead of a wall-clock limit.  The closed-form-decided cases
-    (eps kappa >= kappa_crit) stop at the decided budget (5e5) with complete=False."""
-    for dv in (1e-12, 1.0, 700.0):
-        p = Params.from_ratio(100.0, 1e4, eps, 1.0)
-        r = classify(p, "load-point-jump", dv, max_steps=3_000_000)
-        _check_load_point_jump(r, eps, 100.0, 1e4, dv)
 
 
 def test_negative_and_tiny_perturbations() -> None:
