@@ -5,10 +5,12 @@
   step, dense output, Illinois root finder and stiffness indicator as numba kernels,
   used by the spring-slider engine (rsfcore.engine) and the separatrix integrator
   (rsfcore.separatrix).
+* :mod:`rsfcore.ode.rodas4_tableau`: the published RODAS4 coefficients of the engine's
+  Rosenbrock method for stiff phases.
 """
 
 from __future__ import annotations
 
-from . import dop853_tableau, rk
+from . import dop853_tableau, rk, rodas4_tableau
 
-__all__ = ["dop853_tableau", "rk"]
+__all__ = ["dop853_tableau", "rk", "rodas4_tableau"]
