@@ -154,7 +154,7 @@ def test_analytic_u_png(c: httpx.Client) -> None:
 def test_openapi_documents_formats(c: httpx.Client) -> None:
     spec = c.get("/openapi.json").json()["paths"]
     for path, method, enum in (
-        ("/v1/trajectory", "post", ["json", "png"]),
+        ("/v1/trajectory", "post", ["json", "png", "csv"]),
         ("/v1/analytic/u", "post", ["json", "png"]),
         ("/v1/sweeps/{sweep_id}/diagram", "get", ["json", "png"]),
         ("/v1/figures/{name}", "get", ["png", "svg"]),
