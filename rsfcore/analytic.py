@@ -41,6 +41,7 @@ __all__ = [
     "velocity_jump_crit_vo0",
     "load_point_jump_crit_kcrit",
     "velocity_jump_crit_kcrit_acc",
+    "kcrit_jump_side",
     "closed_form_critical",
     "ClosedFormResult",
     "L_star_acc",
@@ -473,6 +474,35 @@ def _ljump_kcrit_acc(ba: float, eps: float) -> tuple[float, float, float]:
         return math.inf, math.inf, 0.0
     dv = 1.0 / ((ba - 1.0) * (1.0 - eps))
     return dv, math.log1p(dv), _LJUMP_ULPS * UNIT_ROUNDOFF
+
+
+def kcrit_jump_side(ba: float, eps: float, perturbation: str, log_size: float) -> int:
+    """Side of the critical trajectory for a named jump at kappa = kappa_crit, v_o > 0.
+
+    Returns -1 (U < 0: closed orbit, stable), +1 (U > 0: open orbit, runaway for eps < 1)
+    or 0 (within the rounding of the closed form: undecidable in double precision).
+    Velocity jump (log_size = d): the sign of U at the start is the sign of the closed
+    form's own residual h(d) (:func:`_vjump_kcrit_acc`; psi - psi_crit = (b/a) h(d), and U
+    increases with psi at fixed phi), certain where |h| > 8u S, so a jump d_crit (1 -/+ 10
+    rel_accuracy) is always decided; U itself, a difference of O(1) terms, would not
+    resolve it.  Load-point jump (log_size = ln(1 + dv)): stable iff dv < 1/(kappa_crit
+    (1 - eps)), compared in the logarithm with a margin of 8u (1 + |l|).  At eps = 1 every
+    orbit is closed: -1.
+    """
+    if eps >= 1.0:
+        return -1
+    if perturbation == "velocity-jump":
+        kc = ba - 1.0
+        D = ba * (1.0 - eps) + eps
+        q = (1.0 - eps) * kc / D
+        h, _, S = _h_kcrit(log_size, eps, kc, D, q)
+        if abs(h) <= 8.0 * UNIT_ROUNDOFF * S:
+            return 0
+        return -1 if h < 0.0 else 1
+    _, lc, _ = _ljump_kcrit_acc(ba, eps)
+    if abs(log_size - lc) <= 8.0 * UNIT_ROUNDOFF * (1.0 + abs(lc)):
+        return 0
+    return -1 if log_size < lc else 1
 
 
 def velocity_jump_crit_vo0(ba: float, kappa: float, eps: float) -> float:

@@ -34,13 +34,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import limits as lim
-from .analytic import U_kcrit
+from .analytic import U_kcrit_sign, kcrit_jump_side
 from .engine import EngineResult, Integrator, Status, blowup_tail, run
 from .errors import BudgetExceeded, UndecidedError
 from .jsonsafe import finite_or_none
 from .laws import L_star
 from .limits import DEFAULT_RTOL, RTOL_RANGE, SIZE_MAX, STEP_BUDGET
 from .params import ParameterError, Params, PhysicalParams, check_range
+from .separatrix import _asym_coeffs
 
 __all__ = [
     "Perturbation",
@@ -207,6 +208,77 @@ def start_point(params: Params, perturbation: str, size: float) -> tuple[float, 
     return phi_ss, psi_ss, params.with_(vo=new_vo)
 
 
+def start_from_log(
+    params: Params, perturbation: str, log_size: float
+) -> tuple[float, float, Params]:
+    """Start and run parameters of a perturbation given by its logarithm.
+
+    velocity-jump: log_size = d itself (any finite d; starts beyond |d| = 1e4 are decided
+        without integration where a closed form applies, see :func:`simulate`);
+    load-point-jump: log_size = l = ln(1 + dv) (any finite l, so sizes dv beyond the double
+        range, e.g. critical sizes reported by their log_critical_size, can be checked).
+        Where v_o e^l is outside (0, 1e300] the run is made in the frame v_o = 1, by the
+        invariance phi -> phi + ln v_o, psi -> psi + (1 - b/a) ln v_o, T -> v_o T: start
+        (-l, (b/a - 1) l) with Params.vo = 1 (the returned params say so).
+    """
+    if perturbation not in PERTURBATIONS:
+        raise ParameterError("perturbation", perturbation, "one of " + ", ".join(PERTURBATIONS))
+    lg = check_range("log_size", log_size)
+    vo = params.vo
+    lnvo = math.log(vo) if vo > 0.0 else 0.0
+    if perturbation == "velocity-jump":
+        return lnvo + lg, (1.0 - params.ba) * lnvo + lg, params
+    if vo == 0.0:
+        raise ParameterError(
+            "vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)"
+        )
+    ln_new = lnvo + lg
+    if -690.0 < ln_new <= math.log(1e300):
+        return lnvo, (1.0 - params.ba) * lnvo, params.with_(vo=math.exp(ln_new))
+    return -lg, (params.ba - 1.0) * lg, params.with_(vo=1.0)
+
+
+def _separatrix_asymptote(
+    p: Params, phi0: float, psi0: float, ell0: float, lstar: float, resolution: float
+) -> int:
+    """Side of the separatrix for a start far out along its asymptote (kappa > kappa_crit).
+
+    With t = ln theta + ln v_o and z = e^(t - L*), the separatrix is u = L* - c1 z - c2 z^2
+    + O((c z)^3) (rsfcore.separatrix).  Where c z <= 1e-4 the start is decided here:
+    -1 below (stable), +1 above (unstable), 0 too close to tell (ell0 = L at the start,
+    lstar = L*).  This is where integrating (phi, ln theta) cannot resolve L - L*: near
+    b/a -> 1, c1 ~ kappa_crit is tiny and the separatrix is u = L* to double precision
+    (issue 13: b/a = 1 + 1e-12, kappa = 1e-8, d_crit (1 - 1e-8) was classified unstable).
+    Margin: 100x the measured truncation (~1e2 (c z)^3 relative) plus the rounding of
+    ell0 from (phi0, psi0).  Used only for starts within ``resolution`` of the separatrix
+    (what the integration cannot resolve; inf for starts it cannot take at all), so that
+    every other start keeps its integration certificate.
+    """
+    t0 = (psi0 - phi0) / p.ba + math.log(p.vo)
+    if not (t0 < lstar - 1.0):
+        return 0
+    _, c1, c2 = _asym_coeffs(p.kappa, p.kappa_crit, p.eps)
+    z = math.exp(t0 - lstar)
+    cz = max(abs(c1), math.sqrt(abs(c2))) * z
+    if not (cz <= 1e-4):
+        return 0
+    u_sep = lstar - z * (c1 + c2 * z)
+    tol = 1e4 * cz**3 * max(1.0, lstar) + 8.0 * 2.0**-53 * (
+        abs(phi0) + abs(psi0) / p.ba + abs(t0) + lstar
+    )
+    if abs(ell0 - u_sep) > resolution:
+        return 0
+    if ell0 < u_sep - tol:
+        return -1
+    if ell0 > u_sep + tol:
+        return 1
+    return 0
+
+
+#: certificates of the kappa = kappa_crit plan (and its undecided case, None)
+_U_CERTS = ("U_negative_closed_orbit", "U_nonnegative_open_orbit", None)
+
+
 @dataclass
 class _Plan:
     check_runaway: bool
@@ -215,7 +287,7 @@ class _Plan:
     certificate: str | None
 
 
-def _plan(p: Params, phi0: float, psi0: float) -> _Plan:
+def _plan(p: Params, phi0: float, psi0: float, resolution: float = 0.0) -> _Plan:
     kc = p.kappa_crit
     Ls = float(L_star(p.kappa, kc, p.eps))
     L0 = phi0 + (psi0 - phi0) / p.ba
@@ -241,14 +313,23 @@ def _plan(p: Params, phi0: float, psi0: float) -> _Plan:
     if abs(p.kappa - kc) <= KCRIT_TOL * kc:
         if p.eps == 1.0:
             return _Plan(False, True, "stable", "U_negative_closed_orbit")
-        U0 = float(U_kcrit(phi0, psi0, p.ba, p.eps, p.vo))
-        if U0 < 0.0:
+        # the sign of U of `eq: trajectories 1`, from its reduced form (no over/underflow
+        # for any v_o); within rounding of U = 0 the integration decides
+        sgn = int(U_kcrit_sign(phi0, psi0, p.ba, p.eps, p.vo))
+        if sgn < 0:
             return _Plan(False, True, "stable", "U_negative_closed_orbit")
-        return _Plan(True, False, "unstable", "U_nonnegative_open_orbit")
+        if sgn > 0:
+            return _Plan(True, False, "unstable", "U_nonnegative_open_orbit")
+        return _Plan(True, True, None, None)
     if p.kappa < kc:
         return _Plan(True, False, None, None)
     if not math.isfinite(Ls):
         return _Plan(False, True, "stable", "no_runaway_possible")
+    side = _separatrix_asymptote(p, phi0, psi0, L0, Ls, resolution)
+    if side < 0:
+        return _Plan(False, True, "stable", "below_separatrix_asymptote")
+    if side > 0:
+        return _Plan(True, False, "unstable", "above_separatrix_asymptote")
     return _Plan(True, True, None, None)
 
 
@@ -310,6 +391,7 @@ def classify(
     method: Literal["auto", "integrate"] = "auto",
     max_steps: int = MAX_STEPS,
     integrator: IntegratorName = "auto",
+    log_size: float | None = None,
 ) -> TrajectoryResult:
     """Certified stable/unstable outcome of one perturbation (no trajectory returned).
 
@@ -322,6 +404,9 @@ def classify(
         integrator: "auto" (DOP853, switching to the Rosenbrock method RODAS4 while the
             problem is stiff; the default), "explicit" (DOP853 only) or "rosenbrock"
             (RODAS4 only); see :func:`simulate`.
+        log_size: the perturbation by its logarithm instead of ``size`` (d for a velocity
+            jump, any finite value; ln(1 + dv) for a load-point jump, so every reported
+            critical size, log_critical_size, can be checked); see :func:`start_from_log`.
 
     Returns a TrajectoryResult with outcome, certificate, blow-up or return time and the
     true peak.  Raises UndecidedError if no certificate is reached within the budget
@@ -336,6 +421,7 @@ def classify(
         method=method,
         max_steps=max_steps,
         integrator=integrator,
+        log_size=log_size,
     )
 
 
@@ -354,6 +440,7 @@ def simulate(
     method: Literal["auto", "integrate"] = "auto",
     max_steps: int = MAX_STEPS,
     integrator: IntegratorName = "auto",
+    log_size: float | None = None,
 ) -> TrajectoryResult:
     """Classify a perturbation and optionally return its trajectory.
 
@@ -378,6 +465,12 @@ def simulate(
     then take ~1e3 steps instead of ~1e6.  "explicit" and "rosenbrock" force one method
     (tests/core/test_stiff.py compares them).  Events, certificates and peaks are located
     the same way with either.
+
+    ``log_size`` gives the perturbation by its logarithm (:func:`start_from_log`).  A
+    start beyond what the integration takes (|phi0| > 1e4 or |psi0| > 1e8, e.g. a velocity
+    jump d = 1e5) is answered only where a closed form decides it (L >= L*, the
+    separatrix asymptote, v_o = 0, ...; times and peak then None/lower bound, complete
+    False), else ParameterError.
     """
     rtol = lim.RTOL.check(rtol)
     if integrator not in _INTEGRATORS:
@@ -389,9 +482,22 @@ def simulate(
         psi0 = lim.PSI_START.check(start[1])
         p_run = params
         pert_name, pert_size = None, None
+    elif log_size is not None:
+        phi0, psi0, p_run = start_from_log(params, perturbation, log_size)
+        lg = float(log_size)
+        pert_name = perturbation
+        pert_size = (
+            lg
+            if perturbation == "velocity-jump"
+            else (
+                math.expm1(lg) if lg < 709.0 else None  # dv beyond the double range: None
+            )
+        )
     else:
         phi0, psi0, p_run = start_point(params, perturbation, size)
         pert_name, pert_size = perturbation, float(size)
+    # starts the integration cannot take (from log_size) are answered in closed form only
+    beyond = not (lim.PHI_START.contains(phi0) and lim.PSI_START.contains(psi0))
     if n_points:
         n_points = int(lim.N_POINTS.check(n_points))
     if t_end is not None:
@@ -399,7 +505,34 @@ def simulate(
 
     if method not in ("auto", "integrate"):
         raise ParameterError("method", method, "'auto' or 'integrate'")
-    plan = _plan(p_run, phi0, psi0)
+    # The closed-form decisions are frame-invariant; for a velocity jump they are taken in
+    # the v_o = 1 frame, where its start (d, d) is exact: from (phi0, psi0) the jump is
+    # blurred by the rounding of psi0 = (1 - b/a) ln v_o + d (1e-9 relative at b/a = 1e4,
+    # v_o = 1e-6).  At kappa = kappa_crit both jumps use the closed forms' own residuals.
+    # Near the separatrix's asymptote the integration of (phi, ln theta) cannot resolve
+    # L - L* below ~rtol (|phi| + |ln theta|) per step: there the asymptote decides.
+    lth0 = (psi0 - phi0) / p_run.ba
+    res_ = math.inf if beyond else 1e4 * rtol * (1.0 + abs(phi0) + abs(lth0))
+    if start is not None or p_run.vo == 0.0:
+        plan = _plan(p_run, phi0, psi0, res_)
+    else:
+        lg = float(log_size) if log_size is not None else float(size)
+        if perturbation == "velocity-jump":
+            plan = _plan(p_run.with_(vo=1.0), lg, lg, res_)
+        else:
+            lg = lg if log_size is not None else math.log1p(lg)
+            # (in its own frame the start is steady sliding at the old v_o, L = 0 exactly,
+            # which the v_o = 1 frame (-l, (b/a - 1) l) would blur)
+            plan = _plan(p_run, phi0, psi0, res_)
+        kc = p_run.kappa_crit
+        if plan.certificate in _U_CERTS and abs(p_run.kappa - kc) <= KCRIT_TOL * kc:
+            # kappa = kappa_crit: the closed form's own residual decides the side exactly
+            # where U, a difference of O(1) terms, cannot (d_crit (1 -/+ 1e-13) at b/a = 1e4)
+            side = kcrit_jump_side(p_run.ba, p_run.eps, perturbation, lg)
+            if side < 0:
+                plan = _Plan(False, True, "stable", "U_negative_closed_orbit")
+            elif side > 0:
+                plan = _Plan(True, False, "unstable", "U_nonnegative_open_orbit")
     if method == "integrate" and plan.outcome is not None and plan.certificate != "at_equilibrium":
         # ignore the closed-form decision: certify by integration alone (used to check
         # the closed forms against direct integration)
@@ -411,7 +544,18 @@ def simulate(
                 if p_run.kappa >= p_run.kappa_crit
                 else _Plan(True, False, None, None)
             )
-    if plan.certificate in ("at_equilibrium",) or (plan.certificate or "").endswith("_L_on_Lstar"):
+    if beyond and plan.outcome is None:
+        raise ParameterError(
+            "log_size",
+            log_size,
+            "a start the integration takes (|phi0| <= 1e4, |psi0| <= 1e8) unless a closed"
+            f" form decides it; here phi0 = {phi0:g}, psi0 = {psi0:g}",
+        )
+    if (
+        beyond
+        or plan.certificate in ("at_equilibrium",)
+        or (plan.certificate or "").endswith("_L_on_Lstar")
+    ):
         # decided in closed form; nothing to integrate
         res = None
     else:

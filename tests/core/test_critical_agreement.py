@@ -1,0 +1,94 @@
+"""classify agrees with critical_perturbation at the reported accuracy (issue 13, items 2, 5).
+
+For a finite critical size s with rel_accuracy a, classify must answer stable at
+s (1 - 10 a) and unstable at s (1 + 10 a).  The factor 10 is the issue's criterion: the
+reported accuracy is an upper bound, so the true critical size lies within s (1 -/+ a).
+Sizes are passed by their logarithm (classify's ``log_size``), so sizes beyond the double
+range (load-point jumps with ln(1 + dv) > 709) and velocity jumps beyond |d| = 1e4 are
+checked too: for a load-point jump, dv (1 -/+ 10 a) is l + log1p(-/+ 10 a dv/(1 + dv)).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rsfcore import Params, bisect_critical, classify, critical_perturbation
+
+VJ, LJ = "velocity-jump", "load-point-jump"
+
+
+def _logs_around(r, f: float) -> tuple[float, float]:
+    lg = r.log_critical_size
+    assert lg is not None
+    if r.perturbation == VJ:
+        return lg * (1.0 - f), lg * (1.0 + f)
+    w = -math.expm1(-lg)  # dv/(1 + dv), also where dv itself overflows
+    return lg + math.log1p(-f * w), lg + math.log1p(f * w)
+
+
+def _check(p: Params, pert: str) -> None:
+    r = critical_perturbation(p, pert)
+    assert r.kind == "finite", r
+    lo, hi = _logs_around(r, 10.0 * r.rel_accuracy)
+    below = classify(p, pert, log_size=lo)
+    above = classify(p, pert, log_size=hi)
+    assert (below.outcome, above.outcome) == ("stable", "unstable"), (r, below, above)
+
+
+CASES = [
+    # issue 13: d_crit = L* = 9999.11 at b/a = 1 + 1e-12, kappa = 1e-8; d_crit (1 - 1e-8)
+    # was classified unstable (the integration of phi and ln theta cannot resolve L - L*)
+    (Params(1.0 + 1e-12, 1e-8, 0.0), VJ),
+    # d_crit = 1e4 + 8e-7: just beyond the |d| <= 1e4 that size= accepts
+    (Params(1.0 + 1e-6, 1e-2, 0.0), VJ),
+    # found by a random scan: b/a - 1 ~ 1e-9 .. 1e-11, L* moderate
+    (Params(1.000000000684901, 2.4428384277155902e-08, 1e-12), VJ),
+    (Params(1.0000000000328417, 3.4357667900710186e-11, 0.9101074725851679), VJ),
+    (Params(1.0000000002400071, 1.8652600577462686e-06, 0.0, 3.77528785840873e-07), VJ),
+    # ordinary points
+    (Params(2.0, 1.5, 0.3), VJ),
+    (Params(2.0, 1.5, 0.3), LJ),
+    (Params(10.0, 20.0, 0.4, 1e-3), LJ),
+    (Params(1.0 + 1e-6, 2e-6, 0.0), LJ),
+    # kappa = kappa_crit closed forms, v_o far from 1 (U sign from its reduced form)
+    (Params(1e4, 1e4 - 1.0, 0.5, 1e-6), VJ),
+    (Params(2.0, 1.0, 0.25, 1e3), LJ),
+    # v_o = 0: L* (accurate as x -> 1)
+    (Params(2.0, (1.0 - 1e-12) / 0.5, 0.5, 0.0), VJ),
+]
+
+
+@pytest.mark.parametrize("p, pert", CASES, ids=lambda v: str(v))
+def test_classify_agrees_with_critical_size(p: Params, pert: str) -> None:
+    _check(p, pert)
+
+
+def test_load_point_jump_beyond_double_range_is_checkable() -> None:
+    # ln(1 + dv_crit) = 997.8 (dv ~ e^998): finite, and classify decides both sides
+    p = Params.from_ratio(10.0, 1000.0, 0.0)
+    r = critical_perturbation(p, LJ)
+    assert r.kind == "finite" and r.critical_size == math.inf
+    _check(p, LJ)
+
+
+def test_velocity_jump_log_size_equals_size() -> None:
+    p = Params(2.0, 1.5, 0.3, 7.0)
+    a = classify(p, VJ, 1.3)
+    b = classify(p, VJ, log_size=1.3)
+    assert (a.outcome, a.certificate, a.return_time) == (b.outcome, b.certificate, b.return_time)
+    c = classify(p, LJ, 0.5)
+    d = classify(p, LJ, log_size=math.log1p(0.5))
+    assert c.outcome == d.outcome and d.return_time == pytest.approx(c.return_time, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_bisection_fallback_is_vo_invariant() -> None:
+    # b/a = kappa = 1e6 (kappa/kappa_crit = 1 + 1e-6): the separatrix method's budget runs
+    # out (stiff), bisection answers.  Issue 13: 1.9030641e-6 at v_o = 1 against
+    # 1.8782915e-6 at v_o = 1e-12 (1.3 %).  The sizes are v_o-invariant, so the bisection
+    # runs at v_o = 1 whatever v_o is given: identical answers.
+    a = bisect_critical(Params(1e6, 1e6, 0.0, 1.0), LJ)
+    b = bisect_critical(Params(1e6, 1e6, 0.0, 1e-12), LJ)
+    assert a.critical_size == b.critical_size and a.rel_accuracy == b.rel_accuracy
