@@ -476,7 +476,9 @@ def _ljump_kcrit_acc(ba: float, eps: float) -> tuple[float, float, float]:
     return dv, math.log1p(dv), _LJUMP_ULPS * UNIT_ROUNDOFF
 
 
-def kcrit_jump_side(ba: float, eps: float, perturbation: str, log_size: float) -> int:
+def kcrit_jump_side(
+    ba: float, eps: float, perturbation: str, log_size: float, size: float | None = None
+) -> int:
     """Side of the critical trajectory for a named jump at kappa = kappa_crit, v_o > 0.
 
     Returns -1 (U < 0: closed orbit, stable), +1 (U > 0: open orbit, runaway for eps < 1)
@@ -485,9 +487,10 @@ def kcrit_jump_side(ba: float, eps: float, perturbation: str, log_size: float) -
     form's own residual h(d) (:func:`_vjump_kcrit_acc`; psi - psi_crit = (b/a) h(d), and U
     increases with psi at fixed phi), certain where |h| > 8u S, so a jump d_crit (1 -/+ 10
     rel_accuracy) is always decided; U itself, a difference of O(1) terms, would not
-    resolve it.  Load-point jump (log_size = ln(1 + dv)): stable iff dv < 1/(kappa_crit
-    (1 - eps)), compared in the logarithm with a margin of 8u (1 + |l|).  At eps = 1 every
-    orbit is closed: -1.
+    resolve it.  Load-point jump (log_size = ln(1 + dv), or size = dv when given): stable
+    iff dv < dv_crit = 1/(kappa_crit (1 - eps)) (4u), compared in dv with a margin of 8u
+    dv_crit, or in the logarithm with 4u dv/(1 + dv) + 2u ln(1 + dv_crit) (the rounding
+    of ln(1 + dv_crit)).  At eps = 1 every orbit is closed: -1.
     """
     if eps >= 1.0:
         return -1
@@ -499,8 +502,13 @@ def kcrit_jump_side(ba: float, eps: float, perturbation: str, log_size: float) -
         if abs(h) <= 8.0 * UNIT_ROUNDOFF * S:
             return 0
         return -1 if h < 0.0 else 1
-    _, lc, _ = _ljump_kcrit_acc(ba, eps)
-    if abs(log_size - lc) <= 8.0 * UNIT_ROUNDOFF * (1.0 + abs(lc)):
+    dvc, lc, _ = _ljump_kcrit_acc(ba, eps)
+    if size is not None and math.isfinite(size):
+        if abs(size - dvc) <= 8.0 * UNIT_ROUNDOFF * dvc:
+            return 0
+        return -1 if size < dvc else 1
+    w = -math.expm1(-lc)  # dv/(1 + dv) at dv_crit
+    if abs(log_size - lc) <= UNIT_ROUNDOFF * (4.0 * w + 2.0 * abs(lc)):
         return 0
     return -1 if log_size < lc else 1
 

@@ -505,6 +505,7 @@ def simulate(
 
     if method not in ("auto", "integrate"):
         raise ParameterError("method", method, "'auto' or 'integrate'")
+    lg_named: float | None = None  # d or ln(1 + dv) of a named perturbation (v_o > 0)
     # The closed-form decisions are frame-invariant; for a velocity jump they are taken in
     # the v_o = 1 frame, where its start (d, d) is exact: from (phi0, psi0) the jump is
     # blurred by the rounding of psi0 = (1 - b/a) ln v_o + d (1e-9 relative at b/a = 1e4,
@@ -517,10 +518,12 @@ def simulate(
         plan = _plan(p_run, phi0, psi0, res_)
     else:
         lg = float(log_size) if log_size is not None else float(size)
+        lg_named = lg
         if perturbation == "velocity-jump":
             plan = _plan(p_run.with_(vo=1.0), lg, lg, res_)
         else:
             lg = lg if log_size is not None else math.log1p(lg)
+            lg_named = lg
             # (in its own frame the start is steady sliding at the old v_o, L = 0 exactly,
             # which the v_o = 1 frame (-l, (b/a - 1) l) would blur)
             plan = _plan(p_run, phi0, psi0, res_)
@@ -528,7 +531,8 @@ def simulate(
         if plan.certificate in _U_CERTS and abs(p_run.kappa - kc) <= KCRIT_TOL * kc:
             # kappa = kappa_crit: the closed form's own residual decides the side exactly
             # where U, a difference of O(1) terms, cannot (d_crit (1 -/+ 1e-13) at b/a = 1e4)
-            side = kcrit_jump_side(p_run.ba, p_run.eps, perturbation, lg)
+            dv = float(size) if perturbation != "velocity-jump" and log_size is None else None
+            side = kcrit_jump_side(p_run.ba, p_run.eps, perturbation, lg, dv)
             if side < 0:
                 plan = _Plan(False, True, "stable", "U_negative_closed_orbit")
             elif side > 0:
@@ -551,6 +555,7 @@ def simulate(
             "a start the integration takes (|phi0| <= 1e4, |psi0| <= 1e8) unless a closed"
             f" form decides it; here phi0 = {phi0:g}, psi0 = {psi0:g}",
         )
+    frame_shift = 0.0  # ln v_o of the run when it is integrated in the v_o = 1 frame
     if (
         beyond
         or plan.certificate in ("at_equilibrium",)
@@ -565,7 +570,20 @@ def simulate(
         # grows, and a slow outward spiral near kappa_crit would otherwise use 1e7 steps)
         decided = plan.outcome is not None or (p_run.kappa < p_run.kappa_crit and method == "auto")
         budget = min(DECIDED_BUDGET, max_steps) if decided else max_steps
-        res, _ = _run(p_run, phi0, psi0, rtol, plan, max_steps=budget, integrator=integ)
+        # A named perturbation is integrated in the v_o = 1 frame, where its start is exact
+        # (from (phi0, psi0) it is blurred by the rounding of psi0 = (1 - b/a) ln v_o + ...:
+        # 2e-9 relative for a load-point jump at b/a = 1e6, v_o = 1e-12); times are scaled
+        # back (T = T'/v_o) and phi shifted by ln v_o below.
+        p_int, phi_i, psi_i = p_run, phi0, psi0
+        if lg_named is not None and p_run.vo != 1.0:
+            frame_shift = math.log(p_run.vo)
+            p_int = p_run.with_(vo=1.0)
+            if perturbation == "velocity-jump":
+                phi_i, psi_i = lg_named, lg_named
+            else:
+                phi_i, psi_i = -lg_named, (p_run.ba - 1.0) * lg_named
+        res, _ = _run(p_int, phi_i, psi_i, rtol, plan, max_steps=budget, integrator=integ)
+    tsc = math.exp(-frame_shift)  # frame time -> T
     status: Status | None
     y_end: NDArray[np.float64] | None
     peak_T: float | None
@@ -581,7 +599,8 @@ def simulate(
             res.T_cert,
             res.T_return,
         )
-        peak_phi, peak_T, err_sum = res.peak_phi, res.peak_T, res.err_sum
+        peak_phi, peak_T, err_sum = res.peak_phi + frame_shift, res.peak_T * tsc, res.err_sum
+        T_cert, T_ret = T_cert * tsc, T_ret * tsc
         n_steps, n_rhs = res.n_steps + res.n_rejected, res.n_rhs
 
     runaway = not math.isnan(T_cert)
@@ -609,7 +628,7 @@ def simulate(
         peak_phi = math.inf
         if status == Status.RUNAWAY:
             assert y_end is not None
-            blowup_time = float(
+            blowup_time = tsc * float(
                 y_end[2]
                 + blowup_tail(y_end[0], y_end[0] + y_end[1], p_run.ba, p_run.kappa, p_run.eps)
             )
