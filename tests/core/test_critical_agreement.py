@@ -33,7 +33,12 @@ def _check(p: Params, pert: str) -> None:
     assert r.kind == "finite", r
     f = 10.0 * r.rel_accuracy
     cs = r.critical_size
-    if cs is not None and math.isfinite(cs) and abs(cs) <= 1e4:
+    direct = cs is not None and math.isfinite(cs)
+    if pert == VJ:
+        direct = direct and abs(cs * (1.0 + f)) <= 1e4  # size= takes |d| <= 1e4
+    elif direct and p.vo * (1.0 + cs * (1.0 + f)) > 1e300:  # size= takes v_o (1 + dv) <= 1e300
+        direct = False
+    if direct:
         # representable sizes are passed as they are (the log of dv would round them)
         below = classify(p, pert, cs * (1.0 - f))
         above = classify(p, pert, cs * (1.0 + f))
@@ -62,6 +67,7 @@ CASES = [
     # kappa = kappa_crit closed forms (sides from their own residuals), v_o far from 1
     (Params(9.794087541362039, 8.794087541362039, 0.0), LJ),
     (Params(1.0000041595199485, 4.159519948476742e-06, 0.0), LJ),
+    (Params(1.0000007008005722, 7.00800572239757e-07, 1e-12, 1.9221882351945498), LJ),
     (Params(1e4, 1e4 - 1.0, 0.5, 1e-6), VJ),
     (Params(2.0, 1.0, 0.25, 1e3), LJ),
     # b/a = kappa = 1e6: the separatrix method's budget runs out (stiff), bisection answers
