@@ -7,6 +7,7 @@ on one core.  Also splits the batch time into validation, compiled compute and J
 
     NUMBA_CACHE_DIR=.numba_cache taskset -c 0 .venv/bin/python bench/bench_batch.py [N] [N_SINGLE]
 """
+
 from __future__ import annotations
 
 import json
@@ -30,8 +31,10 @@ def items(n: int, seed: int = 1) -> list[dict[str, Any]]:
     kc = ba - 1.0
     hi = np.where(eps > 0, kc / np.maximum(eps, 1e-300), 10 * kc)
     kappa = kc * (1.05 + (np.minimum(hi / kc, 10.0) - 1.1) * rng.uniform(0, 1, n))
-    return [{"ba": float(b), "kappa": float(k), "eps": float(e)}
-            for b, k, e in zip(ba, kappa, eps, strict=True)]
+    return [
+        {"ba": float(b), "kappa": float(k), "eps": float(e)}
+        for b, k, e in zip(ba, kappa, eps, strict=True)
+    ]
 
 
 def main() -> None:
@@ -75,17 +78,23 @@ def main() -> None:
             rs = c.post("/v1/critical", json=it)
             assert rs.status_code == 200
         t_single = time.perf_counter() - t0
-    kinds = {k: sum(1 for x in res["results"] if x["kind"] == k)
-             for k in ("zero", "finite", "infinite")}
+    kinds = {
+        k: sum(1 for x in res["results"] if x["kind"] == k) for k in ("zero", "finite", "infinite")
+    }
     print(f"items: {n} distinct (kinds {kinds}); data dir {data}")
-    print(f"one batch request        : {t_batch:.3f} s  (best of 3: "
-          f"{', '.join(f'{x:.3f}' for x in reps)})  = {1e6 * t_batch / n:.1f} us/item")
-    print(f"  of which item validation {t_val:.3f} s, adapter.critical_batch "
-          f"(validation + compiled loop + dicts) {t_all:.3f} s, JSON {t_json:.3f} s")
-    print(f"{n_single} single requests   : {t_single:.3f} s  = "
-          f"{1e6 * t_single / n_single:.1f} us/request"
-          + ("" if n_single == n else
-             f"  (x{n / n_single:.0f} -> {t_single * n / n_single:.1f} s)"))
+    print(
+        f"one batch request        : {t_batch:.3f} s  (best of 3: "
+        f"{', '.join(f'{x:.3f}' for x in reps)})  = {1e6 * t_batch / n:.1f} us/item"
+    )
+    print(
+        f"  of which item validation {t_val:.3f} s, adapter.critical_batch "
+        f"(validation + compiled loop + dicts) {t_all:.3f} s, JSON {t_json:.3f} s"
+    )
+    print(
+        f"{n_single} single requests   : {t_single:.3f} s  = "
+        f"{1e6 * t_single / n_single:.1f} us/request"
+        + ("" if n_single == n else f"  (x{n / n_single:.0f} -> {t_single * n / n_single:.1f} s)")
+    )
     print(f"speed-up of the batch    : {t_single * n / n_single / t_batch:.0f}x")
     print(f"target < 0.2 s for 10^4  : {'met' if t_batch * 1e4 / n < 0.2 else 'NOT met'}")
 

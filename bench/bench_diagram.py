@@ -13,6 +13,7 @@ points (zero/infinite points cost nothing for either method).
 
 Run: python bench/bench_diagram.py [--sample 10]   (< 2 minutes)
 """
+
 from __future__ import annotations
 
 import argparse
@@ -68,12 +69,16 @@ def scipy_outcome(ba: float, kappa: float, eps: float, d: float, Ls: float) -> b
 
     y0 = [d, 0.0]
     tau_end = 1e6
-    sol = solve_ivp(rhs, (0.0, tau_end), y0, method="DOP853", rtol=1e-10, atol=1e-10, events=(runaway, returned))
+    sol = solve_ivp(
+        rhs, (0.0, tau_end), y0, method="DOP853", rtol=1e-10, atol=1e-10, events=(runaway, returned)
+    )
     if sol.t_events[0].size:
         return True
     if sol.t_events[1].size:
         return False
-    raise RuntimeError(f"scipy: undecided at ba={ba}, kappa={kappa}, eps={eps}, d={d}: {sol.message}")
+    raise RuntimeError(
+        f"scipy: undecided at ba={ba}, kappa={kappa}, eps={eps}, d={d}: {sol.message}"
+    )
 
 
 def scipy_bisection(ba: float, kappa: float, eps: float, rtol: float = 1e-10) -> float:
@@ -105,14 +110,18 @@ def main() -> None:
     t_grid = min(times)
     fin = d.kind == 1
     n_fin = int(fin.sum())
-    print(f"grid 100 x 100: {t_grid * 1e3:.1f} ms (best of {args.repeat}; median {np.median(times) * 1e3:.1f} ms); "
-          f"finite {n_fin}, infinite {int((d.kind == 2).sum())}, zero {int((d.kind == 0).sum())}, "
-          f"on boundary {int(d.on_boundary.sum())}, fallbacks {d.n_fallback}")
+    print(
+        f"grid 100 x 100: {t_grid * 1e3:.1f} ms (best of {args.repeat}; median {np.median(times) * 1e3:.1f} ms); "
+        f"finite {n_fin}, infinite {int((d.kind == 2).sum())}, zero {int((d.kind == 0).sum())}, "
+        f"on boundary {int(d.on_boundary.sum())}, fallbacks {d.n_fallback}"
+    )
 
     tight = stability_diagram("kappa_ratio", XR, "eps", YE, rtol=1e-13)
     err = np.abs(d.critical_size[fin] / tight.critical_size[fin] - 1.0)
-    print(f"max relative error on finite points vs rtol=1e-13 run: {err.max():.2e} "
-          f"(reported rel_accuracy max {d.rel_accuracy[fin].max():.1e})")
+    print(
+        f"max relative error on finite points vs rtol=1e-13 run: {err.max():.2e} "
+        f"(reported rel_accuracy max {d.rel_accuracy[fin].max():.1e})"
+    )
 
     rng = np.random.default_rng(0)
     idx = np.argwhere(fin)
@@ -127,10 +136,14 @@ def main() -> None:
         dev = max(dev, abs(v / d.critical_size[i, j] - 1.0))
     per_point = t_sc / args.sample
     t_scipy = per_point * n_fin
-    print(f"scipy solve_ivp(DOP853) bisection: {per_point:.3f} s/point on {args.sample} points "
-          f"(max deviation from the grid {dev:.1e}); extrapolated to {n_fin} finite points: {t_scipy:.0f} s")
+    print(
+        f"scipy solve_ivp(DOP853) bisection: {per_point:.3f} s/point on {args.sample} points "
+        f"(max deviation from the grid {dev:.1e}); extrapolated to {n_fin} finite points: {t_scipy:.0f} s"
+    )
     print(f"ratio scipy-bisection / rsfcore grid: {t_scipy / t_grid:.3g}x")
-    print(f"target <= 0.1 s: {'met' if t_grid <= 0.1 else 'NOT met'}; target <= 1e-9: {'met' if err.max() <= 1e-9 else 'NOT met'}")
+    print(
+        f"target <= 0.1 s: {'met' if t_grid <= 0.1 else 'NOT met'}; target <= 1e-9: {'met' if err.max() <= 1e-9 else 'NOT met'}"
+    )
 
 
 if __name__ == "__main__":

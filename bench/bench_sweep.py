@@ -18,6 +18,7 @@ processes); a 100 x 100 sweep done in < 1 s after warm-up; <= ~40 bytes per poin
 
 Prints the figures and writes them as JSON to bench/out/bench_sweep.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,16 +42,24 @@ sys.path.insert(0, str(ROOT))
 
 
 def big_body(n: int) -> dict:
-    return {"axes": [{"name": "kappa_ratio", "start": 1.01, "stop": 5.0, "n": n},
-                     {"name": "eps", "start": 0.0, "stop": 0.6, "n": n},
-                     {"name": "ba", "start": 1.2, "stop": 20.0, "n": n}],
-            "fixed": {"vo": 1.0}}
+    return {
+        "axes": [
+            {"name": "kappa_ratio", "start": 1.01, "stop": 5.0, "n": n},
+            {"name": "eps", "start": 0.0, "stop": 0.6, "n": n},
+            {"name": "ba", "start": 1.2, "stop": 20.0, "n": n},
+        ],
+        "fixed": {"vo": 1.0},
+    }
 
 
 def small_body(ba: float) -> dict:
-    return {"axes": [{"name": "kappa_ratio", "start": 1.01, "stop": 5.0, "n": 100},
-                     {"name": "eps", "start": 0.0, "stop": 0.9, "n": 100}],
-            "fixed": {"ba": ba, "vo": 1.0}}
+    return {
+        "axes": [
+            {"name": "kappa_ratio", "start": 1.01, "stop": 5.0, "n": 100},
+            {"name": "eps", "start": 0.0, "stop": 0.9, "n": 100},
+        ],
+        "fixed": {"ba": ba, "vo": 1.0},
+    }
 
 
 def core_one_core(body: dict) -> tuple[int, float]:
@@ -144,34 +153,49 @@ def main() -> None:
     workers = os.cpu_count() or 1  # rsf serve's embedded worker: one process per core
     body = big_body(n)
 
-    print(f"rsfcore batch, one core, {n ** 3} points ...", flush=True)
+    print(f"rsfcore batch, one core, {n**3} points ...", flush=True)
     n_pts, t_core = core_one_core(body)
     core_pps = n_pts / t_core
     print(f"  {t_core:.2f} s = {core_pps:,.0f} points/s", flush=True)
 
     t_par = core_parallel(body, workers)
-    print(f"rsfcore batch in {workers} processes (ideal parallel): {t_par:.2f} s = "
-          f"{n_pts / t_par:,.0f} points/s", flush=True)
+    print(
+        f"rsfcore batch in {workers} processes (ideal parallel): {t_par:.2f} s = "
+        f"{n_pts / t_par:,.0f} points/s",
+        flush=True,
+    )
 
     data = Path(tempfile.mkdtemp(prefix="rsf-bench-sweep-"))
     port = free_port()
     env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
-    env.update(RSF_DATA_DIR=str(data), NUMBA_CACHE_DIR=os.environ.get(
-        "NUMBA_CACHE_DIR", str(ROOT / ".numba_cache")), PYTHONPATH=str(ROOT))
-    cmd = [sys.executable, "-m", "rsfcli.main", "serve", "--port", str(port), "--data-dir",
-           str(data)]
+    env.update(
+        RSF_DATA_DIR=str(data),
+        NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache")),
+        PYTHONPATH=str(ROOT),
+    )
+    cmd = [
+        sys.executable,
+        "-m",
+        "rsfcli.main",
+        "serve",
+        "--port",
+        str(port),
+        "--data-dir",
+        str(data),
+    ]
     log = open(data / "serve.log", "wb")  # noqa: SIM115
-    proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=log, cwd=ROOT,
-                            start_new_session=True)
+    proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=log, cwd=ROOT, start_new_session=True)
     url = f"http://127.0.0.1:{port}"
     try:
         c = httpx.Client(base_url=url, timeout=60)
         t_end = time.monotonic() + 120
         while time.monotonic() < t_end:
             try:
-                if c.get("/health").status_code in (200, 503) and (
-                        data / "worker.log").exists() and " ready." in (
-                        data / "worker.log").read_text(errors="replace"):
+                if (
+                    c.get("/health").status_code in (200, 503)
+                    and (data / "worker.log").exists()
+                    and " ready." in (data / "worker.log").read_text(errors="replace")
+                ):
                     break
             except httpx.HTTPError:
                 pass
@@ -188,37 +212,56 @@ def main() -> None:
             dt, st = timed_sweep(c, small_body(2.0 + 0.37 * k), 120)
             assert st["n_done"] == 10_000 and st["status"] == "done"
             lat.append(dt)
-        print(f"100 x 100 critical sweep, submit to done: median {statistics.median(lat):.3f} s,"
-              f" min {min(lat):.3f} s, max {max(lat):.3f} s", flush=True)
+        print(
+            f"100 x 100 critical sweep, submit to done: median {statistics.median(lat):.3f} s,"
+            f" min {min(lat):.3f} s, max {max(lat):.3f} s",
+            flush=True,
+        )
 
         before = db_bytes(data)
-        print(f"service, {n ** 3} points ...", flush=True)
+        print(f"service, {n**3} points ...", flush=True)
         t_svc, st = timed_sweep(c, body, 3600)
-        assert st["status"] == "done" and st["n_done"] == n ** 3, st
-        svc_pps = n ** 3 / t_svc
+        assert st["status"] == "done" and st["n_done"] == n**3, st
+        svc_pps = n**3 / t_svc
         after = db_bytes(data)
         con = sqlite3.connect(data / "cache.sqlite3")
         try:
-            blob = con.execute("SELECT sum(length(data)) FROM sweep_blocks WHERE sweep_id = ?",
-                               (st["id"],)).fetchone()[0]
+            blob = con.execute(
+                "SELECT sum(length(data)) FROM sweep_blocks WHERE sweep_id = ?", (st["id"],)
+            ).fetchone()[0]
         finally:
             con.close()
         ratio = svc_pps / (core_pps * workers)
         print(f"  {t_svc:.2f} s = {svc_pps:,.0f} points/s in {st['n_chunks']} chunks", flush=True)
-        print(f"service / (rsfcore one core x {workers} workers) = {ratio:.2f} "
-              f"(target >= 0.75): {'MET' if ratio >= 0.75 else 'NOT MET'}")
-        print(f"service / (rsfcore in {workers} processes, same run) = "
-              f"{svc_pps / (n_pts / t_par):.2f}  (machine load shared with other processes "
-              f"lowers both; this ratio isolates the service's own overhead)")
+        print(
+            f"service / (rsfcore one core x {workers} workers) = {ratio:.2f} "
+            f"(target >= 0.75): {'MET' if ratio >= 0.75 else 'NOT MET'}"
+        )
+        print(
+            f"service / (rsfcore in {workers} processes, same run) = "
+            f"{svc_pps / (n_pts / t_par):.2f}  (machine load shared with other processes "
+            f"lowers both; this ratio isolates the service's own overhead)"
+        )
         print(f"100 x 100 < 1 s: {'MET' if statistics.median(lat) < 1.0 else 'NOT MET'}")
-        print(f"disk: {blob / n ** 3:.1f} bytes/point of result blobs, "
-              f"{(after - before) / n ** 3:.1f} bytes/point of SQLite growth (target <= 40)")
-        out = {"points": n ** 3, "workers": workers, "core_one_core_s": t_core,
-               "core_points_per_s": core_pps, "core_parallel_s": t_par, "service_s": t_svc,
-               "service_points_per_s": svc_pps, "ratio": ratio,
-               "latency_100x100_s": lat, "blob_bytes_per_point": blob / n ** 3,
-               "sqlite_bytes_per_point": (after - before) / n ** 3,
-               "n_chunks": st["n_chunks"], "cpu_count": os.cpu_count()}
+        print(
+            f"disk: {blob / n**3:.1f} bytes/point of result blobs, "
+            f"{(after - before) / n**3:.1f} bytes/point of SQLite growth (target <= 40)"
+        )
+        out = {
+            "points": n**3,
+            "workers": workers,
+            "core_one_core_s": t_core,
+            "core_points_per_s": core_pps,
+            "core_parallel_s": t_par,
+            "service_s": t_svc,
+            "service_points_per_s": svc_pps,
+            "ratio": ratio,
+            "latency_100x100_s": lat,
+            "blob_bytes_per_point": blob / n**3,
+            "sqlite_bytes_per_point": (after - before) / n**3,
+            "n_chunks": st["n_chunks"],
+            "cpu_count": os.cpu_count(),
+        }
         (ROOT / "bench" / "out").mkdir(exist_ok=True)
         (ROOT / "bench" / "out" / "bench_sweep.json").write_text(json.dumps(out, indent=2))
     finally:

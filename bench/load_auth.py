@@ -17,6 +17,7 @@ Printed: p50 / p99 latency [ms] of the reader, and the flooder's answers (200 / 
 and fresh computations per second.  Target (issue 14): reader p99 < 100 ms under flood
 with the quota.  Separate client processes, so the client's GIL does not distort it.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,6 +38,7 @@ sys.path.insert(0, str(ROOT))
 
 def _free_port() -> int:
     import socket
+
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
@@ -44,23 +46,47 @@ def _free_port() -> int:
 
 def _start(data: Path, quota: bool) -> tuple[subprocess.Popen[bytes], int, str, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
-    env.update(RSF_DATA_DIR=str(data), RSF_AUTH="on", PYTHONPATH=str(ROOT),
-               NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache")),
-               RSF_INLINE_BUDGET_S="30")
+    env.update(
+        RSF_DATA_DIR=str(data),
+        RSF_AUTH="on",
+        PYTHONPATH=str(ROOT),
+        NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache")),
+        RSF_INLINE_BUDGET_S="30",
+    )
     if not quota:
         env.update(RSF_QUOTA_FRESH_PER_S="1e9", RSF_QUOTA_CONCURRENT_REQUESTS="1000000")
     rsf = str(Path(sys.executable).with_name("rsf"))
     keys = []
     for name, scope in (("reader", "read"), ("flooder", "read")):
-        out = subprocess.run([rsf, "keys", "create", "--name", name, "--scope", scope,
-                              "--data-dir", str(data)], env=env, capture_output=True,
-                             text=True, check=True)
+        out = subprocess.run(
+            [rsf, "keys", "create", "--name", name, "--scope", scope, "--data-dir", str(data)],
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         keys.append(out.stdout.strip())
     port = _free_port()
     log = open(data / "uvicorn.log", "ab")  # noqa: SIM115
-    p = subprocess.Popen([sys.executable, "-m", "uvicorn", "service.app:app", "--host",
-                          "127.0.0.1", "--port", str(port), "--log-level", "warning"],
-                         env=env, stdout=log, stderr=log, cwd=ROOT, start_new_session=True)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "uvicorn",
+            "service.app:app",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--log-level",
+            "warning",
+        ],
+        env=env,
+        stdout=log,
+        stderr=log,
+        cwd=ROOT,
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 90
     while time.monotonic() < deadline:
         try:
@@ -74,12 +100,21 @@ def _start(data: Path, quota: bool) -> tuple[subprocess.Popen[bytes], int, str, 
     raise RuntimeError("server did not start: " + (data / "uvicorn.log").read_text()[-2000:])
 
 
-def _request(c: http.client.HTTPConnection, method: str, path: str, key: str,
-             body: dict[str, object] | None = None) -> tuple[int, float]:
+def _request(
+    c: http.client.HTTPConnection,
+    method: str,
+    path: str,
+    key: str,
+    body: dict[str, object] | None = None,
+) -> tuple[int, float]:
     t = time.perf_counter()
     data = None if body is None else json.dumps(body).encode()
-    c.request(method, path, body=data, headers={"Authorization": f"Bearer {key}",
-                                                "Content-Type": "application/json"})
+    c.request(
+        method,
+        path,
+        body=data,
+        headers={"Authorization": f"Bearer {key}", "Content-Type": "application/json"},
+    )
     r = c.getresponse()
     r.read()
     return r.status, time.perf_counter() - t
@@ -110,8 +145,12 @@ def _flooder(port: int, key: str, seconds: float, seed: int, q: mp.Queue) -> Non
     counts: dict[int, int] = {}
     end = time.monotonic() + seconds
     while time.monotonic() < end:
-        body = {"size": rnd.uniform(0.05, 3.0), "eps": rnd.uniform(0, 1),
-                "ba": rnd.uniform(1.2, 4.0), "kappa": rnd.uniform(0.05, 3.0)}
+        body = {
+            "size": rnd.uniform(0.05, 3.0),
+            "eps": rnd.uniform(0, 1),
+            "ba": rnd.uniform(1.2, 4.0),
+            "kappa": rnd.uniform(0.05, 3.0),
+        }
         try:
             st, _ = _request(c, "POST", "/v1/classify", key, body)
         except (OSError, http.client.HTTPException):
@@ -129,12 +168,14 @@ def _pct(xs: list[float], p: float) -> float:
     return 1e3 * s[min(len(s) - 1, int(p / 100 * len(s)))] if s else float("nan")
 
 
-def _phase(port: int, reader: str, flooder: str, seconds: float, n_flood: int
-           ) -> tuple[list[float], list[float], dict[int, int]]:
+def _phase(
+    port: int, reader: str, flooder: str, seconds: float, n_flood: int
+) -> tuple[list[float], list[float], dict[int, int]]:
     q: mp.Queue = mp.Queue()  # type: ignore[type-arg]
     procs = [mp.Process(target=_reader, args=(port, reader, seconds, q))]
-    procs += [mp.Process(target=_flooder, args=(port, flooder, seconds, i, q))
-              for i in range(n_flood)]
+    procs += [
+        mp.Process(target=_flooder, args=(port, flooder, seconds, i, q)) for i in range(n_flood)
+    ]
     for p in procs:
         p.start()
     results = [q.get(timeout=seconds + 300) for _ in procs]
@@ -157,8 +198,10 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--flooders", type=int, default=16)
     a = ap.parse_args()
-    print(f"{'server':9} {'phase':7} {'cached p50/p99 [ms]':>20} {'health p50/p99 [ms]':>20}"
-          f" {'flood 200':>9} {'429':>6} {'fresh/s':>8}")
+    print(
+        f"{'server':9} {'phase':7} {'cached p50/p99 [ms]':>20} {'health p50/p99 [ms]':>20}"
+        f" {'flood 200':>9} {'429':>6} {'fresh/s':>8}"
+    )
     for quota in (True, False):
         with tempfile.TemporaryDirectory(prefix="rsf-load-auth-") as d:
             proc, port, reader, flooder = _start(Path(d), quota)
@@ -168,11 +211,13 @@ def main() -> None:
                 for phase, n in (("alone", 0), ("flood", a.flooders)):
                     cached, health, counts = _phase(port, reader, flooder, a.seconds, n)
                     ok = counts.get(200, 0)
-                    print(f"{'quota' if quota else 'no quota':9} {phase:7} "
-                          f"{_pct(cached, 50):9.1f}/{_pct(cached, 99):<9.1f} "
-                          f"{_pct(health, 50):9.1f}/{_pct(health, 99):<9.1f} "
-                          f"{ok:9d} {counts.get(429, 0):6d} {ok / a.seconds:8.1f}",
-                          flush=True)
+                    print(
+                        f"{'quota' if quota else 'no quota':9} {phase:7} "
+                        f"{_pct(cached, 50):9.1f}/{_pct(cached, 99):<9.1f} "
+                        f"{_pct(health, 50):9.1f}/{_pct(health, 99):<9.1f} "
+                        f"{ok:9d} {counts.get(429, 0):6d} {ok / a.seconds:8.1f}",
+                        flush=True,
+                    )
             finally:
                 proc.terminate()
                 proc.wait(30)

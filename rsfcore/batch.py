@@ -28,6 +28,7 @@ per point (~60 us each).
 Accuracy: identical numbers to ``critical_perturbation`` at each point (same kernel, same
 fallback); tests/core/test_batch.py checks this to 1e-12 relative on random points.
 """
+
 from __future__ import annotations
 
 import math
@@ -39,8 +40,14 @@ from numpy.typing import ArrayLike, NDArray
 from . import critical as _crit
 from .params import BA_MAX, KAPPA_MAX, ParameterError, check_range
 
-__all__ = ["BatchResult", "critical_points", "OUTCOME_STABLE", "OUTCOME_UNSTABLE",
-           "OUTCOME_NONE", "KIND_FAILED"]
+__all__ = [
+    "BatchResult",
+    "critical_points",
+    "OUTCOME_STABLE",
+    "OUTCOME_UNSTABLE",
+    "OUTCOME_NONE",
+    "KIND_FAILED",
+]
 
 #: outcome codes (``BatchResult.outcome``); OUTCOME_NONE where not computed or failed
 OUTCOME_STABLE, OUTCOME_UNSTABLE, OUTCOME_NONE = 0, 1, -1
@@ -124,12 +131,14 @@ def critical_points(
     for a numerical failure at one point: that point is marked ``failed``.
     """
     if perturbation not in _crit.PERTURBATIONS:
-        raise ParameterError("perturbation", perturbation,
-                             "one of " + ", ".join(_crit.PERTURBATIONS))
+        raise ParameterError(
+            "perturbation", perturbation, "one of " + ", ".join(_crit.PERTURBATIONS)
+        )
     pert = _crit.PERTURBATIONS.index(perturbation)
     rtol = check_range("rtol", rtol, _crit.RTOL_RANGE[0], _crit.RTOL_RANGE[1])
-    sizes = {int(np.size(v)) for v in (ba, kappa, eps, vo, size)
-             if v is not None and np.ndim(v) >= 1}
+    sizes = {
+        int(np.size(v)) for v in (ba, kappa, eps, vo, size) if v is not None and np.ndim(v) >= 1
+    }
     n = max(sizes) if sizes else 1
     ba_a = _arr("ba", ba, n)
     ka = _arr("kappa", kappa, n)
@@ -162,9 +171,13 @@ def critical_points(
             idx = np.flatnonzero(sel)
             if idx.size == 0:
                 continue
-            k2, v2, a2, m2, f2 = (np.empty(idx.size, dtype=np.int64), np.empty(idx.size),
-                                  np.empty(idx.size), np.empty(idx.size, dtype=np.int64),
-                                  np.zeros(idx.size, dtype=np.int64))
+            k2, v2, a2, m2, f2 = (
+                np.empty(idx.size, dtype=np.int64),
+                np.empty(idx.size),
+                np.empty(idx.size),
+                np.empty(idx.size, dtype=np.int64),
+                np.zeros(idx.size, dtype=np.int64),
+            )
             _crit.critical_batch(ba_a[idx], ka[idx], ea[idx], v, pert, rtol, k2, v2, a2, m2, f2)
             kind[idx], value[idx], acc[idx], meth[idx], flags[idx] = k2, v2, a2, m2, f2
 
@@ -191,16 +204,32 @@ def critical_points(
     value[failed] = math.nan
     acc[failed] = math.nan
     on_b = (flags & (_crit.FLAG_ON_X1 | _crit.FLAG_ON_KCRIT)) != 0
-    out = BatchResult(kind.astype(np.int8), value, acc, meth.astype(np.int8), on_b, failed,
-                      errors, n_fallback=int(fb.size))
+    out = BatchResult(
+        kind.astype(np.int8),
+        value,
+        acc,
+        meth.astype(np.int8),
+        on_b,
+        failed,
+        errors,
+        n_fallback=int(fb.size),
+    )
     if sz is not None:
         _outcomes(out, sz, flags, ba_a, ka, ea, va, perturbation, rtol)
     return out
 
 
-def _outcomes(out: BatchResult, sz: NDArray[np.float64], flags: NDArray[np.int64],
-              ba: NDArray[np.float64], kappa: NDArray[np.float64], eps: NDArray[np.float64],
-              vo: NDArray[np.float64], perturbation: str, rtol: float) -> None:
+def _outcomes(
+    out: BatchResult,
+    sz: NDArray[np.float64],
+    flags: NDArray[np.int64],
+    ba: NDArray[np.float64],
+    kappa: NDArray[np.float64],
+    eps: NDArray[np.float64],
+    vo: NDArray[np.float64],
+    perturbation: str,
+    rtol: float,
+) -> None:
     """Fill out.outcome / out.outcome_uncertain from the critical sizes (size >= 0) or by
     classify() (size < 0)."""
     from .params import Params
@@ -209,8 +238,9 @@ def _outcomes(out: BatchResult, sz: NDArray[np.float64], flags: NDArray[np.int64
     k, cs = out.kind, out.critical_size
     unstable = ((k == _crit.KIND_ZERO) & (sz > 0.0)) | ((k == _crit.KIND_FINITE) & (sz > cs))
     with np.errstate(divide="ignore", invalid="ignore"):
-        near = (k == _crit.KIND_FINITE) & (np.abs(sz / cs - 1.0)
-                                          <= np.maximum(out.rel_accuracy, 4e-16))
+        near = (k == _crit.KIND_FINITE) & (
+            np.abs(sz / cs - 1.0) <= np.maximum(out.rel_accuracy, 4e-16)
+        )
     on_kc = (flags & _crit.FLAG_ON_KCRIT) != 0
     outcome = np.where(unstable, OUTCOME_UNSTABLE, OUTCOME_STABLE).astype(np.int8)
     uncertain = near | (on_kc & (vo > 0.0))
@@ -218,8 +248,12 @@ def _outcomes(out: BatchResult, sz: NDArray[np.float64], flags: NDArray[np.int64
     crtol = max(1e-13, min(1e-10, rtol))
     for i in neg:
         try:
-            r = classify(Params(float(ba[i]), float(kappa[i]), float(eps[i]), float(vo[i])),
-                         perturbation, float(sz[i]), rtol=crtol)
+            r = classify(
+                Params(float(ba[i]), float(kappa[i]), float(eps[i]), float(vo[i])),
+                perturbation,
+                float(sz[i]),
+                rtol=crtol,
+            )
             outcome[i] = OUTCOME_UNSTABLE if r.outcome == "unstable" else OUTCOME_STABLE
             uncertain[i] = False
         except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on

@@ -1,4 +1,5 @@
 """The README documents every setting the code reads (and no setting that does not exist)."""
+
 from __future__ import annotations
 
 import re

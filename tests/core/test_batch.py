@@ -1,4 +1,5 @@
 """rsfcore.batch.critical_points: the array form of critical_perturbation."""
+
 from __future__ import annotations
 
 import math
@@ -96,14 +97,19 @@ def test_failure_isolated(monkeypatch: pytest.MonkeyPatch) -> None:
     assert res.critical_size[2] == ref
 
 
-@pytest.mark.parametrize("kw, field", [
-    (dict(ba=[2.0, 0.5], kappa=1.0, eps=0.1, vo=1.0), "ba[1]"),
-    (dict(ba=[2.0, 2.0], kappa=1.0, eps=[0.1, 0.2, 0.3], vo=1.0), "ba"),
-    (dict(ba=[2.0, 2.0, 2.0], kappa=1.0, eps=[0.1, 0.2, 1.5], vo=1.0), "eps[2]"),
-    (dict(ba=[2.0, 2.0], kappa=1.0, eps=0.1, vo=[1.0, 0.0],
-          perturbation="load-point-jump"), "vo[1]"),
-    (dict(ba=[2.0, 2.0], kappa=[1.0, np.nan], eps=0.1, vo=1.0), "kappa[1]"),
-])
+@pytest.mark.parametrize(
+    "kw, field",
+    [
+        (dict(ba=[2.0, 0.5], kappa=1.0, eps=0.1, vo=1.0), "ba[1]"),
+        (dict(ba=[2.0, 2.0], kappa=1.0, eps=[0.1, 0.2, 0.3], vo=1.0), "ba"),
+        (dict(ba=[2.0, 2.0, 2.0], kappa=1.0, eps=[0.1, 0.2, 1.5], vo=1.0), "eps[2]"),
+        (
+            dict(ba=[2.0, 2.0], kappa=1.0, eps=0.1, vo=[1.0, 0.0], perturbation="load-point-jump"),
+            "vo[1]",
+        ),
+        (dict(ba=[2.0, 2.0], kappa=[1.0, np.nan], eps=0.1, vo=1.0), "kappa[1]"),
+    ],
+)
 def test_bad_input_names_element(kw: dict, field: str) -> None:
     with pytest.raises(ParameterError) as e:
         batch.critical_points(**kw)
