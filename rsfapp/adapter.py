@@ -21,6 +21,7 @@ from rsfcore import NUMERICS_VERSION, analytic
 from rsfcore import batch as _batch
 from rsfcore import boundaries as _bounds
 from rsfcore import critical as _critical
+from rsfcore import phase as _phase
 from rsfcore import protocols as _protocols
 from rsfcore import stiffness as _stiff
 from rsfcore import trajectory as _traj
@@ -39,6 +40,7 @@ from .requests import (
     VALID,
     AnalyticRequest,
     BoundariesRequest,
+    ClassifyPointsRequest,
     ClassifyRequest,
     CriticalRequest,
     PhysicalSI,
@@ -55,6 +57,7 @@ __all__ = [
     "SAMPLING_NOTE",
     "numerics_version",
     "classify",
+    "classify_points",
     "trajectory",
     "critical",
     "resolve_params",
@@ -235,7 +238,9 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
     p, phys = resolve_params(req)
     size = resolve_size(req, phys)
     start = None if req.start is None else (req.start.phi, req.start.psi)
-    kw = {} if max_steps is None else {"max_steps": max_steps}
+    kw: dict[str, Any] = {} if max_steps is None else {"max_steps": max_steps}
+    if req.log_size is not None:
+        kw["log_size"] = req.log_size
     res = guard(_traj.classify, p, req.perturbation, size, start=start, rtol=req.rtol, **kw)
     out = _json(res.to_dict())
     if phys is not None:
@@ -276,7 +281,9 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
     t_end = req.t_end
     if req.t_end_s is not None and phys is not None:
         t_end = phys.T_from_time(req.t_end_s)
-    kw = {} if max_steps is None else {"max_steps": max_steps}
+    kw: dict[str, Any] = {} if max_steps is None else {"max_steps": max_steps}
+    if req.log_size is not None:
+        kw["log_size"] = req.log_size
     res = guard(
         _traj.simulate,
         p,
@@ -846,3 +853,13 @@ def fit_table(result: dict[str, Any]) -> dict[str, list[Any]]:
     """The series of a fit answer as columns (FIT_COLUMNS)."""
     s = result.get("series") or {}
     return {k: s[k] for k in FIT_COLUMNS if k in s}
+
+
+def classify_points(req: ClassifyPointsRequest) -> dict[str, Any]:
+    """Outcomes of many start points for one parameter set (rsfcore.phase.classify_points:
+    the separatrix once, points near it integrated); ``outcome[i]`` for (phi[i], psi[i])."""
+    p = guard(Params, ba=req.ba, kappa=req.kappa, eps=req.eps, vo=req.vo)
+    res = guard(_phase.classify_points, p, np.asarray(req.phi), np.asarray(req.psi), req.rtol)
+    out = _json(res.to_dict())
+    out["n_points"] = len(req.phi)
+    return out

@@ -74,7 +74,9 @@ def is_computing(path: str) -> bool:
 
 def _is_batch(path: str) -> bool:
     # sweeps too: scattered points (up to RSF_SWEEP_MAX_SCATTERED) travel in the body
-    return path.endswith("/batch") or path.startswith("/v1/fit") or path == "/v1/sweeps"
+    return (
+        path.endswith(("/batch", "/points")) or path.startswith("/v1/fit") or path == "/v1/sweeps"
+    )
 
 
 @dataclass

@@ -84,9 +84,18 @@ class CriticalResult(_Cached):
         description="zero: every perturbation grows; finite: sizes above critical_size run away; infinite: none does."
     )
     critical_size: float | None = Field(
-        description="Critical d (velocity jump) or dv/v_o (load-point jump) (-); null when infinite, 0 when zero."
+        description="Critical d (velocity jump) or dv/v_o (load-point jump) (-); null when "
+        "infinite or beyond the double range (see log_critical_size), 0 when zero."
     )
-    rel_accuracy: float = Field(description="Delivered relative accuracy of critical_size (-).")
+    log_critical_size: float | None = Field(
+        description="d (velocity jump) or ln(1 + dv) (load-point jump) (-): finite for every "
+        "finite size, also beyond the double range; classify's log_size checks it."
+    )
+    rel_accuracy: float = Field(
+        description="Relative accuracy of critical_size: a tested upper bound (-)."
+    )
+    accuracy_met: bool = Field(description="rel_accuracy <= the requested rtol.")
+    reason: str = Field(description="Why the requested rtol is not met ('' when it is).")
     method: str = Field(
         description="How it was obtained: closed form (with the equation), separatrix integration, or bisection."
     )

@@ -37,6 +37,7 @@ __all__ = [
     "AnalyticRequest",
     "BoundariesRequest",
     "BoundariesSIRequest",
+    "ClassifyPointsRequest",
     "ClassifyRequest",
     "CriticalRequest",
     "GridSpec",
@@ -249,6 +250,16 @@ class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
         ge=limits.VELOCITY_JUMP_SIZE.lo,
         le=limits.LOAD_POINT_JUMP_SIZE.hi,
     )
+    log_size: float | None = F(
+        None,
+        "null or [-1e4, 1e6]",
+        "The perturbation by its logarithm instead of size: d for a velocity jump, "
+        "ln(1 + dv) for a load-point jump (-), so that a critical size beyond the double "
+        "range (its log_critical_size) can be checked.",
+        name="log_size",
+        ge=-1e4,
+        le=1e6,
+    )
     start: Point | None = F(
         None,
         "null or a finite (phi, psi)",
@@ -261,6 +272,19 @@ class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
 
     @model_validator(mode="after")
     def _si_rules(self) -> ClassifyRequest:
+        if self.log_size is not None:
+            clash = [
+                f
+                for f in ("size", "start", *SI_PERTURBATION_FIELDS)
+                if f in self.model_fields_set and getattr(self, f) is not None
+            ]
+            if clash:
+                raise field_error(
+                    type(self).__name__,
+                    "log_size",
+                    f"give either 'log_size' or '{clash[0]}', never both",
+                    self.log_size,
+                )
         _check_si(self, type(self).__name__, with_size=True)
         return self
 
@@ -511,3 +535,41 @@ class StiffnessRequest(_Model):
     physical: StiffnessPhysical | None = F(
         None, "null or an object", "SI parameters.", name="physical"
     )
+
+
+class ClassifyPointsRequest(_Dimless):
+    """Classify many start points (phi0, psi0) for one parameter set at once: the
+    separatrix is computed once and each point is placed against it (points within a
+    safety margin of it are integrated); every outcome agrees with /v1/classify given the
+    same start (rsfcore.phase.classify_points)."""
+
+    phi: Annotated[list[float], Field(min_length=1, max_length=100_000)] = F(
+        ...,
+        "1..100000 values in [-1e4, 1e4]",
+        "Start phi = ln(V/V_*) of each point (-).",
+        name="phi",
+    )
+    psi: Annotated[list[float], Field(min_length=1, max_length=100_000)] = F(
+        ...,
+        "1..100000 values in [-1e8, 1e8], as many as phi",
+        "Start psi = (tau - tau_*)/(a sigma) of each point (-).",
+        name="psi",
+    )
+    rtol: float = F(
+        1e-10,
+        VALID_RTOL,
+        "Relative tolerance of the fallback integrations (-).",
+        name="rtol",
+        **RTOL,
+    )
+
+    @model_validator(mode="after")
+    def _same_length(self) -> ClassifyPointsRequest:
+        if len(self.psi) != len(self.phi):
+            raise field_error(
+                type(self).__name__,
+                "psi",
+                f"psi has {len(self.psi)} values, phi has {len(self.phi)}: give one psi per phi",
+                len(self.psi),
+            )
+        return self

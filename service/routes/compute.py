@@ -23,6 +23,7 @@ from rsfapp.requests import (
     AnalyticRequest,
     BoundariesRequest,
     BoundariesSIRequest,
+    ClassifyPointsRequest,
     ClassifyRequest,
     CriticalRequest,
     StiffnessRequest,
@@ -117,6 +118,20 @@ async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
     """Certified outcome of one perturbation (outcome, certificate, peak_phi, blow-up or
     return time T = V_* t/Dc, rel_accuracy). Cached (field `cached`, header `X-Cache: hit|miss`)."""
     return await ctx.answer("classify", req, partial(adapter.classify, max_steps=ctx.quick_steps))
+
+
+@router.post(
+    "/classify/points",
+    responses=_R,
+    summary="Stable or unstable, for many start points of one parameter set",
+)
+async def classify_points(req: ClassifyPointsRequest, ctx: CtxDep) -> Response:
+    """Outcome ("stable" | "unstable") of each start point (phi[i], psi[i]) for one
+    parameter set, from the separatrix computed once (rsfcore.phase.classify_points);
+    points within a safety margin of the separatrix are integrated, so each outcome is
+    the one /v1/classify gives with that ``start``.  10^5 points take milliseconds.
+    Cached (field `cached`, header `X-Cache: hit|miss`)."""
+    return await ctx.answer("classify_points", req, adapter.classify_points)
 
 
 _JSON_OR_PNG = ("json", "png")
