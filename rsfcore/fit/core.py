@@ -399,8 +399,8 @@ def _one_blas_thread() -> contextlib.AbstractContextManager[Any]:
     and a fit is serial anyway.
     """
     try:
-        from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
-    except ImportError:  # pragma: no cover - optional dependency (``fit`` extra)
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a dependency; tolerated if absent
         return contextlib.nullcontext()
     return threadpool_limits(limits=1, user_api="blas")
 
