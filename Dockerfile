@@ -14,8 +14,10 @@ COPY rsfplots ./rsfplots
 COPY rsfcli ./rsfcli
 COPY service ./service
 COPY worker ./worker
-# the PostgreSQL driver (extra `postgres`), then the compiled kernels
-RUN pip install ".[postgres]" \
+COPY rsfclient ./rsfclient
+# the PostgreSQL driver (extra `postgres`), emcee for fit posteriors (extra `fit`), then
+# the compiled kernels
+RUN pip install ".[postgres,fit]" \
     && python -c "from rsfapp.warmup import warm_up; warm_up()" \
     && test -n "$(ls -A /app/.numba_cache)" \
     && useradd --create-home --uid 10001 rsf \
@@ -23,8 +25,9 @@ RUN pip install ".[postgres]" \
 USER rsf
 EXPOSE 8000
 
-# /health is 503 while the database or the broker is down or the database is damaged
+# /health is 503 while the database or the broker is down or the database is damaged;
+# with API keys on it needs a key (RSF_API_KEY, as docker-compose sets it)
 HEALTHCHECK --interval=15s --timeout=5s --start-period=30s --retries=3 \
-    CMD python -c "import urllib.request,sys; sys.exit(urllib.request.urlopen('http://127.0.0.1:8000/health', timeout=4).status != 200)"
+    CMD python -c "import os,sys,urllib.request as u; k=os.environ.get('RSF_API_KEY'); h={'Authorization': 'Bearer '+k} if k else {}; sys.exit(u.urlopen(u.Request('http://127.0.0.1:8000/health', headers=h), timeout=4).status != 200)"
 
 CMD ["rsf", "api", "--host", "0.0.0.0", "--port", "8000"]
