@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from rsfcore import batch
 from rsfcore.critical import KINDS, METHODS
+from rsfcore.jsonsafe import finite_or_none
 
 from .grid import SpecError, SweepSpec
 from .store.sweeps import SweepStore
@@ -383,7 +384,7 @@ def diagram(
     ok = sl("computed") & ~sl("failed")
     outcome_mode = spec.output == "outcome"
     present = ok & (oc >= 0) if outcome_mode else ok
-    csl = [[(float(v) if math.isfinite(v) else None) for v in row] for row in cs.tolist()]
+    csl = [[finite_or_none(v) for v in row] for row in cs.tolist()]
     kl = np.where(kind >= 0, kind, 1).astype(int).tolist()
     ol = [[(float(v) if v >= 0 else None) for v in row] for row in oc.tolist()]
     sl_vals = {

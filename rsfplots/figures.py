@@ -179,10 +179,6 @@ def _grid(
     return phi1, psi1, PHI, PSI
 
 
-def _finite_or_none(v: float | None) -> float | None:
-    return None if v is None or not math.isfinite(v) else float(v)
-
-
 def _eps_label(eps: float) -> str:
     if eps == 0.0:
         return r"$\epsilon \to 0$ (slip law)"
