@@ -31,9 +31,20 @@ PY = BIN / "python"
 STAMP = VENV / ".rsf-installed"
 
 
+def _core_digest() -> str:
+    """Hash of rsfcore's sources: numba's cache does not notice edits to kernels that
+    other kernels inline (rsfcore/ode/rk.py), so each version of the sources gets its own
+    cache directory and a stale compiled kernel is never loaded."""
+    h = hashlib.sha256()
+    for f in sorted((ROOT / "rsfcore").rglob("*.py")):
+        h.update(f.relative_to(ROOT).as_posix().encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
 def _env() -> dict[str, str]:
     env = dict(os.environ)
-    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
+    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache" / _core_digest()))
     return env
 
 
@@ -42,24 +53,33 @@ def _ensure_env() -> None:
         print("[dev] creating virtual environment in .venv", flush=True)
         venv.EnvBuilder(with_pip=True).create(VENV)
     digest = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
-    if STAMP.exists() and STAMP.read_text() == digest:
+    if not (STAMP.exists() and STAMP.read_text() == digest):
+        print("[dev] installing the project and its test dependencies", flush=True)
+        subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "--upgrade", "pip"])
+        subprocess.check_call(
+            [str(PY), "-m", "pip", "install", "-q", "-e", f"{ROOT}[test,dev,postgres]"]
+        )
+        STAMP.write_text(digest)
+    _ensure_kernels()
+
+
+def _ensure_kernels() -> None:
+    """Compile rsfcore's kernels once per version of its sources, saying so."""
+    env = _env()
+    cache = Path(env["NUMBA_CACHE_DIR"])
+    if cache.is_dir() and any(cache.iterdir()):
         return
-    print("[dev] installing the project and its test dependencies", flush=True)
-    subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "--upgrade", "pip"])
-    subprocess.check_call(
-        [str(PY), "-m", "pip", "install", "-q", "-e", f"{ROOT}[test,dev,postgres]"]
-    )
     print(
-        "[dev] compiling rsfcore's kernels into .numba_cache (first time on a machine: "
-        "a few minutes; later starts load them in about a second)",
+        f"[dev] compiling rsfcore's kernels into {cache.relative_to(ROOT) if cache.is_relative_to(ROOT) else cache} "
+        "(once per version of the core, about a minute; later starts load them in about "
+        "a second)",
         flush=True,
     )
     t0 = time.monotonic()
     subprocess.check_call(
-        [str(PY), "-c", "from rsfapp.warmup import warm_up; warm_up()"], env=_env(), cwd=ROOT
+        [str(PY), "-c", "from rsfapp.warmup import warm_up; warm_up()"], env=env, cwd=ROOT
     )
     print(f"[dev] kernels ready in {time.monotonic() - t0:.0f} s", flush=True)
-    STAMP.write_text(digest)
 
 
 def _stage(name: str, cmd: list[str]) -> int:
