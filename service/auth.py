@@ -196,21 +196,24 @@ def needed_scope(request: Request) -> Scope:
     return scope_for(getattr(route, "path_format", None) or request.url.path, request.method)
 
 
-_ACTIVE_TTL_S = 2.0
-_active_seen: dict[int, float] = {}
+_ACTIVE_TTL_S = 1.0
+_active_seen: dict[int, tuple[float, int, bool]] = {}
 
 
 async def _any_active(keys: KeyStore) -> bool:
-    """Whether any key is active.  A True answer is remembered for 2 s (keys exist, so a
-    request without a key is refused: caching that direction can only refuse, never admit);
-    a False answer is always re-read, so a key created a moment ago is enforced at once."""
+    """Whether any key is active, re-read at most once a second per process (this is on
+    the path of every keyless request in ``auto`` mode).  So a key created while the
+    server runs is enforced within 1 s by another process's ``rsf keys create`` (until
+    then only loopback requests are served without a key) and at once when created in
+    this process (``KeyStore.changes``); revocation of a key is always immediate
+    (:meth:`KeyStore.verify` reads the database on every request that carries a key)."""
     now = time.monotonic()
-    if now - _active_seen.get(id(keys), -1e9) < _ACTIVE_TTL_S:
-        return True
-    if await run_in_threadpool(keys.any_active):
-        _active_seen[id(keys)] = now
-        return True
-    return False
+    seen = _active_seen.get(id(keys))
+    if seen is not None and now - seen[0] < _ACTIVE_TTL_S and seen[1] == KeyStore.changes:
+        return seen[2]
+    active = bool(await run_in_threadpool(keys.any_active))
+    _active_seen[id(keys)] = (now, KeyStore.changes, active)
+    return active
 
 
 async def _authenticate(
@@ -279,7 +282,7 @@ async def _check_trajectory_points(request: Request, p: Principal) -> None:
         )
 
 
-def current(request: Request) -> Principal:
+async def current(request: Request) -> Principal:  # async: no thread hop
     """The principal of this request (anonymous admin if :func:`guard` did not run)."""
     p = request.scope.get("rsf.principal")
     return p if isinstance(p, Principal) else Principal(None, Scope.admin)

@@ -165,7 +165,13 @@ def _row(r: Any) -> ApiKey:
 
 
 class KeyStore:
-    """API keys, their usage counters and sweep owners in ``db``."""
+    """API keys, their usage counters and sweep owners in ``db``.
+
+    ``KeyStore.changes`` counts the keys created, stored or revoked in this process, so a
+    cache of "is any key active" can be dropped at once.
+    """
+
+    changes: int = 0
 
     def __init__(self, db: Database) -> None:
         self.db = db
@@ -199,6 +205,7 @@ class KeyStore:
                     f"a key named {name!r} exists already (names are never "
                     "reused, even after revocation)"
                 )
+        KeyStore.changes += 1
         return key
 
     def put(self, name: str, key: str, scope: Scope = Scope.read) -> bool:
@@ -221,6 +228,7 @@ class KeyStore:
                 "(e.g. 'rsf_' + `openssl rand -base64 32`)"
             )
         h, sc = hash_key(key), Scope(scope).value
+        KeyStore.changes += 1
         with self.db.write() as conn:
             r = conn.execute(select(api_keys).where(api_keys.c.name == name)).first()
             if r is None:
@@ -252,6 +260,7 @@ class KeyStore:
         Raises:
             KeyStoreError: no key with that name.
         """
+        KeyStore.changes += 1
         with self.db.write() as conn:
             r = conn.execute(
                 update(api_keys)
