@@ -23,9 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsfcore.params import ParameterError
+from rsfcore.units import PhysicalInputs
 
 from .config import Settings
 from .requests import AXIS_RANGES, SweepAxis, SweepRequest
+from .requests.sweeps import SI_FIXED
 
 __all__ = ["Axis", "SpecError", "SweepSpec", "expand", "plan_chunks", "PARAM_NAMES", "SPEC_VERSION"]
 
@@ -133,6 +135,9 @@ class SweepSpec:
         kappa_param: "kappa" or "kappa_ratio": how kappa is given.
         perturbation: "velocity-jump" or "load-point-jump"; rtol: requested accuracy.
         output: "critical" (critical sizes) or "outcome" (a size is fixed or swept).
+        physical: the SI machine of ``fixed.physical`` (rsfcore.units.PhysicalInputs'
+            seven fields, V_load_m_s with its default applied), None for a dimensionless
+            sweep; ``fixed`` then holds its conversion (ba, kappa, vo).
     """
 
     mode: Literal["grid", "points"]
@@ -146,6 +151,7 @@ class SweepSpec:
     points_sha256: str = ""
     _n: int = field(default=0, repr=False)
     _names: tuple[str, ...] = field(default=(), repr=False)
+    physical: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
         if self.mode == "grid":
@@ -165,6 +171,10 @@ class SweepSpec:
         if self.mode == "grid":
             return tuple(a.n for a in self.axes)
         return (self._n,)
+
+    def physical_inputs(self) -> PhysicalInputs | None:
+        """The SI machine (rsfcore.units.PhysicalInputs), or None for a dimensionless sweep."""
+        return None if self.physical is None else PhysicalInputs(**self.physical)
 
     @property
     def swept(self) -> list[str]:
@@ -228,6 +238,8 @@ class SweepSpec:
             d["axes"] = [a.to_json() for a in self.axes]
         else:
             d["points"] = {"names": self.swept, "n": self.n_total, "sha256": self.points_sha256}
+        if self.physical is not None:  # only then: dimensionless sweeps keep their ids
+            d["physical"] = dict(self.physical)
         return d
 
     def summary(self) -> dict[str, Any]:
@@ -236,7 +248,7 @@ class SweepSpec:
             dims = [{"name": a.name, "n": a.n} for a in self.axes]
         else:
             dims = [{"name": "point", "n": self.n_total, "parameters": self.swept}]
-        return {
+        out: dict[str, Any] = {
             "mode": self.mode,
             "dims": dims,
             "output": self.output,
@@ -244,6 +256,9 @@ class SweepSpec:
             "perturbation": self.perturbation,
             "rtol": self.rtol,
         }
+        if self.physical is not None:
+            out["physical"] = dict(self.physical)
+        return out
 
     @classmethod
     def from_json(cls, d: dict[str, Any], points: dict[str, F64] | None = None) -> SweepSpec:
@@ -263,6 +278,7 @@ class SweepSpec:
             sha,
             int(d.get("n_total", 0)),
             names,
+            None if d.get("physical") is None else dict(d["physical"]),
         )
 
 
@@ -387,8 +403,10 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
             points[name] = v
             where[name] = f"points.{name}"
 
-    # kappa and kappa_ratio: one of them
     fx = req.fixed
+    phys = _physical(req, where, form)
+
+    # kappa and kappa_ratio: one of them
     uses_kappa = "kappa" in where or (fx.kappa is not None and "kappa_ratio" not in where)
     if "kappa" in where and "kappa_ratio" in where:
         raise SpecError(
@@ -402,7 +420,7 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
             "give kappa or kappa_ratio, not both",
             "null when kappa is given or swept",
         )
-    kappa_param = "kappa" if uses_kappa else "kappa_ratio"
+    kappa_param = "kappa" if uses_kappa or phys is not None else "kappa_ratio"
     fixed: dict[str, float | None] = {
         "ba": fx.ba,
         "eps": fx.eps,
@@ -412,6 +430,8 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
             fx.kappa if uses_kappa else (1.0 if fx.kappa_ratio is None else fx.kappa_ratio)
         ),
     }
+    if phys is not None:  # the one conversion SI -> dimensionless (rsfcore.units)
+        fixed.update(ba=phys.ba, kappa=phys.kappa, vo=phys.vo)
     for name in where:
         fixed.pop(name, None)
     output = "outcome" if ("size" in where or fixed.get("size") is not None) else "critical"
@@ -428,6 +448,7 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
         float(req.rtol),
         output,
         _digest(points) if points is not None else "",
+        physical=None if phys is None else phys.to_dict(),
     )
     if spec.n_total > max_points:
         fld = "y.values" if form == "x" else ("axes" if form == "axes" else "points")
@@ -438,6 +459,38 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
         )
     _check_combinations(spec, where)
     return spec
+
+
+def _physical(req: SweepRequest, where: dict[str, str], form: str) -> PhysicalInputs | None:
+    """``fixed.physical`` converted by rsfcore.units (ParameterError naming
+    ``fixed.physical.<field>``), after the rule: with it, none of ba, kappa,
+    kappa_ratio, vo is fixed or swept (SpecError naming the clashing field)."""
+    fx = req.fixed
+    if fx.physical is None:
+        return None
+    valid = (
+        "with fixed.physical, only eps and size may be swept or fixed "
+        "(physical sets ba, kappa and vo)"
+    )
+    for name in SI_FIXED:
+        if name in fx.model_fields_set and getattr(fx, name) is not None:
+            raise SpecError(
+                f"fixed.{name}", f"give either fixed.physical (SI) or fixed.{name}", valid
+            )
+    for name in SI_FIXED:
+        if name in where:
+            fld = where[name] + ("" if form == "points" else ".name")
+            raise SpecError(fld, f"{name} cannot be swept with fixed.physical", valid)
+    phys = PhysicalInputs.from_dict(
+        fx.physical.model_dump(exclude_none=True), prefix="fixed.physical"
+    )
+    if req.perturbation == "load-point-jump" and not phys.vo > 0.0:
+        raise SpecError(
+            "fixed.physical.V_load_m_s",
+            "a load-point jump needs a moving load point",
+            "(0, 1e300 V_star_m_s] m/s",
+        )
+    return phys
 
 
 def _extremes(spec: SweepSpec, name: str) -> F64:

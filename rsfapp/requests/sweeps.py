@@ -13,18 +13,27 @@ Parameters not swept take their ``fixed`` values.  ``kappa`` (= k Dc/(a sigma)) 
 ``kappa_ratio`` (= kappa/kappa_crit, kappa_crit = b/a - 1) are alternatives: give or sweep
 one of them.  Per point the workers compute the critical size, or, when a ``size`` is
 fixed or swept, the outcome of that perturbation.
+
+SI: ``fixed.physical`` = {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s, V_load_m_s} (the
+names of the single queries, :class:`~rsfapp.requests.single.PhysicalSI`) describes the
+machine that is not swept: it fixes ba = b/a, kappa = k Dc/(a sigma) and vo = V_load/V_*
+(converted by rsfcore.units in :func:`rsfapp.grid.expand`).  Rule: with ``physical`` only
+``eps`` and ``size`` may be swept, and none of fixed ``ba``, ``kappa``, ``kappa_ratio``,
+``vo`` may be given (422 naming the clashing field: ``fixed.ba``, ``axes[1].name``,
+``points.vo``, ...).
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field
+from pydantic import Field, SerializerFunctionWrapHandler, model_serializer
 
 from rsfcore import limits
 
 from ._base import FL, RTOL, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
+from .single import PhysicalSI
 
 __all__ = [
     "AXIS_RANGES",
@@ -34,6 +43,7 @@ __all__ = [
     "SweepAxis",
     "SweepFixed",
     "SweepRequest",
+    "SI_FIXED",
 ]
 
 AxisName = Literal["ba", "kappa", "kappa_ratio", "eps", "vo", "size"]
@@ -91,8 +101,14 @@ class SweepAxis(_Model):
     log: bool = F(False, "true or false", "Geometric spacing (start, stop > 0).", name="log")
 
 
+#: The dimensionless parameters that ``fixed.physical`` determines (never given or swept
+#: together with it).
+SI_FIXED: tuple[str, ...] = ("ba", "kappa", "kappa_ratio", "vo")
+
+
 class SweepFixed(_Model):
-    """Values of the parameters that are not swept (dimensionless)."""
+    """Values of the parameters that are not swept: dimensionless, or ba, kappa and vo
+    as the SI machine ``physical`` (never both; see the module docstring)."""
 
     ba: float = FL(limits.BA)
     kappa_ratio: float | None = F(
@@ -123,6 +139,24 @@ class SweepFixed(_Model):
         ge=-limits.SIZE_MAX,
         le=limits.SIZE_MAX,
     )
+    physical: PhysicalSI | None = F(
+        None,
+        "null or an object {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s, V_load_m_s}",
+        "The machine in SI units instead of ba, kappa/kappa_ratio and vo (never "
+        "both; these cannot be swept then). The sweep's data then carry SI scales.",
+        name="fixed.physical",
+    )
+
+    @model_serializer(mode="wrap")
+    def _without_unused(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """With ``physical``, the dump leaves out the dimensionless defaults it replaces,
+        so that it validates again and names only what was asked."""
+        d: dict[str, Any] = handler(self)
+        if self.physical is not None:
+            for f in SI_FIXED:
+                if f not in self.model_fields_set:
+                    d.pop(f, None)
+        return d
 
 
 class SweepRequest(_Model):

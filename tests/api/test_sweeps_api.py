@@ -52,6 +52,71 @@ def ref_critical(
     return critical.critical_perturbation(Params(ba, kappa, eps, vo), pert, rtol=1e-10)
 
 
+#: A lab machine in SI (fixed.physical of a sweep); not round numbers, so that the
+#: conversion SI -> (ba, kappa, vo) rounds.
+PH = {
+    "a": 0.012,
+    "b": 0.031,
+    "Dc_m": 2.3e-5,
+    "sigma_Pa": 4.7e7,
+    "k_Pa_per_m": 6.1e10,
+    "V_star_m_s": 1.3e-6,
+    "V_load_m_s": 3.7e-6,
+}
+
+
+@pytest.mark.parametrize("pert", ["velocity-jump", "load-point-jump"])
+def test_si_sweep_equals_dimensionless_sweep(c: TestClient, pert: str) -> None:
+    import xarray as xr
+
+    # the dimensionless groups written out here (eq: characteristic scales), not taken
+    # from rsfcore.units
+    ba = PH["b"] / PH["a"]
+    kappa = PH["k_Pa_per_m"] * PH["Dc_m"] / (PH["a"] * PH["sigma_Pa"])
+    vo = PH["V_load_m_s"] / PH["V_star_m_s"]
+    eps = {"name": "eps", "values": [0.0, 0.4, 1.0]}
+    si = submit(c, {"axes": [eps], "fixed": {"physical": PH}, "perturbation": pert})
+    dl = submit(
+        c,
+        {"axes": [eps], "fixed": {"ba": ba, "kappa": kappa, "vo": vo}, "perturbation": pert},
+    )
+    assert si["id"] != dl["id"] and si["physical"]["V_load_m_s"] == PH["V_load_m_s"]
+    assert si["fixed"]["ba"] == pytest.approx(ba, rel=1e-15)
+    for sid in (si["id"], dl["id"]):
+        run_all(c, sid)
+    spec = c.get(f"/v1/sweeps/{si['id']}/spec").json()
+    assert spec["physical"] == PH and spec["kappa_param"] == "kappa"
+    got = {}
+    for name, sid in (("si", si["id"]), ("dl", dl["id"])):
+        r = c.get(f"/v1/sweeps/{sid}/data")
+        assert r.status_code == 200
+        got[name] = xr.open_dataset(io.BytesIO(r.content), engine="scipy")
+    a, b = got["si"]["critical_size"].values, got["dl"]["critical_size"].values
+    # 1e-12: the same groups up to rounding of the conversion (a few ulp), and the
+    # critical size is smooth in them; in practice the two are bit-identical
+    assert np.isfinite(a[:2]).all() and (got["si"]["kind"].values[:2] == 1).all()
+    np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)  # inf (stable aging law) == inf
+    np.testing.assert_array_equal(got["si"]["kind"].values, got["dl"]["kind"].values)
+    for k, e in enumerate(eps["values"]):
+        ref = ref_critical(ba, kappa, e, vo, pert)
+        assert a[k] == pytest.approx(ref.critical_size or math.inf, rel=1e-12)
+    ds = got["si"]
+    assert ds.attrs["physical_Dc_m"] == PH["Dc_m"]
+    assert ds.attrs["time_scale_s"] == pytest.approx(PH["Dc_m"] / PH["V_star_m_s"], rel=1e-15)
+    assert ds.attrs["stress_scale_Pa"] == pytest.approx(PH["a"] * PH["sigma_Pa"], rel=1e-15)
+    # the SI critical size, computed here from its definition: the slip rate right after
+    # the jump V_load e^d, or the new load-point velocity V_load (1 + dv); few-ulp formulas
+    if pert == "velocity-jump":
+        si_var, expect = "critical_slip_rate_m_s", PH["V_load_m_s"] * np.exp(a)
+    else:
+        si_var, expect = "critical_load_point_velocity_m_s", PH["V_load_m_s"] * (1.0 + a)
+    assert ds[si_var].dims == ("eps",) and ds[si_var].attrs["units"] == "m/s"
+    np.testing.assert_allclose(ds[si_var].values, expect, rtol=1e-14)
+    assert "critical_slip_rate_m_s" not in got["dl"] and "time_scale_s" not in got["dl"].attrs
+    js = c.get(f"/v1/sweeps/{si['id']}/data", params={"format": "json"}).json()
+    assert js["physical"] == PH
+
+
 def test_3d_grid_with_vo_axis_matches_rsfcore(c: TestClient) -> None:
     body = {
         "axes": [
@@ -253,6 +318,40 @@ def test_diagram_slice_of_3d_grid(c: TestClient) -> None:
             "x",
             "one of",
         ),
+        # fixed.physical sets ba, kappa and vo: never given or swept with it
+        (
+            {"axes": [{"name": "eps", "values": [0.1]}], "fixed": {"physical": PH, "ba": 2.0}},
+            "fixed.ba",
+            "only eps and size",
+        ),
+        (
+            {
+                "axes": [{"name": "eps", "values": [0.1]}],
+                "fixed": {"physical": PH, "kappa_ratio": 2.0},
+            },
+            "fixed.kappa_ratio",
+            "only eps and size",
+        ),
+        (
+            {"axes": [{"name": "kappa_ratio", "values": [1.0]}], "fixed": {"physical": PH}},
+            "axes[0].name",
+            "only eps and size",
+        ),
+        ({"points": {"vo": [1.0, 2.0]}, "fixed": {"physical": PH}}, "points.vo", "only eps"),
+        (
+            {"axes": [{"name": "eps", "values": [0.1]}], "fixed": {"physical": {**PH, "b": 0.01}}},
+            "fixed.physical.b",
+            "rate weakening",
+        ),
+        (
+            {
+                "axes": [{"name": "eps", "values": [0.1]}],
+                "fixed": {"physical": {**PH, "V_load_m_s": 0.0}},
+                "perturbation": "load-point-jump",
+            },
+            "fixed.physical.V_load_m_s",
+            "m/s",
+        ),
     ],
 )
 def test_bad_sweep_is_422_naming_field_and_writes_nothing(
@@ -360,3 +459,19 @@ def test_sweep_of_the_pre_array_layout_is_410(c: TestClient, api_stack) -> None:
         assert r.status_code == 410, (path, r.text)
         assert r.headers["content-type"].startswith("application/problem+json")
     assert c.delete(f"/v1/sweeps/{sid}", params={"purge": "true"}).status_code == 204
+
+
+def test_critical_si_edge_values() -> None:
+    from rsfapp.sweepdata import critical_si
+    from rsfcore.units import PhysicalInputs
+
+    phys = PhysicalInputs(**PH)
+    vl = PH["V_load_m_s"]
+    # missing (NaN), infinite, zero, e^800 beyond double range, |d| beyond rsfcore's
+    # range, an ordinary jump (expected values from the definition V_load e^d)
+    cs = np.array([math.nan, math.inf, 0.0, 800.0, 2e4, -3.0])
+    got = critical_si(phys, "velocity-jump", cs)
+    assert np.isnan(got[0]) and math.isinf(got[1]) and math.isinf(got[3]) and math.isinf(got[4])
+    assert got[2] == vl and got[5] == pytest.approx(vl * math.exp(-3.0), rel=1e-15)
+    lp = critical_si(phys, "load-point-jump", np.array([-0.5, 0.0, math.inf]))
+    np.testing.assert_array_equal(lp, [vl * 0.5, vl, math.inf])
