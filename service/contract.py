@@ -73,6 +73,7 @@ _STANDARD: dict[str, str] = {
 #: Single-query endpoints answered 202 + Location when their computation is deferred.
 _DEFERRABLE = {
     "/v1/classify",
+    "/v1/classify/points",
     "/v1/trajectory",
     "/v1/critical",
     "/v1/analytic/u",

@@ -11,6 +11,7 @@ from ._base import VALID, Perturbation
 from .single import (
     SI_PERTURBATION_FIELDS,
     AnalyticRequest,
+    BoundariesQueryRequest,
     BoundariesRequest,
     BoundariesSIRequest,
     ClassifyPointsRequest,
@@ -30,6 +31,7 @@ __all__ = [
     "AXIS_RANGES",
     "AnalyticRequest",
     "AxisName",
+    "BoundariesQueryRequest",
     "BoundariesRequest",
     "BoundariesSIRequest",
     "ClassifyPointsRequest",

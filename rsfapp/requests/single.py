@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 from pydantic import (
+    ConfigDict,
     Field,
     SerializerFunctionWrapHandler,
     ValidationError,
@@ -35,6 +36,7 @@ from ._base import Model as _Model
 
 __all__ = [
     "AnalyticRequest",
+    "BoundariesQueryRequest",
     "BoundariesRequest",
     "BoundariesSIRequest",
     "ClassifyPointsRequest",
@@ -232,8 +234,38 @@ class _SIPerturbation(_Model):
     )
 
 
+def _si_perturbation_schema(schema: dict[str, Any]) -> None:
+    """The cross-field rule of the SI perturbation fields in the JSON schema: each of
+    ``factor``, ``new_slip_rate_m_s``, ``new_load_point_velocity_m_s`` is null (or absent)
+    unless ``physical`` is an object, and then ``size``, ``log_size`` and ``start`` are not
+    given (null or absent) and neither is another SI perturbation field."""
+    rules: list[dict[str, Any]] = []
+    for f in SI_PERTURBATION_FIELDS:
+        others = {o: {"type": "null"} for o in SI_PERTURBATION_FIELDS if o != f}
+        rules.append(
+            {
+                "anyOf": [
+                    {"properties": {f: {"type": "null"}}},
+                    {
+                        "required": ["physical"],
+                        "not": {"required": ["size"]},
+                        "properties": {
+                            "physical": {"type": "object"},
+                            "log_size": {"type": "null"},
+                            "start": {"type": "null"},
+                            **others,
+                        },
+                    },
+                ]
+            }
+        )
+    schema["allOf"] = [*schema.get("allOf", []), *rules]
+
+
 class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
     """Classify one perturbation as stable or unstable (runaway); dimensionless or SI."""
+
+    model_config = ConfigDict(json_schema_extra=_si_perturbation_schema)
 
     perturbation: Perturbation = F(
         "velocity-jump",
@@ -435,12 +467,25 @@ class GridSpec(_Model):
     n_psi: int = F(51, "[1, 500]", "Number of psi values.", name="n_psi", ge=1, le=500)
 
 
+def _one_of_points_grid(schema: dict[str, Any]) -> None:
+    """Exactly one of ``points`` (a non-empty list) or ``grid`` (an object), in the schema."""
+    schema["oneOf"] = [
+        {"required": ["points"], "properties": {"points": {"type": "array", "minItems": 1}}},
+        {"required": ["grid"], "properties": {"grid": {"type": "object"}}},
+    ]
+    for alt in schema.get("properties", {}).get("points", {}).get("anyOf", []):
+        if alt.get("type") == "array":
+            alt["minItems"] = 1
+
+
 class AnalyticRequest(_Model):
     """Analytic Lyapunov function U at points or on a grid.
 
     ``function`` = 'kcrit': U of `eq: trajectories 1` (kappa = kappa_crit, uses vo);
     'vo0': U of `eq: trajectories 2` (stationary load point, uses kappa).
     """
+
+    model_config = ConfigDict(json_schema_extra=_one_of_points_grid)
 
     function: Literal["kcrit", "vo0"] = F(
         "kcrit", "'kcrit' or 'vo0'", "Which closed form.", name="function"
@@ -476,6 +521,24 @@ class BoundariesRequest(_Model):
     phi: Annotated[list[Annotated[float, Field(ge=-1e3, le=1e3)]], Field(max_length=10_000)] = F(
         [],
         "0..10000 values in [-1e3, 1e3]",
+        "phi values at which to give psi on the acceleration line (-).",
+        name="phi",
+    )
+
+
+#: Most phi values of the query form (GET): its URL stays within what the HTTP layer
+#: accepts (uvicorn/h11 refuse a request line of more than about 16 kB with 400).
+MAX_QUERY_PHI = 200
+
+
+class BoundariesQueryRequest(BoundariesRequest):
+    """Stability boundaries as a query (GET): as the body form, at most 200 phi values."""
+
+    phi: Annotated[
+        list[Annotated[float, Field(ge=-1e3, le=1e3)]], Field(max_length=MAX_QUERY_PHI)
+    ] = F(
+        [],
+        f"0..{MAX_QUERY_PHI} values in [-1e3, 1e3] (more with POST)",
         "phi values at which to give psi on the acceleration line (-).",
         name="phi",
     )

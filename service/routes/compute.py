@@ -21,7 +21,7 @@ from rsfapp.config import Settings
 from rsfapp.queue import Queue
 from rsfapp.requests import (
     AnalyticRequest,
-    BoundariesRequest,
+    BoundariesQueryRequest,
     BoundariesSIRequest,
     ClassifyPointsRequest,
     ClassifyRequest,
@@ -276,7 +276,7 @@ async def analytic_u(
 
 
 @router.get("/boundaries", responses=_R, summary="Stability boundaries (query)")
-async def boundaries_get(req: Annotated[BoundariesRequest, Query()], ctx: CtxDep) -> Response:
+async def boundaries_get(req: Annotated[BoundariesQueryRequest, Query()], ctx: CtxDep) -> Response:
     """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values.
     Cached (field `cached`, header `X-Cache: hit|miss`)."""
     return await ctx.answer("boundaries", req, adapter.boundaries)

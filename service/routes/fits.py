@@ -107,7 +107,7 @@ async def submit_fit(req: FitRequest, ctx: CtxDep) -> Response:
     },
 )
 async def get_fit(
-    key: Annotated[str, Path(description="The key of POST /v1/fits.")],
+    key: Annotated[str, Path(description="The key of POST /v1/fits.", pattern="^[0-9a-f]{64}$")],
     ctx: CtxDep,
     format: Annotated[
         str,
