@@ -119,7 +119,10 @@ async def submit(
     """Start a sweep: an N-D grid (``axes``: 1-5 of ba, kappa or kappa_ratio, eps, vo,
     size; each ``{name, values}`` or ``{name, start, stop, n, log}``), scattered ``points``
     (equal-length arrays per parameter) or the 2-D ``x``/``y`` form, with ``fixed`` values
-    for the rest.  Per point: the critical size (kind, critical_size, rel_accuracy) or,
+    for the rest: dimensionless, or the machine in SI as ``fixed.physical`` {a, b, Dc_m,
+    sigma_Pa, k_Pa_per_m, V_star_m_s, V_load_m_s} (sets ba, kappa, vo; then only eps and
+    size may be swept; the NetCDF data then carry SI scales and the critical slip rate or
+    load-point velocity in m/s).  Per point: the critical size (kind, critical_size, rel_accuracy) or,
     when a size is fixed or swept, the outcome.  Up to RSF_SWEEP_MAX_POINTS points
     (default 1e8), chunked lazily.
 
