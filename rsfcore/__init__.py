@@ -139,34 +139,15 @@ _WHERE: dict[str, str] = {
     "stiffness_summary": "stiffness",
     "velocity_step": "protocols",
 }
-_MODULES = frozenset(
-    [
-        "analytic",
-        "boundaries",
-        "critical",
-        "diagram",
-        "engine",
-        "errors",
-        "laws",
-        "limits",
-        "ode",
-        "params",
-        "phase",
-        "protocols",
-        "separatrix",
-        "stiffness",
-        "trajectory",
-    ]
-)
 
 
 def __getattr__(name: str) -> Any:
-    if name in _MODULES:
-        return importlib.import_module(f".{name}", __name__)
     if name in _WHERE:
         value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
         globals()[name] = value
         return value
+    if name in __all__:  # the public names not in _WHERE are rsfcore's modules
+        return importlib.import_module(f".{name}", __name__)
     raise AttributeError(f"module 'rsfcore' has no attribute {name!r}")
 
 
