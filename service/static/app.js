@@ -35,7 +35,11 @@ window.fetch = async (url, opts = {}) => {
   const key = apiKey();
   if (sameOrigin && key && !headers.has("authorization")) headers.set("authorization", "Bearer " + key);
   const r = await plainFetch(url, { ...opts, headers });
-  if (sameOrigin && r.status === 401) askKey(key ? "The API key was refused (unknown or revoked)." : "");
+  // A 401 to a request sent before the key changed (e.g. a poll in flight while the key
+  // was being entered) says nothing about the current key: only the current key's refusal asks.
+  if (sameOrigin && r.status === 401 && key === apiKey()) {
+    askKey(key ? "The API key was refused (unknown or revoked)." : "");
+  }
   return r;
 };
 function useKey(ev) {
