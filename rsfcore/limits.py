@@ -78,6 +78,17 @@ __all__ = [
     "V_STAR",
     "VO_SI",
     "F_STAR",
+    "SI_A",
+    "SI_B",
+    "SI_DC_M",
+    "SI_SIGMA_PA",
+    "SI_K_PA_PER_M",
+    "SI_V_STAR_M_S",
+    "SI_V_LOAD_M_S",
+    "SI_DC_MAX_M",
+    "SI_SIGMA_MAX_PA",
+    "SI_K_MAX_PA_PER_M",
+    "SI_V_MAX_M_S",
     "BA_MAX",
     "KAPPA_MAX",
     "VO_MAX",
@@ -332,6 +343,66 @@ V_STAR = Limit(
 VO_SI = Limit("Vo", 0.0, None, unit="m/s", description="Load-point velocity V_o.")
 F_STAR = Limit("f_star", None, None, default=0.6, description="Reference friction coefficient f_*.")
 
+# --- a spring-slider in SI as the request models accept it ------------------------------
+# The HTTP request models (rsfapp.requests: PhysicalSI, PhysicalScales) and the CLI's SI
+# options read these ranges.  They are a first gate on each value alone, in the units
+# named by ``unit``; the rules between values (b > a, b <= 1e6 a, kappa = k Dc/(a sigma)
+# <= 1e6, V_load/V_* <= 1e300) are checked by rsfcore.units.PhysicalInputs.  The upper
+# ends are far beyond any laboratory or natural fault (Dc <= 1 km, sigma <= 1 TPa, slip
+# rates <= 1 km/s) and keep every derived scale (Dc/V_*, a sigma) finite.
+#: largest Dc [m] accepted by the request models
+SI_DC_MAX_M: float = 1.0e3
+#: largest effective normal stress sigma [Pa] accepted by the request models
+SI_SIGMA_MAX_PA: float = 1.0e12
+#: largest machine stiffness k [Pa/m] accepted by the request models (before the
+#: cross-field rule kappa <= 1e6)
+SI_K_MAX_PA_PER_M: float = 1.0e30
+#: largest reference slip rate and load-point velocity [m/s] accepted by the request models
+SI_V_MAX_M_S: float = 1.0e3
+#: a (-): direct-effect coefficient, (0, 1]
+SI_A = Limit("a", 0.0, 1.0, lo_open=True, description="Direct-effect coefficient a.")
+#: b (-): evolution-effect coefficient, (0, 1e6]; the request models state (a, 1e6 a]
+SI_B = Limit("b", 0.0, BA_MAX, lo_open=True, description="Evolution-effect coefficient b (b > a).")
+#: Dc [m]: characteristic slip distance, (0, 1e3]
+SI_DC_M = Limit(
+    "Dc_m", 0.0, SI_DC_MAX_M, lo_open=True, unit="m", description="Characteristic slip distance Dc."
+)
+#: sigma [Pa]: effective normal stress, (0, 1e12]
+SI_SIGMA_PA = Limit(
+    "sigma_Pa",
+    0.0,
+    SI_SIGMA_MAX_PA,
+    lo_open=True,
+    unit="Pa",
+    description="Effective normal stress sigma.",
+)
+#: k [Pa/m]: machine (spring) stiffness, [0, 1e30]; the request models state the
+#: cross-field bound [0, 1e6 a sigma/Dc]
+SI_K_PA_PER_M = Limit(
+    "k_Pa_per_m",
+    0.0,
+    SI_K_MAX_PA_PER_M,
+    unit="Pa/m",
+    description="Machine (spring) stiffness k; kappa = k Dc/(a sigma).",
+)
+#: V_* [m/s]: reference slip rate, (0, 1e3]
+SI_V_STAR_M_S = Limit(
+    "V_star_m_s",
+    0.0,
+    SI_V_MAX_M_S,
+    lo_open=True,
+    unit="m/s",
+    description="Reference slip rate V_*.",
+)
+#: V_load [m/s]: load-point velocity, [0, 1e3] (0 = stationary load point)
+SI_V_LOAD_M_S = Limit(
+    "V_load_m_s",
+    0.0,
+    SI_V_MAX_M_S,
+    unit="m/s",
+    description="Load-point velocity V_o (0 = stationary load point).",
+)
+
 #: every Limit above by (distinct) attribute name
 LIMITS: dict[str, Limit] = {
     "BA": BA,
@@ -355,4 +426,11 @@ LIMITS: dict[str, Limit] = {
     "V_STAR": V_STAR,
     "VO_SI": VO_SI,
     "F_STAR": F_STAR,
+    "SI_A": SI_A,
+    "SI_B": SI_B,
+    "SI_DC_M": SI_DC_M,
+    "SI_SIGMA_PA": SI_SIGMA_PA,
+    "SI_K_PA_PER_M": SI_K_PA_PER_M,
+    "SI_V_STAR_M_S": SI_V_STAR_M_S,
+    "SI_V_LOAD_M_S": SI_V_LOAD_M_S,
 }

@@ -17,6 +17,7 @@ in Pa).
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -51,6 +52,7 @@ __all__ = [
     "StiffnessRequest",
     "TrajectoryRequest",
     "field_error",
+    "si_range_text",
 ]
 
 
@@ -90,6 +92,45 @@ def field_error(model: str, field: str, message: str, value: object) -> Validati
     )
 
 
+def _si_number(x: float) -> str:
+    """A range end as the SI fields state it: powers of ten from 1e3 up as "1eN" (lab
+    magnitudes), everything else as rsfcore.limits writes it."""
+    if x >= 1e3 and math.isfinite(x):
+        e = round(math.log10(x))
+        if x == 10.0**e:
+            return f"1e{e}"
+    return limits.format_number(x)
+
+
+def si_range_text(limit: limits.Limit) -> str:
+    """The range of an SI limit as text, e.g. "(0, 1e3]" (rsfcore.limits.range_text with
+    powers of ten written as such)."""
+    lo = "(-inf" if limit.lo is None else ("(" if limit.lo_open else "[") + _si_number(limit.lo)
+    hi = "inf)" if limit.hi is None else _si_number(limit.hi) + (")" if limit.hi_open else "]")
+    return f"{lo}, {hi}"
+
+
+def _si(
+    limit: limits.Limit,
+    description: str,
+    *,
+    name: str | None = None,
+    valid: str | None = None,
+    optional: bool = False,
+) -> Any:
+    """A required (or, with ``optional``, nullable) SI field whose bounds come from
+    rsfcore.limits (the ``SI_*`` ranges); its range text carries the unit."""
+    unit = "" if limit.unit in ("", "-") else f" {limit.unit}"
+    text = valid or f"{si_range_text(limit)}{unit}"
+    return FL(
+        limit,
+        None if optional else ...,
+        description=description,
+        name=name or limit.name,
+        valid=f"null or {text}" if optional else text,
+    )
+
+
 class PhysicalSI(_Model):
     """A spring-slider in SI units (the names lab scripts rely on; rsfcore.units.PhysicalInputs).
 
@@ -97,34 +138,20 @@ class PhysicalSI(_Model):
     checked by rsfcore.units and reported as 422 naming ``physical.<field>``.
     """
 
-    a: float = F(..., "(0, 1]", "Direct-effect coefficient a (-).", name="a", gt=0, le=1)
-    b: float = F(
-        ..., "(a, 1e6 a]", "Evolution-effect coefficient b (-), b > a.", name="b", gt=0, le=1e6
-    )
-    Dc_m: float = F(
-        ..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc_m", gt=0, le=1e3
-    )
-    sigma_Pa: float = F(
-        ..., "(0, 1e12] Pa", "Effective normal stress sigma [Pa].", name="sigma_Pa", gt=0, le=1e12
-    )
-    k_Pa_per_m: float = F(
-        ...,
-        "[0, 1e6 a sigma/Dc] Pa/m",
+    a: float = _si(limits.SI_A, "Direct-effect coefficient a (-).")
+    b: float = _si(limits.SI_B, "Evolution-effect coefficient b (-), b > a.", valid="(a, 1e6 a]")
+    Dc_m: float = _si(limits.SI_DC_M, "Characteristic slip distance Dc [m].")
+    sigma_Pa: float = _si(limits.SI_SIGMA_PA, "Effective normal stress sigma [Pa].")
+    k_Pa_per_m: float = _si(
+        limits.SI_K_PA_PER_M,
         "Machine (spring) stiffness k [Pa/m]; kappa = k Dc/(a sigma).",
-        name="k_Pa_per_m",
-        ge=0,
-        le=1e30,
+        valid="[0, 1e6 a sigma/Dc] Pa/m",
     )
-    V_star_m_s: float = F(
-        ..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].", name="V_star_m_s", gt=0, le=1e3
-    )
-    V_load_m_s: float | None = F(
-        None,
-        "[0, 1e3] m/s",
+    V_star_m_s: float = _si(limits.SI_V_STAR_M_S, "Reference slip rate V_* [m/s].")
+    V_load_m_s: float | None = _si(
+        limits.SI_V_LOAD_M_S,
         "Load-point velocity V_o [m/s] (default V_*; 0 = stationary load point).",
-        name="V_load_m_s",
-        ge=0,
-        le=1e3,
+        optional=True,
     )
 
 
@@ -325,16 +352,10 @@ class PhysicalScales(_Model):
     """Scales that turn a dimensionless solution into SI units (legacy form of the
     trajectory's SI columns: ``scales``, or ``physical`` with these keys)."""
 
-    a: float = F(..., "(0, 1]", "Direct-effect coefficient a (-).", name="a", gt=0, le=1)
-    Dc: float = F(
-        ..., "(0, 1e3] m", "Characteristic slip distance Dc [m].", name="Dc", gt=0, le=1e3
-    )
-    sigma: float = F(
-        ..., "(0, 1e12] Pa", "Effective normal stress [Pa].", name="sigma", gt=0, le=1e12
-    )
-    V_star: float = F(
-        ..., "(0, 1e3] m/s", "Reference slip rate V_* [m/s].", name="V_star", gt=0, le=1e3
-    )
+    a: float = _si(limits.SI_A, "Direct-effect coefficient a (-).")
+    Dc: float = _si(limits.SI_DC_M, "Characteristic slip distance Dc [m].", name="Dc")
+    sigma: float = _si(limits.SI_SIGMA_PA, "Effective normal stress [Pa].", name="sigma")
+    V_star: float = _si(limits.SI_V_STAR_M_S, "Reference slip rate V_* [m/s].", name="V_star")
     f_star: float = F(
         0.6, "[-10, 10]", "Reference friction coefficient f_* (-).", name="f_star", ge=-10, le=10
     )

@@ -10,6 +10,7 @@ import pytest
 import typer
 
 from rsfapp import requests
+from rsfapp.requests.single import si_range_text
 from rsfcli.main import app as cli
 from rsfcore import Params, limits
 from rsfcore.errors import ParameterError
@@ -95,3 +96,61 @@ def test_rsfcore_accepts_exactly_the_range(field: str, limit: limits.Limit) -> N
         with pytest.raises(ParameterError) as e:
             Params(**{**base, field: outside})
         assert e.value.field == field and e.value.valid == limit.text
+
+
+# (request model, field, limit) of the SI machine: PhysicalSI (the names lab scripts rely
+# on) and the legacy trajectory scales; both read their ranges from rsfcore.limits.
+SI_FIELDS = [
+    (requests.PhysicalSI, "a", limits.SI_A),
+    (requests.PhysicalSI, "b", limits.SI_B),
+    (requests.PhysicalSI, "Dc_m", limits.SI_DC_M),
+    (requests.PhysicalSI, "sigma_Pa", limits.SI_SIGMA_PA),
+    (requests.PhysicalSI, "k_Pa_per_m", limits.SI_K_PA_PER_M),
+    (requests.PhysicalSI, "V_star_m_s", limits.SI_V_STAR_M_S),
+    (requests.PhysicalSI, "V_load_m_s", limits.SI_V_LOAD_M_S),
+    (requests.PhysicalScales, "a", limits.SI_A),
+    (requests.PhysicalScales, "Dc", limits.SI_DC_M),
+    (requests.PhysicalScales, "sigma", limits.SI_SIGMA_PA),
+    (requests.PhysicalScales, "V_star", limits.SI_V_STAR_M_S),
+]
+
+
+@pytest.mark.parametrize(
+    ("model", "field", "limit"), SI_FIELDS, ids=[f"{m.__name__}.{f}" for m, f, _ in SI_FIELDS]
+)
+def test_si_schema_matches_limits(model: Any, field: str, limit: limits.Limit) -> None:
+    """The JSON-schema bounds of every SI field are the rsfcore.limits range; its text
+    (with the unit) is in the description, except b and k whose text states the rule
+    relative to a (and sigma, Dc)."""
+    prop = model.model_json_schema()["properties"][field]
+    assert _schema_bounds(prop) == (limit.lo, limit.lo_open, limit.hi, limit.hi_open)
+    if field not in ("b", "k_Pa_per_m"):
+        unit = "" if limit.unit == "-" else f" {limit.unit}"
+        text = si_range_text(limit)
+        assert f"{text}{unit}" in prop["description"], prop["description"]
+    # the model refuses one step beyond each closed end and each open end, naming the field
+    base = {"a": 0.01, "b": 0.015, "Dc_m": 1e-5, "sigma_Pa": 1e7, "k_Pa_per_m": 1e9}
+    base |= {"V_star_m_s": 1e-6, "Dc": 1e-5, "sigma": 1e7, "V_star": 1e-6}
+    keys = set(model.model_fields)
+    ok = {k: v for k, v in base.items() if k in keys}
+    model.model_validate(ok)
+    for end, is_open, outward in (
+        (limit.lo, limit.lo_open, -math.inf),
+        (limit.hi, limit.hi_open, math.inf),
+    ):
+        assert end is not None  # every SI range is bounded on both sides
+        bad = end if is_open else math.nextafter(end, outward)
+        with pytest.raises(Exception) as e:  # pydantic.ValidationError
+            model.model_validate({**ok, field: bad})
+        assert e.value.errors()[0]["loc"] == (field,)  # type: ignore[attr-defined]
+
+
+def test_si_ranges_are_the_ones_lab_values_need() -> None:
+    """Written out here (not read from rsfcore.limits): the documented SI gate."""
+    assert (limits.SI_DC_M.lo, limits.SI_DC_M.hi, limits.SI_DC_M.unit) == (0.0, 1e3, "m")
+    assert si_range_text(limits.SI_DC_M) == "(0, 1e3]"
+    assert si_range_text(limits.SI_SIGMA_PA) == "(0, 1e12]" and limits.SI_SIGMA_PA.unit == "Pa"
+    assert si_range_text(limits.SI_V_STAR_M_S) == "(0, 1e3]"
+    assert si_range_text(limits.SI_V_LOAD_M_S) == "[0, 1e3]" and limits.SI_A.text == "(0, 1]"
+    assert si_range_text(limits.SI_K_PA_PER_M) == "[0, 1e30]"
+    assert si_range_text(limits.EPS) == "[0, 1]" and si_range_text(limits.VO) == "[0, 1e300]"
