@@ -15,9 +15,10 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from rsfcore import NUMERICS_VERSION, analytic
+from rsfcore import NUMERICS_VERSION, analytic, limits
 from rsfcore import batch as _batch
 from rsfcore import boundaries as _bounds
 from rsfcore import critical as _critical
@@ -26,6 +27,7 @@ from rsfcore import protocols as _protocols
 from rsfcore import stiffness as _stiff
 from rsfcore import trajectory as _traj
 from rsfcore.jsonsafe import jsonsafe
+from rsfcore.limits import Limit
 from rsfcore.params import ParameterError, Params, PhysicalParams
 from rsfcore.units import (
     PhysicalInputs,
@@ -446,52 +448,124 @@ def _param_error(index: int, exc: ParameterError) -> dict[str, Any]:
     return item_error(index, exc.field, str(exc), exc.valid)
 
 
+#: Keys of a plain dimensionless critical item (no 'physical'), with their limits.
+_PLAIN_COLUMNS: dict[str, Limit] = {
+    "ba": limits.BA,
+    "kappa": limits.KAPPA,
+    "eps": limits.EPS,
+    "vo": limits.VO,
+    "rtol": limits.RTOL,
+}
+_PLAIN_KEYS = frozenset(_PLAIN_COLUMNS) | {"perturbation"}
+_NUMBER_TYPES = frozenset((float, int))
+
+
+def _plain_critical_items(
+    items: list[dict[str, Any]],
+) -> tuple[NDArray[np.intp], dict[str, NDArray[Any]]]:
+    """The columnar fast path of a critical batch: indices of the items that are plain
+    dimensionless objects (only the keys of :data:`_PLAIN_KEYS`, JSON numbers in range,
+    a known perturbation) and their columns, defaults filled in from rsfcore.limits.
+
+    Every other item (SI, a string number, out of range, unknown key, ...) is left to the
+    request model, so its answer or its error entry is exactly the single endpoint's.
+    Validating 10^4 items this way takes ~5 ms instead of ~70 ms through pydantic."""
+    n = len(items)
+    ok = np.fromiter(
+        (type(d) is dict and d.keys() <= _PLAIN_KEYS for d in items), dtype=bool, count=n
+    )
+    idx = np.flatnonzero(ok)
+    plain = [items[i] for i in idx]
+    cols: dict[str, NDArray[Any]] = {}
+    good = np.ones(len(plain), dtype=bool)
+    for key, lim in _PLAIN_COLUMNS.items():
+        raw = [d.get(key, lim.default) for d in plain]
+        typed = np.fromiter((type(v) in _NUMBER_TYPES for v in raw), dtype=bool, count=len(raw))
+        try:
+            vals = np.array([v if t else np.nan for v, t in zip(raw, typed, strict=True)], float)
+        except OverflowError:  # an integer beyond double range: the model path says so
+            vals = np.array([v if type(v) is float else np.nan for v in raw], float)
+            typed &= np.fromiter((type(v) is float for v in raw), dtype=bool, count=len(raw))
+        good &= typed & ~lim.bad_mask(vals)
+        cols[key] = vals
+    pert = np.array(
+        [_PERT_INDEX.get(d.get("perturbation", "velocity-jump"), -1) for d in plain], dtype=np.intp
+    )
+    # a load-point jump needs a moving load point (v_o > 0); the model path says so
+    good &= (pert >= 0) & ~((pert == 1) & (cols["vo"] == 0.0))
+    cols["perturbation"] = pert
+    return idx[good], {k: v[good] for k, v in cols.items()}
+
+
+_PERT_INDEX = {name: i for i, name in enumerate(_critical.PERTURBATIONS)}
+
+
 def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
     """Critical sizes of many items, answered item by item exactly as :func:`critical`.
 
-    Valid items are grouped by (perturbation, rtol) and each group is one call of
-    rsfcore.batch.critical_points (the compiled loop of critical_perturbation, with its
-    bisection fallback and per-point failure isolation: a point that fails is an error
-    entry, the others are answered).  Returns {"results": [...] in item order,
-    "n_items", "n_ok", "n_failed"}."""
-    models, errs = validate_items(CriticalRequest, items)
+    Plain dimensionless items are validated as columns (:func:`_plain_critical_items`);
+    the rest through the request model.  Valid items are grouped by (perturbation, rtol)
+    and each group is one call of rsfcore.batch.critical_points (the compiled loop of
+    critical_perturbation, with its bisection fallback and per-point failure isolation:
+    a point that fails is an error entry, the others are answered).  Returns
+    {"results": [...] in item order, "n_items", "n_ok", "n_failed"}."""
     n = len(items)
-    pdicts: list[dict[str, float] | None] = [None] * n
-    physs: list[PhysicalInputs | None] = [None] * n
+    fast_idx, cols = _plain_critical_items(items)
+    is_fast = np.zeros(n, dtype=bool)
+    is_fast[fast_idx] = True
+    rest = np.flatnonzero(~is_fast).tolist()
+    results: list[dict[str, Any] | None] = [None] * n
+    physs: dict[int, PhysicalInputs] = {}
+    # (ba, kappa, eps, vo, perturbation index, rtol) of every valid item, in item order
+    idx_l: list[int] = fast_idx.tolist()
+    ba_l, ka_l = cols["ba"].tolist(), cols["kappa"].tolist()
+    eps_l, vo_l = cols["eps"].tolist(), cols["vo"].tolist()
+    pert_l, rtol_l = cols["perturbation"].tolist(), cols["rtol"].tolist()
+    if rest:
+        models, errs = validate_items(CriticalRequest, [items[i] for i in rest])
+        for j, m in enumerate(models):
+            i = rest[j]
+            if m is None:
+                e = errs[j]
+                e["index"] = i
+                results[i] = e
+                continue
+            try:
+                if m.physical is None:
+                    pd = {"ba": m.ba, "kappa": m.kappa, "eps": m.eps, "vo": m.vo}
+                else:
+                    p, physs[i] = resolve_params(m)
+                    pd = p.as_dict()
+                pert = _PERT_INDEX[m.perturbation]
+                if pert == 1 and pd["vo"] == 0.0:
+                    raise ParameterError(
+                        "vo",
+                        pd["vo"],
+                        "> 0 for a load-point jump (relative jump of a moving load point)",
+                    )
+            except ParameterError as exc:
+                results[i] = _param_error(i, exc)
+                continue
+            idx_l.append(i)
+            ba_l.append(pd["ba"])
+            ka_l.append(pd["kappa"])
+            eps_l.append(pd["eps"])
+            vo_l.append(pd["vo"])
+            pert_l.append(pert)
+            rtol_l.append(float(m.rtol))
     groups: dict[tuple[int, float], list[int]] = {}
-    for i, m in enumerate(models):
-        if m is None:
-            continue
-        try:
-            if m.physical is None:
-                # the request model already enforced Params' ranges (ba, kappa, eps, vo);
-                # building 10^4 Params would cost as much as the compiled loop
-                pd = {"ba": m.ba, "kappa": m.kappa, "eps": m.eps, "vo": m.vo}
-            else:
-                p, physs[i] = resolve_params(m)
-                pd = p.as_dict()
-            pert = _critical.PERTURBATIONS.index(m.perturbation)
-            if pert == 1 and pd["vo"] == 0.0:
-                raise ParameterError(
-                    "vo",
-                    pd["vo"],
-                    "> 0 for a load-point jump (relative jump of a moving load point)",
-                )
-        except ParameterError as exc:
-            errs[i] = _param_error(i, exc)
-            continue
-        pdicts[i] = pd
-        groups.setdefault((pert, float(m.rtol)), []).append(i)
-    results: list[dict[str, Any] | None] = [errs.get(i) for i in range(n)]
+    for j, key in enumerate(zip(pert_l, rtol_l, strict=True)):
+        groups.setdefault(key, []).append(j)
     kinds, methods = _critical.KINDS, _critical.METHODS
-    for (pert, rtol), idx in groups.items():
-        pds = [pd for pd in (pdicts[i] for i in idx) if pd is not None]  # all set above
+    for (pert, rtol), js in groups.items():
         name = _critical.PERTURBATIONS[pert]
+        g_ba, g_ka = [ba_l[j] for j in js], [ka_l[j] for j in js]
+        g_eps, g_vo = [eps_l[j] for j in js], [vo_l[j] for j in js]
         res = _batch.critical_points(
-            np.array([p["ba"] for p in pds]),
-            np.array([p["kappa"] for p in pds]),
-            np.array([p["eps"] for p in pds]),
-            np.array([p["vo"] for p in pds]),
+            np.array(g_ba),
+            np.array(g_ka),
+            np.array(g_eps),
+            np.array(g_vo),
             perturbation=name,
             rtol=rtol,
         )
@@ -501,19 +575,22 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
             res.rel_accuracy.tolist(),
         )
         meth_l, onb_l = res.method.tolist(), res.on_boundary.tolist()
-        for j, i in enumerate(idx):
-            if j in res.errors:
-                results[i] = item_error(i, None, res.errors[j])
+        for g, j in enumerate(js):
+            i = idx_l[j]
+            pd = {"ba": g_ba[g], "kappa": g_ka[g], "eps": g_eps[g], "vo": g_vo[g]}
+            if g in res.errors:
+                results[i] = item_error(i, None, res.errors[g])
                 continue
-            k = kind_l[j]
+            k = kind_l[g]
             out: dict[str, Any]
-            if meth_l[j] == _critical.M_BISECTION:
-                # settled by bisection (rare): the single path's own result, so that the
-                # method text (which may carry a note) is exactly the single answer's
+            if meth_l[g] == _critical.M_BISECTION or (
+                k == _critical.KIND_FINITE and not math.isfinite(value_l[g])
+            ):
+                # settled by bisection, or a finite size beyond double range (both rare):
+                # the single path's own result, so that the method text (which may carry a
+                # note) and the logarithm of a huge size are exactly the single answer's
                 try:
-                    r = guard(
-                        _critical.critical_perturbation, guard(Params, **pds[j]), name, rtol=rtol
-                    )
+                    r = guard(_critical.critical_perturbation, guard(Params, **pd), name, rtol=rtol)
                 except (ParameterError, ComputeError) as exc:
                     results[i] = item_error(i, getattr(exc, "field", None), str(exc))
                     continue
@@ -524,10 +601,10 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                 size = (
                     None
                     if k == _critical.KIND_INFINITE
-                    else (0.0 if k == _critical.KIND_ZERO else value_l[j])
+                    else (0.0 if k == _critical.KIND_ZERO else value_l[g])
                 )
                 met, reason = _critical.accuracy_verdict(
-                    kinds[k], methods[meth_l[j]], acc_l[j], rtol
+                    kinds[k], methods[meth_l[g]], acc_l[g], rtol
                 )
                 out = {
                     "kind": kinds[k],
@@ -535,15 +612,15 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                     "log_critical_size": None
                     if size is None
                     else (size if pert == 0 else math.log1p(size)),
-                    "rel_accuracy": acc_l[j],
+                    "rel_accuracy": acc_l[g],
                     "accuracy_met": met,
                     "reason": reason,
-                    "method": methods[meth_l[j]],
+                    "method": methods[meth_l[g]],
                     "perturbation": name,
-                    "params": pds[j],
-                    "on_boundary": bool(onb_l[j]),
+                    "params": pd,
+                    "on_boundary": bool(onb_l[g]),
                 }
-            ph = physs[i]
+            ph = physs.get(i)
             if ph is not None:
                 out["si"] = _json(_critical_si(ph, out))
             out["index"] = i

@@ -39,8 +39,28 @@ CRITICAL_ITEMS: list[dict[str, Any]] = [
     {"physical": PHYS, "ba": 2.0},  # invalid: both
     {"vo": 0.0, "perturbation": "load-point-jump"},  # invalid: vo
     {"ba": 2.0, "kappa": 1.5, "eps": 0.1, "bogus": 1},  # invalid: extra field
+    # the columnar fast path of plain items must agree with the request model on each of:
+    {"ba": True, "kappa": 2.5},  # invalid: a boolean is not a number
+    {"ba": "3", "kappa": 2.5, "eps": 0.3},  # a numeric string (the model reads it)
+    {"ba": 3, "kappa": 2, "eps": 0},  # integers
+    {"perturbation": "bogus"},  # invalid: perturbation
+    {"rtol": 1e-20},  # invalid: rtol
+    {"ba": 2.0, "kappa": 1e3, "eps": 0.0, "perturbation": "load-point-jump"},  # dv > 1e308
+    {"ba": 10**400},  # invalid: an integer beyond double range
+    {"ba": 2.0, "kappa": 3.0, "eps": 0.1, "vo": 0.0, "perturbation": "load-point-jump"},
 ]
-BAD = {6: "ba", 9: "physical.b", 10: "ba", 11: "vo", 12: "bogus"}
+BAD = {
+    6: "ba",
+    9: "physical.b",
+    10: "ba",
+    11: "vo",
+    12: "bogus",
+    13: "ba",
+    16: "perturbation",
+    17: "rtol",
+    19: "ba",
+    20: "vo",
+}
 
 
 def test_critical_batch_equals_single(c: TestClient) -> None:
