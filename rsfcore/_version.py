@@ -13,4 +13,8 @@ __all__ = ["NUMERICS_VERSION"]
 #:    crossing that, on such node-like approaches, only accumulated error produced (return
 #:    times that moved from 4.4 to 6.7 between rtol 1e-8 and 1e-10, absent at 1e-12).
 #:    Results of non-stiff runs that cross ln v_o are unchanged bit for bit.
-NUMERICS_VERSION = "2"
+#: 3: the converged_to_steady_state box shrinks with the basin, to min(1e-6, 1e-3/kappa_crit)
+#:    (it was 1e-6, as large as the whole basin at b/a = kappa = 1e6, where the bisection's
+#:    load-point dv_crit came out 1.9e-6 instead of 1.0013e-6); classify of load-point
+#:    jumps with large ln(1 + dv) near the separatrix is decided by the traced separatrix.
+NUMERICS_VERSION = "3"

@@ -70,18 +70,10 @@ CASES = [
     (Params(1.0000007008005722, 7.00800572239757e-07, 1e-12, 1.9221882351945498), LJ),
     (Params(1e4, 1e4 - 1.0, 0.5, 1e-6), VJ),
     (Params(2.0, 1.0, 0.25, 1e3), LJ),
-    # b/a = kappa = 1e6: the separatrix method's budget runs out (stiff), bisection answers
-    pytest.param(
-        Params(1e6, 1e6, 0.0, 1e-12),
-        LJ,
-        marks=pytest.mark.xfail(
-            strict=True,
-            reason="known defect: dv_crit ~ 1.9e-6 while classify's converged_to_steady_state"
-            " certificate accepts any start within EQ_TOL = 1e-6 of the steady state, inside"
-            " or outside the basin (kappa/kappa_crit = 1 + 1e-6), so classify is not monotone"
-            " in dv there and the bisection follows it",
-        ),
-    ),
+    # b/a = kappa = 1e6 (kappa/kappa_crit = 1 + 1e-6): the separatrix method's budget runs
+    # out (stiff), bisection answers.  dv_crit = 1.0013e-6; it was 1.9e-6 while the
+    # converged_to_steady_state box (1e-6) was as large as the basin (now 1e-3/kappa_crit)
+    (Params(1e6, 1e6, 0.0, 1e-12), LJ),
     (Params(1e6, 1e6, 0.0, 1.0), VJ),
     # v_o = 0: L* (accurate as x -> 1)
     (Params(2.0, (1.0 - 1e-12) / 0.5, 0.5, 0.0), VJ),
@@ -120,3 +112,20 @@ def test_bisection_fallback_is_vo_invariant() -> None:
     a = bisect_critical(Params(1e6, 1e6, 0.0, 1.0), LJ)
     b = bisect_critical(Params(1e6, 1e6, 0.0, 1e-12), LJ)
     assert a.critical_size == b.critical_size and a.rel_accuracy == b.rel_accuracy
+
+
+def test_load_point_basin_near_kappa_crit_scales_as_one_over_kappa_crit() -> None:
+    # Two methods on one trend: as kappa -> kappa_crit+ (eps = 0) the load-point dv_crit
+    # tends to 1/kappa_crit.  b/a = 1e2 .. 1e5 are answered by the separatrix method, b/a =
+    # 1e6 by bisection on classify (the separatrix integration runs out of budget there).
+    # Before classify's steady-state box shrank with the basin, the bisection gave 1.9e-6
+    # at b/a = 1e6 (kappa_crit dv = 1.9).  Bound: kappa_crit dv - 1 grew from 2e-4 to 1.3e-3
+    # between b/a = 1e4 and 1e6 at kappa/kappa_crit = 1 + 1e-6; 1e-2 leaves room, 0.9 not.
+    methods = set()
+    for ba in (1e2, 1e4, 1e5, 1e6):
+        kc = ba - 1.0
+        r = critical_perturbation(Params(ba, kc * (1.0 + 1e-6), 0.0), LJ)
+        assert r.kind == "finite" and r.critical_size is not None
+        assert 1.0 <= kc * r.critical_size <= 1.01, (ba, r)
+        methods.add(r.method.split(":")[0])
+    assert len(methods) == 2, methods  # both methods took part
