@@ -11,12 +11,22 @@ running computation instead of starting another.
 
 No state another API process needs lives here: a deferred computation is recorded in
 the job store (``queued``, then ``failed`` with its message, or its result in the result
-store), so ``rsf api --workers N`` and several API hosts answer the same.
+store), so ``rsf api --workers N`` and several API hosts answer the same.  A request of
+an API key that will compute (not cached) first takes a token from the key's
+fresh-computation bucket in the database (:class:`service.limits.FreshGate`), or is
+answered 429; cached answers never touch it.
+
+Cached lookups are served from memory where possible: :class:`HotResults` holds recent
+results (immutable per key), and :class:`FastHits` lets the rate-limit middleware answer
+a repeated request (same path, content type and body bytes) from them before routing,
+body validation and dependency resolution; both are per-process caches of immutable
+facts, never state another process needs.
 """
 
 from __future__ import annotations
 
 import asyncio
+import hashlib
 import json
 import logging
 import weakref
@@ -24,21 +34,26 @@ from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any
 
+from fastapi import Request
 from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
+from starlette.types import Scope as AsgiScope
 
 from rsfapp.adapter import ComputeError, NeedsQueue, numerics_version
-from rsfapp.config import Settings
+from rsfapp.config import Settings, get_settings
 from rsfapp.keys import cache_key, canonical
 from rsfapp.queue import Queue
-from rsfapp.store import JobState, Stores
+from rsfapp.store import JobState, Stores, stores_for
+from rsfapp.store.keys import Scope
 from rsfcore.params import ParameterError
 
-from .deps import Inflight
+from . import auth
+from .deps import Inflight, get_settings_dep, get_stores
 from .errors import ProblemError
+from .limits import request_state
 
-__all__ = ["HotResults", "answer", "body", "deferred", "hot_for"]
+__all__ = ["FastHits", "HotResults", "answer", "body", "deferred", "hot_for"]
 log = logging.getLogger("rsf.service")
 
 
@@ -97,6 +112,91 @@ def body(result_json: str, key: str, hit: bool) -> bytes:
     """The stored result JSON with ``cached`` and ``cache_key`` appended."""
     tail = f',"cached":{"true" if hit else "false"},"cache_key":"{key}"}}'
     return (result_json[:-1] + tail if result_json != "{}" else "{" + tail[1:]).encode()
+
+
+class FastHits:
+    """Cached lookups answered before routing (used by :class:`service.limits.Limits`).
+
+    A single query's cache key is a pure function of its path, content type and body
+    bytes (validation depends on nothing else) and of the numerics version, so once this
+    process has validated a request and answered it 200, :meth:`remember` records
+    ``(path, content type, sha256(body), numerics version) -> (cache key, scope the
+    guard checked)`` in a bounded LRU.  :meth:`serve` answers the same request again
+    from :class:`HotResults` after the same authorisation as the guard
+    (:func:`service.auth.authorize`: key, scope, trajectory quota), and returns None
+    (the app answers) for anything else: an unknown body, a result not in memory, any
+    refusal, or an app whose settings, stores or key store dependencies are overridden.
+    The answer is byte for byte the one :func:`answer` gives for a hit.
+
+    Args:
+        max_entries: requests remembered, >= 1.
+        max_body: largest body considered [bytes].
+    """
+
+    def __init__(self, max_entries: int = 8192, max_body: int = 4096) -> None:
+        self.max_entries, self.max_body = max_entries, max_body
+        self._keys: OrderedDict[tuple[str, bytes, bytes, str], tuple[str, Scope]] = OrderedDict()
+        self._stores: tuple[Settings, Stores] | None = None
+        #: answers served
+        self.served = 0
+
+    @staticmethod
+    def _memo_key(scope: AsgiScope, data: bytes) -> tuple[str, bytes, bytes, str]:
+        ct = b""
+        for k, v in scope.get("headers", ()):
+            if k == b"content-type":
+                ct = bytes(v)
+                break
+        return (str(scope.get("path", "")), ct, hashlib.sha256(data).digest(), numerics_version())
+
+    def usable(self, scope: AsgiScope) -> bool:
+        """False when the app overrides a dependency this path resolves itself."""
+        overrides = getattr(scope.get("app"), "dependency_overrides", None)
+        return not overrides or not any(
+            d in overrides for d in (get_settings_dep, get_stores, auth.key_store_dep)
+        )
+
+    def remember(self, scope: AsgiScope, data: bytes, key: str, need: str) -> None:
+        """Record that this request validated to cache key ``key`` and needs ``need``."""
+        mk = self._memo_key(scope, data)
+        self._keys[mk] = (key, Scope(need))
+        self._keys.move_to_end(mk)
+        while len(self._keys) > self.max_entries:
+            self._keys.popitem(last=False)
+
+    def _stores_of(self, settings: Settings) -> Stores:
+        """The stores of ``settings`` (remembered for the settings object of the moment:
+        :func:`~rsfapp.config.get_settings` makes a new one when RSF_* change)."""
+        held = self._stores
+        if held is None or held[0] is not settings:
+            held = self._stores = (settings, stores_for(settings))
+        return held[1]
+
+    async def serve(self, scope: AsgiScope, data: bytes) -> Response | None:
+        """The cached answer of this request (None: let the app answer it)."""
+        known = self._keys.get(self._memo_key(scope, data))
+        if known is None:
+            return None
+        key, need = known
+        settings = get_settings()
+        stores = self._stores_of(settings)
+        text = hot_for(stores).get(key)
+        if text is None:
+            return None
+
+        async def receive() -> dict[str, Any]:
+            return {"type": "http.request", "body": data, "more_body": False}
+
+        request = Request(scope, receive)
+        try:
+            creds = await auth.bearer(request)
+            await auth.authorize(request, creds, settings, auth.get_key_store(stores), need)
+        except (auth.AuthError, ProblemError):
+            return None  # the app gives the refusal
+        self.served += 1
+        return Response(
+            body(text, key, True), media_type="application/json", headers={"X-Cache": "hit"}
+        )
 
 
 def deferred(key: str, status: str = "running") -> Response:
@@ -178,6 +278,9 @@ async def answer(
     request = req.model_dump(mode="json")
     version = numerics_version()
     key = cache_key(kind, request, version)
+    state = request_state()
+    if state is not None:
+        state.cache_key = key
     hot = hot_for(stores)
     hit = hot.get(key)
     if hit is None:
@@ -193,6 +296,8 @@ async def answer(
         if queued.state is JobState.failed:
             raise ProblemError(422, "Could not be computed", queued.message)
         return deferred(key)
+    if state is not None and state.gate is not None:
+        await state.gate.admit()  # a fresh computation (or joining one): one token, or 429
     task = inflight.pending.get(key)
     if task is None:
         task = asyncio.ensure_future(

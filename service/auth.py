@@ -40,6 +40,14 @@ from rsfapp.store.keys import KeyStore, Quotas, Scope, hash_key, utc_day
 
 from .deps import SettingsDep, StoresDep
 from .errors import ProblemError, problem
+from .limits import (
+    SELF_ADMITTED,
+    FreshGate,
+    QuotaError,
+    is_computing,
+    rate_store_for,
+    request_state,
+)
 
 __all__ = [
     "AuthError",
@@ -48,12 +56,14 @@ __all__ = [
     "QuotaError",
     "RESPONSES",
     "admit_sweep",
+    "authorize",
     "bearer",
     "check_owner",
     "current",
     "get_key_store",
     "guard",
     "install",
+    "key_store_dep",
     "needed_scope",
     "quotas_of",
     "scope_for",
@@ -107,14 +117,6 @@ class Principal:
         return self.name is None
 
 
-class QuotaError(Exception):
-    """429 answered as problem+json with ``Retry-After``."""
-
-    def __init__(self, detail: str, retry_after: int) -> None:
-        super().__init__(detail)
-        self.detail, self.retry_after = detail, retry_after
-
-
 class AuthError(Exception):
     """401 or 403 answered as problem+json."""
 
@@ -145,11 +147,11 @@ def get_key_store(stores: Stores) -> KeyStore:
     return ks
 
 
-async def _key_store_dep(stores: StoresDep) -> KeyStore:  # async: no thread hop
+async def key_store_dep(stores: StoresDep) -> KeyStore:  # async: no thread hop
     return get_key_store(stores)
 
 
-KeyStoreDep = Annotated[KeyStore, Depends(_key_store_dep)]
+KeyStoreDep = Annotated[KeyStore, Depends(key_store_dep)]
 
 
 def quotas_of(settings: Settings, overrides: dict[str, Any] | None = None) -> Quotas:
@@ -238,6 +240,31 @@ async def _authenticate(
     )
 
 
+async def authorize(
+    request: Request,
+    creds: HTTPAuthorizationCredentials | None,
+    settings: Settings,
+    keys: KeyStore,
+    need: Scope,
+) -> Principal:
+    """Authenticate the request, check that its key allows ``need`` and, for a
+    trajectory, the key's ``trajectory_points`` quota; the principal.
+
+    Raises:
+        AuthError: 401 or 403.
+        ProblemError: 422 (n_points beyond the key's quota).
+    """
+    p = await _authenticate(request, creds, settings, keys)
+    request.scope["rsf.principal"] = p
+    if not p.scope.allows(need):
+        raise AuthError(
+            403, f"this key has scope '{p.scope.value}'; this request needs '{need.value}'"
+        )
+    if not p.anonymous and request.method == "POST" and request.url.path.endswith("/trajectory"):
+        await _check_trajectory_points(request, p)
+    return p
+
+
 async def guard(
     request: Request,
     settings: SettingsDep,
@@ -248,20 +275,24 @@ async def guard(
 
     Routes outside the OpenAPI schema are open.  The principal is left in
     ``request.scope["rsf.principal"]`` for the rate limiter (:mod:`service.limits`) and
-    for handlers (:func:`current`).
+    for handlers (:func:`current`).  On a computing endpoint, a key's shared
+    fresh-computation bucket is attached to the request (:class:`service.limits.FreshGate`)
+    and, on the endpoints that cannot take a token themselves before computing (all but
+    the single queries), the request is refused 429 while that bucket is empty.
     """
     route = request.scope.get("route")
     if route is not None and not getattr(route, "include_in_schema", True):
         return Principal(None, Scope.read)
-    p = await _authenticate(request, creds, settings, keys)
-    request.scope["rsf.principal"] = p
     need = needed_scope(request)
-    if not p.scope.allows(need):
-        raise AuthError(
-            403, f"this key has scope '{p.scope.value}'; this request needs '{need.value}'"
-        )
-    if not p.anonymous and request.method == "POST" and request.url.path.endswith("/trajectory"):
-        await _check_trajectory_points(request, p)
+    p = await authorize(request, creds, settings, keys, need)
+    state = request_state()
+    if state is not None:
+        state.need = need.value
+        if p.key_id is not None and p.key_id == state.key_id:
+            gate = state.gate = FreshGate(rate_store_for(keys.db), p.key_id, p.quotas.fresh_per_s)
+            path = request.url.path
+            if is_computing(path) and path not in SELF_ADMITTED:
+                await gate.check()
     return p
 
 

@@ -8,16 +8,34 @@
    single body byte is read; a chunked body is counted as it streams and refused as
    soon as it passes the limit;
 3. per API key, on the endpoints that may compute (single queries, batch, fit,
-   figures): at most ``concurrent_requests`` in flight, and fresh computations limited
-   to ``fresh_per_s`` per second by a token bucket (burst ``max(1, fresh_per_s)``).  A
-   request is charged after its answer, when the answer was computed rather than read
-   from the cache (``X-Cache: miss``) or deferred (202); a key whose bucket is empty gets
-   429 + ``Retry-After`` (seconds until one token is back) on those endpoints until it
-   refills.  Cached lookups of other keys, and every other endpoint, are never slowed
-   by it.  Anonymous requests (loopback without keys, ``RSF_AUTH=off``) are not limited.
+   figures): at most ``concurrent_requests`` in flight in this API process, and fresh
+   computations limited to ``fresh_per_s`` per second by a token bucket (burst
+   ``max(1, fresh_per_s)``) shared by every API process and host: it lives in the
+   database (:mod:`rsfapp.store.ratelimits`, one atomic statement per change).  A key
+   whose bucket is empty gets 429 + ``Retry-After`` (seconds until one token is back)
+   instead of a fresh computation;
+4. a cached lookup of a single query seen before by this process is answered from
+   memory without routing, validation or dependencies (:class:`service.answer.FastHits`),
+   after the same authentication as every request.
 
-All refusals are ``application/problem+json``.  The buckets live in this API process
-(one uvicorn process per deployment in the shipped configurations).
+Only fresh computations touch the bucket, and cached lookups never do:
+
+* single queries (:data:`SELF_ADMITTED`, answered by :func:`service.answer.answer`)
+  take a token atomically once the answer is known not to be cached, just before
+  computing (or joining an identical computation, or queueing), and are refused 429 if
+  there is none;
+* the other computing endpoints (batch, fits, figures, protocols) cannot tell before
+  their work whether it will be fresh: :func:`service.auth.guard` refuses them 429 while
+  the key's bucket is empty (one read), and the middleware charges one token after an
+  answer that was computed (``X-Cache: miss``) or deferred (202); the level may go below
+  zero, and the key waits until it is back to >= 1.
+
+Anonymous requests (loopback without keys, ``RSF_AUTH=off``) are not limited.  The
+in-flight count (``concurrent_requests``) bounds what one process holds for a key and is
+kept by that process (it is not state another process needs: it dies with the process
+and its connections).
+
+All refusals are ``application/problem+json``.
 
 CORS (:func:`install`) is off unless ``RSF_CORS_ORIGINS`` lists allowed origins.
 """
@@ -25,25 +43,43 @@ CORS (:func:`install`) is off unless ``RSF_CORS_ORIGINS`` lists allowed origins.
 from __future__ import annotations
 
 import hashlib
+import logging
 import math
 import re
-import time
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
+from contextvars import ContextVar
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from fastapi import FastAPI
+from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.middleware.cors import CORSMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from rsfapp.config import Settings, get_settings
-from rsfapp.store.keys import Quotas
+from rsfapp.db.engine import Database
+from rsfapp.store.ratelimits import RateLimitStore
 
 from .errors import problem
 
-__all__ = ["Bucket", "COMPUTING_PREFIXES", "Limits", "install", "is_computing"]
+if TYPE_CHECKING:
+    from .answer import FastHits
+
+__all__ = [
+    "COMPUTING_PREFIXES",
+    "FreshGate",
+    "Limits",
+    "QuotaError",
+    "RequestState",
+    "SELF_ADMITTED",
+    "install",
+    "is_computing",
+    "rate_store_for",
+    "request_state",
+]
+log = logging.getLogger("rsf.service")
 
 #: Paths whose answers may be computed (and so count as fresh computations).
 COMPUTING_PREFIXES = (
@@ -55,6 +91,19 @@ COMPUTING_PREFIXES = (
     "/v1/stiffness",
     "/v1/figures/",
     "/v1/fit",
+)
+#: Single-query paths answered by :func:`service.answer.answer`, which takes a token
+#: itself just before a fresh computation (no read of the bucket before).
+SELF_ADMITTED = frozenset(
+    {
+        "/v1/classify",
+        "/v1/classify/points",
+        "/v1/trajectory",
+        "/v1/critical",
+        "/v1/analytic/u",
+        "/v1/boundaries",
+        "/v1/stiffness",
+    }
 )
 _EXPOSED = [
     "Location",
@@ -79,49 +128,96 @@ def _is_batch(path: str) -> bool:
     )
 
 
-@dataclass
-class Bucket:
-    """Token bucket of one key: ``quotas.fresh_per_s`` tokens per second, capacity
-    max(1, rate).
+class QuotaError(Exception):
+    """429 answered as problem+json with ``Retry-After`` (handler in :mod:`service.auth`)."""
 
-    ``tokens`` may go negative (charges are made after the answer); the key is refused
-    until it is back to >= 1.
+    def __init__(self, detail: str, retry_after: int) -> None:
+        super().__init__(detail)
+        self.detail, self.retry_after = detail, retry_after
+
+
+_rate_stores: dict[int, RateLimitStore] = {}
+
+
+def rate_store_for(db: Database) -> RateLimitStore:
+    """The token buckets of ``db`` (one store per database and process)."""
+    st = _rate_stores.get(id(db))
+    if st is None or st.db is not db:
+        st = _rate_stores[id(db)] = RateLimitStore(db)
+    return st
+
+
+class FreshGate:
+    """The fresh-computation bucket of one key, for one request (made by
+    :func:`service.auth.guard` once the key is authenticated).
+
+    Args:
+        store: the token buckets.
+        key_id: SHA-256 of the key.
+        rate: the key's quota ``fresh_per_s`` [1/s], > 0.
     """
 
-    quotas: Quotas
-    tokens: float = math.nan  # nan: start full
-    stamp: float = field(default_factory=time.monotonic)
+    def __init__(self, store: RateLimitStore, key_id: str, rate: float) -> None:
+        self.store, self.key_id, self.rate = store, key_id, rate
+        #: True once this request took or was charged its token.
+        self.taken = False
 
-    def __post_init__(self) -> None:
-        if math.isnan(self.tokens):
-            self.tokens = self.capacity
+    def _refusal(self, wait_s: float) -> QuotaError:
+        return QuotaError(
+            f"fresh computations of this key exceed its quota (fresh_per_s = {self.rate:g})",
+            retry_after=max(1, math.ceil(wait_s)),
+        )
 
-    @property
-    def rate(self) -> float:
-        """Fresh computations per second [1/s]."""
-        return self.quotas.fresh_per_s
+    async def admit(self) -> None:
+        """Take one token before a fresh computation (at most once per request).
 
-    @property
-    def capacity(self) -> float:
-        """Largest burst (tokens)."""
-        return max(1.0, self.rate)
+        Raises:
+            QuotaError: the bucket is empty (429 with ``Retry-After``).
+        """
+        if self.taken:
+            return
+        adm = await run_in_threadpool(self.store.take, self.key_id, self.rate)
+        if not adm.admitted:
+            raise self._refusal(adm.wait_s)
+        self.taken = True
 
-    def level(self, now: float | None = None) -> float:
-        """Tokens now (refilled since the last update)."""
-        t = time.monotonic() if now is None else now
-        self.tokens = min(self.capacity, self.tokens + (t - self.stamp) * self.rate)
-        self.stamp = t
-        return self.tokens
+    async def check(self) -> None:
+        """Refuse (QuotaError) while the bucket is empty; reads only."""
+        wait = await run_in_threadpool(self.store.wait_s, self.key_id, self.rate)
+        if wait > 0:
+            raise self._refusal(wait)
 
-    def wait_s(self, now: float | None = None) -> float:
-        """Seconds until one token is available (0 if available now)."""
-        lv = self.level(now)
-        return 0.0 if lv >= 1.0 else (1.0 - lv) / self.rate
+    async def charge(self) -> None:
+        """Charge one token after a fresh answer (unless one was taken before)."""
+        if not self.taken:
+            self.taken = True
+            await run_in_threadpool(self.store.charge, self.key_id, self.rate)
 
-    def charge(self, n: float = 1.0) -> None:
-        """Take ``n`` tokens (may go below zero)."""
-        self.level()
-        self.tokens -= n
+
+@dataclass
+class RequestState:
+    """What the layers of one request to a computing endpoint tell the middleware.
+
+    Attributes:
+        key_id: SHA-256 of the bearer token sent, if any.
+        gate: the key's bucket, set by :func:`service.auth.guard` once authenticated.
+        need: the scope the guard checked (value of :class:`rsfapp.store.keys.Scope`).
+        cache_key: set by :func:`service.answer.answer` once the request is validated.
+    """
+
+    key_id: str | None = None
+    gate: FreshGate | None = None
+    need: str | None = None
+    cache_key: str | None = None
+
+
+_state: ContextVar[RequestState | None] = ContextVar("rsf_request_state", default=None)
+
+
+def request_state() -> RequestState | None:
+    """The :class:`RequestState` of the request being handled (None outside a computing
+    endpoint)."""
+    return _state.get()
 
 
 def _header(scope: Scope, name: bytes) -> bytes | None:
@@ -143,21 +239,53 @@ def _key_id(scope: Scope) -> str | None:
     return hashlib.sha256(token.strip().decode("latin-1").encode("utf-8")).hexdigest()
 
 
+async def _buffer(receive: Receive) -> tuple[list[Message], bytes | None]:
+    """Read the whole body: (messages read, body; None if the client went away)."""
+    msgs: list[Message] = []
+    chunks: list[bytes] = []
+    while True:
+        msg = await receive()
+        msgs.append(msg)
+        if msg["type"] != "http.request":
+            return msgs, None
+        chunks.append(msg.get("body", b""))
+        if not msg.get("more_body", False):
+            return msgs, b"".join(chunks)
+
+
+def _replay(msgs: list[Message], receive: Receive) -> Receive:
+    """``receive`` that returns ``msgs`` first, then reads on."""
+    pending = list(msgs)
+
+    async def wrapped() -> Message:
+        return pending.pop(0) if pending else await receive()
+
+    return wrapped
+
+
 class Limits:
     """The ASGI middleware described in the module docstring.
 
     Args:
         app: the wrapped application.
         settings: callable returning the current settings (read on every request).
-        max_keys: rate-limit buckets kept (least recently used are forgotten).
+        fast: cached lookups answered from memory (None: off).
+        max_keys: keys whose ``concurrent_requests`` quota is remembered (least recently
+            used are forgotten).
     """
 
     def __init__(
-        self, app: ASGIApp, settings: Callable[[], Settings] = get_settings, max_keys: int = 10_000
+        self,
+        app: ASGIApp,
+        settings: Callable[[], Settings] = get_settings,
+        fast: FastHits | None = None,
+        max_keys: int = 10_000,
     ) -> None:
-        self.app, self.settings, self.max_keys = app, settings, max_keys
-        self.buckets: OrderedDict[str, Bucket] = OrderedDict()
+        self.app, self.settings, self.fast, self.max_keys = app, settings, fast, max_keys
+        #: computing requests of each key in flight in this process
         self.inflight: dict[str, int] = {}
+        #: the ``concurrent_requests`` quota of each key, as last authenticated
+        self.allowed: OrderedDict[str, int] = OrderedDict()
 
     async def _refuse(
         self,
@@ -209,75 +337,103 @@ class Limits:
         else:
             receive = _counting(receive, limit)
 
-        kid = _key_id(scope) if is_computing(path) else None
-        if kid is not None:
-            b = self.buckets.get(kid)
-            if b is not None:
-                quotas = b.quotas
-                if self.inflight.get(kid, 0) >= quotas.concurrent_requests:
-                    await self._refuse(
-                        scope,
-                        receive,
-                        send,
-                        429,
-                        "Too many requests",
-                        "too many requests of this key in flight (quota "
-                        f"concurrent_requests = {quotas.concurrent_requests})",
-                        {"Retry-After": "1"},
-                    )
-                    return
-                wait = b.wait_s()
-                if wait > 0:
-                    await self._refuse(
-                        scope,
-                        receive,
-                        send,
-                        429,
-                        "Too many requests",
-                        "fresh computations of this key exceed its quota "
-                        f"(fresh_per_s = {b.rate:g})",
-                        {"Retry-After": str(max(1, math.ceil(wait)))},
-                    )
-                    return
-            await self._tracked(kid, scope, receive, _allow_fixed(scope, send))
+        if not is_computing(path):
+            await self.app(scope, receive, _allow_fixed(scope, send))
             return
-        await self.app(scope, receive, _allow_fixed(scope, send))
+        kid = _key_id(scope)
+        if kid is not None:
+            allowed = self.allowed.get(kid)
+            if allowed is not None and self.inflight.get(kid, 0) >= allowed:
+                await self._refuse(
+                    scope,
+                    receive,
+                    send,
+                    429,
+                    "Too many requests",
+                    "too many requests of this key in flight (quota "
+                    f"concurrent_requests = {allowed})",
+                    {"Retry-After": "1"},
+                )
+                return
+            self.inflight[kid] = self.inflight.get(kid, 0) + 1
+        try:
+            await self._computing(scope, receive, _allow_fixed(scope, send), kid, cl)
+        finally:
+            if kid is not None:
+                n = self.inflight.get(kid, 1) - 1
+                if n > 0:
+                    self.inflight[kid] = n
+                else:
+                    self.inflight.pop(kid, None)
 
-    async def _tracked(self, kid: str, scope: Scope, receive: Receive, send: Send) -> None:
-        seen: dict[str, Any] = {"status": 0, "fresh": False}
+    async def _computing(
+        self, scope: Scope, receive: Receive, send: Send, kid: str | None, cl: bytes | None
+    ) -> None:
+        """A request to a computing endpoint: a cached lookup answered from memory, or
+        the app, with the fresh-computation bookkeeping of :class:`RequestState`."""
+        fast = self.fast
+        body: bytes | None = None
+        if (
+            fast is not None
+            and cl is not None
+            and int(cl) <= fast.max_body
+            and scope.get("method") == "POST"
+            and not scope.get("query_string")
+            and scope.get("path") in SELF_ADMITTED
+            and fast.usable(scope)
+        ):
+            msgs, body = await _buffer(receive)
+            receive = _replay(msgs, receive)
+            if body is not None:
+                resp = await fast.serve(scope, body)
+                if resp is not None:
+                    await resp(scope, receive, send)
+                    return
+        seen: dict[str, Any] = {"status": 0, "fresh": False, "json": False}
 
         async def watch(msg: Message) -> None:
             if msg["type"] == "http.response.start":
                 seen["status"] = msg["status"]
                 for k, v in msg.get("headers", ()):
-                    if k.lower() == b"x-cache" and v == b"miss":
+                    k = k.lower()
+                    if k == b"x-cache" and v == b"miss":
                         seen["fresh"] = True
+                    elif k == b"content-type" and v == b"application/json":
+                        seen["json"] = True
             await send(msg)
 
-        self.inflight[kid] = self.inflight.get(kid, 0) + 1
+        state = RequestState(key_id=kid)
+        token = _state.set(state)
         try:
             await self.app(scope, receive, watch)
         finally:
-            n = self.inflight.get(kid, 1) - 1
-            if n > 0:
-                self.inflight[kid] = n
-            else:
-                self.inflight.pop(kid, None)
-            self._charge(scope, kid, bool(seen["fresh"]) or seen["status"] == 202)
+            _state.reset(token)
+            await self._after(scope, state, bool(seen["fresh"]) or seen["status"] == 202)
+        if (
+            fast is not None
+            and body is not None
+            and seen["status"] == 200
+            and seen["json"]
+            and state.cache_key is not None
+            and state.need is not None
+        ):
+            fast.remember(scope, body, state.cache_key, state.need)
 
-    def _charge(self, scope: Scope, kid: str, fresh: bool) -> None:
+    async def _after(self, scope: Scope, state: RequestState, fresh: bool) -> None:
+        """Charge a fresh answer not admitted before; remember the key's concurrency."""
         p = scope.get("rsf.principal")
-        if p is None or getattr(p, "key_id", None) != kid:
+        kid = state.key_id
+        if kid is None or p is None or getattr(p, "key_id", None) != kid:
             return  # not authenticated with this key: nothing to account
-        q: Quotas = p.quotas
-        b = self.buckets.get(kid)
-        if b is None or b.quotas != q:
-            b = self.buckets[kid] = Bucket(q) if b is None else Bucket(q, b.tokens, b.stamp)
-        self.buckets.move_to_end(kid)
-        while len(self.buckets) > self.max_keys:
-            self.buckets.popitem(last=False)
-        if fresh:
-            b.charge(1.0)
+        self.allowed[kid] = int(p.quotas.concurrent_requests)
+        self.allowed.move_to_end(kid)
+        while len(self.allowed) > self.max_keys:
+            self.allowed.popitem(last=False)
+        if fresh and state.gate is not None and not state.gate.taken:
+            try:
+                await state.gate.charge()
+            except Exception:  # noqa: BLE001 - the answer is sent; never fail it now
+                log.warning("could not charge a fresh computation to its key", exc_info=True)
 
 
 _allow_cache: dict[int, list[tuple[re.Pattern[str], set[str]]]] = {}
@@ -340,8 +496,10 @@ def _counting(receive: Receive, limit: int) -> Receive:
 
 def install(app: FastAPI, settings: Settings | None = None) -> None:
     """Add :class:`Limits` and, if origins are configured, CORS (outermost) to ``app``."""
+    from .answer import FastHits  # here: service.answer imports this module
+
     s = settings or get_settings()
-    app.add_middleware(Limits)
+    app.add_middleware(Limits, fast=FastHits())
     origins = s.cors_origin_list
     if origins:
         app.add_middleware(

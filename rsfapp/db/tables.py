@@ -9,7 +9,9 @@
   chunk (``sweep_points`` is the pre-array layout, no longer written), and the scattered
   points of a sweep (:mod:`rsfapp.store.sweeps`);
 * ``api_keys``, ``key_usage``, ``sweep_owners``: hashed API keys, their daily usage and
-  the key that submitted each sweep (:mod:`rsfapp.store.keys`).
+  the key that submitted each sweep (:mod:`rsfapp.store.keys`);
+* ``rate_buckets``: the fresh-computation token bucket of each API key, shared by every
+  API process and host (:mod:`rsfapp.store.ratelimits`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ __all__ = [
     "sweep_owners",
     "sweep_blocks",
     "sweep_inputs",
+    "rate_buckets",
 ]
 
 metadata = MetaData()
@@ -158,4 +161,17 @@ sweep_inputs = Table(
     metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
     Column("data", LargeBinary, nullable=False),
+)
+
+# Fresh-computation token buckets, one row per API key (its SHA-256), updated by single
+# atomic statements (:mod:`rsfapp.store.ratelimits`).  A new table: ``create_all`` adds
+# it to an existing database at start, so no migration (and no schema version bump).
+rate_buckets = Table(
+    "rate_buckets",
+    metadata,
+    Column("key_id", String(64), primary_key=True),
+    Column("tokens", Float, nullable=False),  # level at ``stamp`` (may be negative)
+    Column("stamp", Float, nullable=False),  # wall clock of ``tokens`` [s since 1970]
+    Column("rate", Float, nullable=False),  # refill [tokens/s] of the last update
+    Column("capacity", Float, nullable=False),  # burst [tokens] of the last update
 )
