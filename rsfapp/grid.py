@@ -22,14 +22,25 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from rsfcore import units
 from rsfcore.params import ParameterError
 from rsfcore.units import PhysicalInputs
 
 from .config import Settings
 from .requests import AXIS_RANGES, SweepAxis, SweepRequest
-from .requests.sweeps import SI_FIXED
+from .requests.sweeps import SI_FIXED, SI_SIZE_FIELDS
 
-__all__ = ["Axis", "SpecError", "SweepSpec", "expand", "plan_chunks", "PARAM_NAMES", "SPEC_VERSION"]
+__all__ = [
+    "Axis",
+    "SpecError",
+    "SweepSpec",
+    "expand",
+    "plan_chunks",
+    "si_to_size",
+    "PARAM_NAMES",
+    "SI_SIZE_FIELDS",
+    "SPEC_VERSION",
+]
 
 #: Every parameter a point has (kappa is given either directly or as kappa_ratio).
 PARAM_NAMES: tuple[str, ...] = ("ba", "kappa", "kappa_ratio", "eps", "vo", "size")
@@ -47,9 +58,44 @@ class SpecError(ParameterError):
         ValueError.__init__(self, f"{field}: {detail} (valid range: {valid})")
 
 
+#: The SI size statement that each perturbation kind reads (the other is refused).
+_SI_FOR_KIND = {
+    "velocity-jump": ("factor", "new_slip_rate_m_s"),
+    "load-point-jump": ("factor", "new_load_point_velocity_m_s"),
+}
+
+
+def _si_size_one(phys: PhysicalInputs, perturbation: str, name: str, x: float) -> float:
+    """One SI size statement -> the dimensionless size (rsfcore.units; ParameterError
+    from there on an out-of-range value)."""
+    if perturbation == "velocity-jump":
+        return float(units.velocity_jump_size(phys, **{name: x}))
+    return float(units.load_point_jump_size(phys, **{name: x}))
+
+
+def si_to_size(
+    phys: PhysicalInputs, perturbation: str, name: str, values: NDArray[np.float64]
+) -> F64:
+    """Dimensionless perturbation sizes of SI values ``values`` of ``name`` (``factor``,
+    ``new_slip_rate_m_s`` or ``new_load_point_velocity_m_s``), each distinct value
+    converted once by rsfcore.units (velocity jump: d = ln(factor) = ln(V_new/V_before);
+    load-point jump: dv = factor - 1 = V_new/V_load - 1), exact to a few ulp.
+
+    Raises ParameterError (field ``perturbation.<name>``, from rsfcore.units) for a value
+    out of range; IndexError-free for empty input.  Cost: ~1 us per distinct value."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.size == 0:
+        return np.empty(0)
+    u, inv = np.unique(v, return_inverse=True)
+    out = np.array([_si_size_one(phys, perturbation, name, float(x)) for x in u])
+    return np.asarray(out[inv.reshape(v.shape)], dtype=np.float64)
+
+
 def _bad_mask(name: str, v: F64, perturbation: str) -> NDArray[np.bool_]:
     lo, hi, _ = AXIS_RANGES[name]
     bad = ~((v >= lo) & (v <= hi))
+    if name in SI_SIZE_FIELDS:
+        bad |= v <= 0.0
     if name == "ba":
         bad |= v <= 1.0
     if name == "size" and perturbation == "load-point-jump":
@@ -137,7 +183,10 @@ class SweepSpec:
         output: "critical" (critical sizes) or "outcome" (a size is fixed or swept).
         physical: the SI machine of ``fixed.physical`` (rsfcore.units.PhysicalInputs'
             seven fields, V_load_m_s with its default applied), None for a dimensionless
-            sweep; ``fixed`` then holds its conversion (ba, kappa, vo).
+            sweep; ``fixed`` then holds its conversion (ba, kappa, vo).  A fixed SI size
+            is in ``fixed`` under its own name (``factor``, ...) next to its conversion
+            ``size``; a swept one is an axis (or points array) of that name, converted to
+            sizes per chunk by :func:`si_to_size` (:attr:`si_size`).
     """
 
     mode: Literal["grid", "points"]
@@ -177,6 +226,17 @@ class SweepSpec:
         return None if self.physical is None else PhysicalInputs(**self.physical)
 
     @property
+    def si_size(self) -> str | None:
+        """Name of the SI size statement (``factor``, ``new_slip_rate_m_s``,
+        ``new_load_point_velocity_m_s``) that is swept, else None."""
+        return next((n for n in self.swept if n in SI_SIZE_FIELDS), None)
+
+    def sizes(self, i0: int, i1: int) -> F64 | None:
+        """Dimensionless perturbation sizes of flat indices [i0, i1) (None for a sweep of
+        critical sizes)."""
+        return self.params(i0, i1)["size"]
+
+    @property
     def swept(self) -> list[str]:
         """Names of the swept parameters, in axis (or points) order."""
         if self.mode == "grid":
@@ -193,6 +253,11 @@ class SweepSpec:
                 vals[name] = np.full(n, float(v))
         if self.kappa_param == "kappa_ratio":
             vals["kappa"] = vals["kappa_ratio"] * (vals["ba"] - 1.0)
+        si = self.si_size
+        if si is not None:  # the swept SI size, converted by rsfcore.units
+            phys = self.physical_inputs()
+            assert phys is not None
+            vals["size"] = si_to_size(phys, self.perturbation, si, vals[si])
         return {
             "ba": vals["ba"],
             "kappa": vals["kappa"],
@@ -405,6 +470,7 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
 
     fx = req.fixed
     phys = _physical(req, where, form)
+    si_fixed = _si_size(req, where, form, phys, axes, points)
 
     # kappa and kappa_ratio: one of them
     uses_kappa = "kappa" in where or (fx.kappa is not None and "kappa_ratio" not in where)
@@ -432,9 +498,11 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
     }
     if phys is not None:  # the one conversion SI -> dimensionless (rsfcore.units)
         fixed.update(ba=phys.ba, kappa=phys.kappa, vo=phys.vo)
+    fixed.update(si_fixed)  # a fixed SI size and its conversion
     for name in where:
         fixed.pop(name, None)
-    output = "outcome" if ("size" in where or fixed.get("size") is not None) else "critical"
+    sized = "size" in where or any(f in where for f in SI_SIZE_FIELDS)
+    output = "outcome" if (sized or fixed.get("size") is not None) else "critical"
     if output == "critical":
         fixed.pop("size", None)
 
@@ -491,6 +559,108 @@ def _physical(req: SweepRequest, where: dict[str, str], form: str) -> PhysicalIn
             "(0, 1e300 V_star_m_s] m/s",
         )
     return phys
+
+
+_SI_ONE = (
+    "one statement of the perturbation size: size, or with fixed.physical one of factor, "
+    "new_slip_rate_m_s (velocity jump), new_load_point_velocity_m_s (load-point jump); "
+    "fixed or swept"
+)
+
+
+def _convert_checked(
+    phys: PhysicalInputs, pert: str, name: str, values: F64, fields: list[str]
+) -> F64:
+    """:func:`si_to_size` of ``values`` whose field names are ``fields`` (same length):
+    SpecError naming the first value that rsfcore.units refuses or whose size is out of
+    the perturbation's range."""
+    try:
+        sizes = si_to_size(phys, pert, name, values)
+    except ParameterError as exc:
+        bad = [k for k, x in enumerate(values.tolist()) if not _si_ok(phys, pert, name, x)]
+        k = bad[0] if bad else 0
+        unit = " m/s" if name.endswith("_m_s") else ""
+        raise SpecError(
+            fields[k],
+            f"{float(values[k])!r} out of range for {name}",
+            f"{exc.valid}{unit} (rsfcore.units)",
+        ) from None
+    bad_size = _bad_mask("size", sizes, pert)
+    if bad_size.any():
+        k = int(np.argmax(bad_size))
+        formula = "d = ln(V_new/V_before)" if pert == "velocity-jump" else "dv = V_new/V_load - 1"
+        raise SpecError(
+            fields[k],
+            f"{float(values[k])!r} converts to size {float(sizes[k])!r}, out of range",
+            f"a value whose size ({formula}) is in {_valid('size', pert)}",
+        )
+    return sizes
+
+
+def _si_ok(phys: PhysicalInputs, pert: str, name: str, x: float) -> bool:
+    try:
+        _si_size_one(phys, pert, name, x)
+    except ParameterError:
+        return False
+    return True
+
+
+def _si_size(
+    req: SweepRequest,
+    where: dict[str, str],
+    form: str,
+    phys: PhysicalInputs | None,
+    axes: list[Axis],
+    points: dict[str, F64] | None,
+) -> dict[str, float]:
+    """The perturbation size stated in SI (fixed or swept), after the rules of the module
+    docstring of rsfapp.requests.sweeps (SpecError naming the field).  Returns the fixed
+    statement and its conversion ``{name: value, "size": size}`` (empty when the size is
+    not fixed in SI); a swept statement is only checked here (every explicit value, the
+    ends of a start/stop axis: the conversions are monotonic) and converted per chunk."""
+    fx = req.fixed
+    pert = req.perturbation
+    stmts: list[tuple[str, str, bool]] = [
+        (f, where[f] + ("" if form == "points" else ".name"), True)
+        for f in SI_SIZE_FIELDS
+        if f in where
+    ]
+    stmts += [(f, f"fixed.{f}", False) for f in SI_SIZE_FIELDS if getattr(fx, f) is not None]
+    if not stmts:
+        return {}
+    name, fld, swept = stmts[0]
+    if phys is None:
+        raise SpecError(
+            fld,
+            f"{name} states the perturbation size in SI and needs fixed.physical",
+            "with fixed.physical (the SI machine); without it give the dimensionless size",
+        )
+    if len(stmts) > 1:
+        raise SpecError(stmts[1][1], f"the size is already given as {fld}", _SI_ONE)
+    if fx.size is not None:
+        raise SpecError("fixed.size", f"give either fixed.size or {fld}, never both", _SI_ONE)
+    if "size" in where:
+        raise SpecError(fld, f"the size is already swept ({where['size']})", _SI_ONE)
+    if name not in _SI_FOR_KIND[pert]:
+        kinds = " or ".join(_SI_FOR_KIND[pert])
+        raise SpecError(fld, f"{name} is not used by a {pert}", f"{kinds} for a {pert}")
+    if not swept:
+        x = float(getattr(fx, name))
+        size = _convert_checked(phys, pert, name, np.array([x]), [fld])
+        return {name: x, "size": float(size[0])}
+    if points is not None:
+        v = points[name]
+        _convert_checked(phys, pert, name, v, [f"points.{name}[{k}]" for k in range(v.size)])
+        return {}
+    w = where[name]
+    ax = next(a for a in axes if a.name == name)
+    if ax.values is not None:
+        v = np.asarray(ax.values, dtype=np.float64)
+        _convert_checked(phys, pert, name, v, [f"{w}.values[{k}]" for k in range(v.size)])
+    else:
+        ends = np.array([ax.start, ax.stop])
+        _convert_checked(phys, pert, name, ends, [f"{w}.start", f"{w}.stop"])
+    return {}
 
 
 def _extremes(spec: SweepSpec, name: str) -> F64:
@@ -555,6 +725,28 @@ _BALANCE_POINTS = 5_000
 MAX_CHUNK = 1_000_000
 
 
+def _negative_sizes(spec: SweepSpec) -> bool:
+    """True when some point has a negative size (classified one by one: slower)."""
+    if (spec.fixed.get("size") or 0.0) < 0:
+        return True
+    for name in ("size", *SI_SIZE_FIELDS):
+        if spec.mode == "grid":
+            ax = next((a for a in spec.axes if a.name == name), None)
+            if ax is None:
+                continue
+            lo = min(ax.values) if ax.values is not None else min(ax.start, ax.stop)
+        elif spec.points is not None and name in spec.points:
+            lo = float(spec.points[name].min())
+        else:
+            continue
+        if name != "size":  # the SI statement's smallest value, converted
+            phys = spec.physical_inputs()
+            assert phys is not None
+            lo = float(si_to_size(phys, spec.perturbation, name, np.array([lo]))[0])
+        return lo < 0
+    return False
+
+
 def plan_chunks(spec: SweepSpec, settings: Settings, requested: int | None = None) -> int:
     """Points per chunk: ``requested``, else about ``settings.chunk_seconds`` of work, with
     at least _MIN_CHUNKS chunks and at most ``settings.sweep_max_chunks`` chunks."""
@@ -564,19 +756,7 @@ def plan_chunks(spec: SweepSpec, settings: Settings, requested: int | None = Non
     else:
         per = _COST_S["critical"]
         if spec.output == "outcome":
-            neg = (
-                (spec.fixed.get("size") or 0.0) < 0
-                or any(
-                    a.name == "size" and min(a.start, a.stop, *(a.values or ())) < 0
-                    for a in spec.axes
-                )
-                or (
-                    spec.points is not None
-                    and "size" in spec.points
-                    and bool((spec.points["size"] < 0).any())
-                )
-            )
-            per = _COST_S["classify"] if neg else per
+            per = _COST_S["classify"] if _negative_sizes(spec) else per
         chunk = max(
             1,
             min(

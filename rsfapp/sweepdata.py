@@ -21,6 +21,15 @@ a sigma [Pa], ``k_crit_Pa_per_m``) and the critical sizes in SI as one more vari
 by point by rsfcore.units (inf where kind is infinite or the value overflows, NaN where
 missing or failed; sweeps of at most SI_VARIABLE_MAX_POINTS points, about 2 us a point,
 larger ones get the formula as attribute ``si_variable_omitted``); the JSON status fields carry ``physical``.
+The same SI variable is a column of the CSV (after ``critical_size``; ``inf`` where
+infinite, empty where missing) and a field of each point of ``GET .../points`` and of the
+JSON data (null where infinite or missing), converted by the same :func:`critical_si`, so
+all formats agree bit for bit.  A sweep whose perturbation size is swept in SI (an axis
+or points array ``factor``, ``new_slip_rate_m_s`` or ``new_load_point_velocity_m_s``) has
+that SI value as its coordinate and also carries the dimensionless ``size`` of each value
+(NetCDF variable along that axis, CSV column and point field after the swept parameters),
+converted by :func:`rsfapp.grid.si_to_size`.  Sweeps give no times, so no column in s.
+Dimensionless sweeps are unchanged.
 
 Nothing here knows about HTTP; I/O is only through a :class:`~rsfapp.store.SweepStore`.
 """
@@ -42,7 +51,7 @@ from rsfcore.critical import KINDS, METHODS
 from rsfcore.jsonsafe import finite_or_none
 from rsfcore.params import ParameterError
 
-from .grid import SpecError, SweepSpec
+from .grid import SpecError, SweepSpec, si_to_size
 from .store.sweeps import SweepStore
 
 __all__ = [
@@ -51,6 +60,8 @@ __all__ = [
     "SI_VARIABLE_MAX_POINTS",
     "compute_chunk",
     "critical_si",
+    "si_names",
+    "si_sizes",
     "assemble",
     "to_dataset",
     "netcdf_bytes",
@@ -247,6 +258,14 @@ def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArra
         attrs["stress_scale_Pa"] = phys.stress_scale_Pa
         attrs["k_crit_Pa_per_m"] = phys.k_crit_Pa_per_m
         si_name, si_desc = SI_VARIABLES[spec.perturbation]
+        swept_si = spec.si_size
+        if swept_si is not None:  # the dimensionless size of each SI coordinate value
+            sdims = (swept_si,) if spec.mode == "grid" else ("point",)
+            data["size"] = (
+                sdims,
+                si_to_size(phys, spec.perturbation, swept_si, spec.coords()[swept_si]),
+                {"description": f"dimensionless perturbation size of {swept_si} ({_SIZE_OF})"},
+            )
         if spec.n_total <= SI_VARIABLE_MAX_POINTS:
             si = critical_si(phys, spec.perturbation, arrays["critical_size"])
             data[si_name] = (dims, si.reshape(shape), {"description": si_desc, "units": "m/s"})
@@ -288,6 +307,26 @@ def critical_si(
     return out
 
 
+_SIZE_OF = "d = ln(V_new/V_before) or dv = V_new/V_load - 1, by rsfcore.units"
+
+
+def si_names(spec: SweepSpec) -> tuple[str | None, str | None]:
+    """(name of the dimensionless size column of a swept SI size, i.e. ``"size"``, or None;
+    name of the SI critical-size column, or None for a dimensionless sweep)."""
+    if spec.physical is None:
+        return None, None
+    return ("size" if spec.si_size is not None else None), SI_VARIABLES[spec.perturbation][0]
+
+
+def si_sizes(spec: SweepSpec, swept: dict[str, NDArray[Any]]) -> NDArray[np.float64] | None:
+    """Dimensionless sizes of the points whose swept values are ``swept`` (as
+    :meth:`SweepSpec.swept_values`), for a sweep whose size is swept in SI; else None."""
+    name, phys = spec.si_size, spec.physical_inputs()
+    if name is None or phys is None:
+        return None
+    return si_to_size(phys, spec.perturbation, name, swept[name])
+
+
 def netcdf_bytes(ds: Any) -> bytes:
     """The Dataset as a NetCDF file (classic 64-bit-offset format, scipy engine)."""
     return bytes(ds.to_netcdf(engine="scipy", format="NETCDF3_64BIT"))
@@ -306,17 +345,24 @@ def csv_rows(
 ) -> Iterator[str]:
     """CSV text in pieces: a header, then one row per point in flat-index order:
     idx, the swept parameters, kind, critical_size, outcome, rel_accuracy, method (short
-    name), failed, error.
+    name), failed, error.  A sweep in SI also has, after critical_size, the critical size
+    in SI (``critical_slip_rate_m_s`` [m/s] or ``critical_load_point_velocity_m_s``
+    [m/s]: ``inf`` where infinite) and, when its size is swept in SI, the dimensionless
+    ``size`` after the swept parameters.
     Missing points have empty result fields."""
     names = spec.swept
+    size_col, si_col = si_names(spec)
+    phys = spec.physical_inputs()
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(
         [
             "idx",
             *names,
+            *([size_col] if size_col else []),
             "kind",
             "critical_size",
+            *([si_col] if si_col else []),
             "outcome",
             "rel_accuracy",
             "method",
@@ -336,18 +382,27 @@ def csv_rows(
         else:
             j, b = min(n, nxt.i0 if nxt is not None else n, i + batch_rows), None
         vals = spec.swept_values(i, j)
+        sizes = si_sizes(spec, vals)
+        si_vals = (
+            critical_si(phys, spec.perturbation, b.arrays["critical_size"])
+            if b is not None and phys is not None
+            else None
+        )
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
         for k in range(j - i):
             row: list[Any] = [i + k, *(repr(float(vals[m][k])) for m in names)]
+            if sizes is not None:
+                row.append(_fmt(sizes[k]))
             if b is None:
-                row += ["", "", "", "", "", "", ""]
+                row += [""] * (8 if si_col else 7)
             else:
                 kd = int(b.arrays["kind"][k])
                 oc = int(b.arrays["outcome"][k]) if "outcome" in b.arrays else -1
                 row += [
                     KINDS[kd] if kd >= 0 else "",
                     _fmt(b.arrays["critical_size"][k]),
+                    *([_fmt(si_vals[k])] if si_vals is not None else []),
                     _OUTCOMES[oc] if oc >= 0 else "",
                     _fmt(b.arrays["rel_accuracy"][k]),
                     _method(int(b.arrays["method"][k])),
@@ -376,7 +431,8 @@ def json_chunks(
     """JSON document in pieces: status fields, ``coords`` (axis values, or the swept
     parameters of each point), and one flat list per variable in flat-index order
     (non-finite numbers and missing points are null; ``kind`` tells infinite from
-    missing), ``computed``, and ``failures`` [{idx, error}] (first 100)."""
+    missing), ``computed``, and ``failures`` [{idx, error}] (first 100).  A sweep in SI
+    (of at most SI_VARIABLE_MAX_POINTS points) also has its SI variable in ``data``."""
     head: dict[str, Any] = {
         k: status[k]
         for k in ("id", "status", "n_total", "n_done", "n_failed", "numerics_version")
@@ -394,6 +450,10 @@ def json_chunks(
     for n, v in enumerate((*VARIABLES, "computed")):
         kind = "f" if arrays[v].dtype.kind == "f" else "i"
         yield ("," if n else "") + json.dumps(v) + ":" + _jlist(arrays[v], kind)
+    phys = spec.physical_inputs()
+    if phys is not None and spec.n_total <= SI_VARIABLE_MAX_POINTS:
+        si = critical_si(phys, spec.perturbation, arrays["critical_size"])
+        yield "," + json.dumps(SI_VARIABLES[spec.perturbation][0]) + ":" + _jlist(si, "f")
     yield '}, "failures": ' + json.dumps([{"idx": i, "error": m} for i, m in failures]) + "}"
 
 

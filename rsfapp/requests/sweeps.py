@@ -21,13 +21,24 @@ machine that is not swept: it fixes ba = b/a, kappa = k Dc/(a sigma) and vo = V_
 ``eps`` and ``size`` may be swept, and none of fixed ``ba``, ``kappa``, ``kappa_ratio``,
 ``vo`` may be given (422 naming the clashing field: ``fixed.ba``, ``axes[1].name``,
 ``points.vo``, ...).
+
+Perturbation sizes in SI (with ``fixed.physical`` only, as the single queries state them):
+``factor`` (V_new/V_before for a velocity jump, V_new/V_load for a load-point jump),
+``new_slip_rate_m_s`` (velocity jump: the slip rate right after the jump [m/s]) or
+``new_load_point_velocity_m_s`` (load-point jump: the new load-point velocity [m/s]),
+fixed (``fixed.factor``, ...) or swept (an axis or points array of that name), instead
+of ``size``.  Each value is converted once by rsfcore.units (d = ln(V_new/V_before),
+dv = V_new/V_load - 1; :func:`rsfapp.grid.si_to_size`); the sweep's coordinates stay in
+the SI values given.  At most one statement of the size; 422 naming the field when a size
+is given both ways (``fixed.size``), twice in SI, in SI without ``fixed.physical``, or in
+the unit of the other perturbation kind.
 """
 
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, SerializerFunctionWrapHandler, model_serializer
+from pydantic import ConfigDict, Field, SerializerFunctionWrapHandler, model_serializer
 
 from rsfcore import limits
 
@@ -44,9 +55,23 @@ __all__ = [
     "SweepFixed",
     "SweepRequest",
     "SI_FIXED",
+    "SI_SIZE_FIELDS",
 ]
 
-AxisName = Literal["ba", "kappa", "kappa_ratio", "eps", "vo", "size"]
+AxisName = Literal[
+    "ba",
+    "kappa",
+    "kappa_ratio",
+    "eps",
+    "vo",
+    "size",
+    "factor",
+    "new_slip_rate_m_s",
+    "new_load_point_velocity_m_s",
+]
+#: The perturbation size stated in SI (alternatives to ``size``; need ``fixed.physical``),
+#: fixed or swept; the names of the single queries (rsfapp.requests.single).
+SI_SIZE_FIELDS: tuple[str, ...] = ("factor", "new_slip_rate_m_s", "new_load_point_velocity_m_s")
 #: Valid range of each swept parameter (lo, hi, text); checked per value and reported as
 #: e.g. ``axes[2].stop`` or ``points.eps[17]``.
 AXIS_RANGES: dict[str, tuple[float, float, str]] = {
@@ -66,6 +91,19 @@ AXIS_RANGES: dict[str, tuple[float, float, str]] = {
         f"{limits.VELOCITY_JUMP_SIZE.text} "
         f"(load-point jump: (-1, {limits.format_number(limits.SIZE_MAX)}])",
     ),
+    # SI sizes: the ends the values alone must satisfy (open at 0); rsfcore.units checks
+    # the converted size (|d| <= 1e4; V_new/V_* <= 1e300) and names the value
+    "factor": (0.0, limits.VO_MAX, "(0, 1e300] (needs fixed.physical)"),
+    "new_slip_rate_m_s": (
+        0.0,
+        limits.VO_MAX,
+        "(0, 1e300] m/s with |ln(V_new/V_before)| <= 1e4 (velocity jump; needs fixed.physical)",
+    ),
+    "new_load_point_velocity_m_s": (
+        0.0,
+        limits.VO_MAX,
+        "(0, 1e300 V_star_m_s] m/s (load-point jump; needs fixed.physical)",
+    ),
 }
 #: Largest number of explicit values of one axis.
 MAX_AXIS_VALUES = 100_000
@@ -80,7 +118,12 @@ class SweepAxis(_Model):
     end points exact."""
 
     name: AxisName = F(
-        ..., "'ba', 'kappa', 'kappa_ratio', 'eps', 'vo' or 'size'", "Swept parameter.", name="name"
+        ...,
+        "'ba', 'kappa', 'kappa_ratio', 'eps', 'vo', 'size', or with fixed.physical the SI size "
+        "'factor', 'new_slip_rate_m_s' (velocity jump), 'new_load_point_velocity_m_s' "
+        "(load-point jump)",
+        "Swept parameter.",
+        name="name",
     )
     values: Annotated[list[float], Field(min_length=1, max_length=MAX_AXIS_VALUES)] | None = F(
         None,
@@ -106,9 +149,39 @@ class SweepAxis(_Model):
 SI_FIXED: tuple[str, ...] = ("ba", "kappa", "kappa_ratio", "vo")
 
 
+def _si_size_schema(schema: dict[str, Any]) -> None:
+    """The cross-field rule of the SI size fields in the JSON schema: each of ``factor``,
+    ``new_slip_rate_m_s``, ``new_load_point_velocity_m_s`` is null (or absent) unless
+    ``physical`` is an object, and then ``size`` is not given (null or absent) and
+    neither is another SI size field.  (Rules against swept axes are checked by
+    rsfapp.grid: 422 naming the field.)"""
+    rules: list[dict[str, Any]] = []
+    for f in SI_SIZE_FIELDS:
+        others = {o: {"type": "null"} for o in SI_SIZE_FIELDS if o != f}
+        rules.append(
+            {
+                "anyOf": [
+                    {"properties": {f: {"type": "null"}}},
+                    {
+                        "required": ["physical"],
+                        "properties": {
+                            "physical": {"type": "object"},
+                            "size": {"type": "null"},
+                            **others,
+                        },
+                    },
+                ]
+            }
+        )
+    schema["allOf"] = [*schema.get("allOf", []), *rules]
+
+
 class SweepFixed(_Model):
     """Values of the parameters that are not swept: dimensionless, or ba, kappa and vo
-    as the SI machine ``physical`` (never both; see the module docstring)."""
+    as the SI machine ``physical`` (never both; see the module docstring), and the
+    perturbation size as ``size`` or, with ``physical``, in SI."""
+
+    model_config = ConfigDict(json_schema_extra=_si_size_schema)
 
     ba: float = FL(limits.BA)
     kappa_ratio: float | None = F(
@@ -143,8 +216,36 @@ class SweepFixed(_Model):
         None,
         "null or an object {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s, V_load_m_s}",
         "The machine in SI units instead of ba, kappa/kappa_ratio and vo (never "
-        "both; these cannot be swept then). The sweep's data then carry SI scales.",
+        "both; these cannot be swept then). The sweep's data then carry SI scales "
+        "and the critical sizes in SI.",
         name="fixed.physical",
+    )
+    factor: float | None = F(
+        None,
+        "null or (0, 1e300] (needs fixed.physical)",
+        "SI perturbation size instead of size: V_new/V_before for a velocity jump "
+        "(d = ln factor), V_new/V_load for a load-point jump (dv = factor - 1) (-).",
+        name="fixed.factor",
+        gt=0,
+        le=limits.VO_MAX,
+    )
+    new_slip_rate_m_s: float | None = F(
+        None,
+        "null or (0, 1e300] m/s (velocity jump; needs fixed.physical)",
+        "SI velocity jump instead of size: the slip rate right after the jump "
+        "(d = ln(V_new/V_before)) [m/s].",
+        name="fixed.new_slip_rate_m_s",
+        gt=0,
+        le=limits.VO_MAX,
+    )
+    new_load_point_velocity_m_s: float | None = F(
+        None,
+        "null or (0, 1e300 V_star_m_s] m/s (load-point jump; needs fixed.physical)",
+        "SI load-point jump instead of size: the new load-point velocity "
+        "(dv = V_new/V_load - 1) [m/s].",
+        name="fixed.new_load_point_velocity_m_s",
+        gt=0,
+        le=limits.VO_MAX,
     )
 
     @model_serializer(mode="wrap")

@@ -117,14 +117,20 @@ async def submit(
     req: SweepRequest, stores: StoresDep, queue: QueueDep, s: SettingsDep, who: PrincipalDep
 ) -> Response:
     """Start a sweep: an N-D grid (``axes``: 1-5 of ba, kappa or kappa_ratio, eps, vo,
-    size; each ``{name, values}`` or ``{name, start, stop, n, log}``), scattered ``points``
-    (equal-length arrays per parameter) or the 2-D ``x``/``y`` form, with ``fixed`` values
-    for the rest: dimensionless, or the machine in SI as ``fixed.physical`` {a, b, Dc_m,
-    sigma_Pa, k_Pa_per_m, V_star_m_s, V_load_m_s} (sets ba, kappa, vo; then only eps and
-    size may be swept; the NetCDF data then carry SI scales and the critical slip rate or
-    load-point velocity in m/s).  Per point: the critical size (kind, critical_size, rel_accuracy) or,
-    when a size is fixed or swept, the outcome.  Up to RSF_SWEEP_MAX_POINTS points
-    (default 1e8), chunked lazily.
+    size (or its SI form); each ``{name, values}`` or ``{name, start, stop, n, log}``),
+    scattered ``points`` (equal-length arrays per parameter) or the 2-D ``x``/``y`` form,
+    with ``fixed`` values for the rest: dimensionless, or the machine in SI as
+    ``fixed.physical`` {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s, V_load_m_s} (sets
+    ba, kappa, vo; then only eps and the size may be swept; the data, CSV and points then
+    carry SI scales and the critical slip rate or load-point velocity in m/s).  With
+    ``fixed.physical`` the perturbation size may be given in SI as the single queries do,
+    fixed (``fixed.factor``, ``fixed.new_slip_rate_m_s``,
+    ``fixed.new_load_point_velocity_m_s``) or swept (an axis or points array of that
+    name), converted once by rsfcore.units; a size given both ways, twice, in SI without
+    ``fixed.physical``, or in the unit of the other perturbation kind is a 422 naming the
+    field.  Per point: the critical size (kind, critical_size, rel_accuracy) or, when a
+    size is fixed or swept, the outcome.  Up to
+    RSF_SWEEP_MAX_POINTS points (default 1e8), chunked lazily.
 
     Answers 202 with a ``Location`` to poll; ``created`` (new sweep) and ``resumed`` (a
     cancelled sweep started again) say what happened.  A finished sweep answers 200 with
@@ -205,23 +211,34 @@ async def get_points(
     """Points ``offset`` .. ``offset + limit - 1`` in flat-index order (C order over the
     axes), available while running.  Each point: idx, index (grid), the swept parameter
     values, computed, kind, critical_size (null if infinite or missing), outcome,
-    rel_accuracy, method, failed, error."""
+    rel_accuracy, method, failed, error.  A sweep in SI (``fixed.physical``) also gives,
+    after critical_size, ``critical_slip_rate_m_s`` (velocity jump) or
+    ``critical_load_point_velocity_m_s`` (load-point jump) in m/s (null if infinite or
+    missing; the NetCDF variable of the same name), and when its size is swept in SI
+    (``factor``, ``new_slip_rate_m_s``, ``new_load_point_velocity_m_s``) the dimensionless
+    ``size`` of each point."""
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
     i0, i1 = min(offset, spec.n_total), min(offset + limit, spec.n_total)
 
+    size_col, si_col = sweepdata.si_names(spec)
+    phys = spec.physical_inputs()
+
     def page() -> list[dict[str, Any]]:
         vals = spec.swept_values(i0, i1)
+        sizes = sweepdata.si_sizes(spec, vals)
         pts: list[dict[str, Any]] = []
         for k in range(i0, i1):
             p: dict[str, Any] = {"idx": k}
             if spec.mode == "grid":
                 p["index"] = [int(v) for v in np.unravel_index(k, spec.shape)]
             p.update({n: float(v[k - i0]) for n, v in vals.items()})
+            if size_col and sizes is not None:
+                p[size_col] = float(sizes[k - i0])
+            p.update(computed=False, kind=None, critical_size=None)
+            if si_col:
+                p[si_col] = None
             p.update(
-                computed=False,
-                kind=None,
-                critical_size=None,
                 outcome=None,
                 rel_accuracy=None,
                 method=None,
@@ -230,9 +247,20 @@ async def get_points(
             )
             pts.append(p)
         for b in stores.sweeps.blocks(sweep_id, i0, i1):
-            for k in range(max(b.i0, i0), min(b.i1, i1)):
+            lo, hi = max(b.i0, i0), min(b.i1, i1)
+            si = (
+                sweepdata.critical_si(
+                    phys, spec.perturbation, b.arrays["critical_size"][lo - b.i0 : hi - b.i0]
+                )
+                if phys is not None and si_col and hi > lo
+                else None
+            )
+            for k in range(lo, hi):
                 o = k - b.i0
                 a = b.arrays
+                if si is not None and si_col:
+                    v = float(si[k - lo])
+                    pts[k - i0][si_col] = v if np.isfinite(v) else None
                 kd = int(a["kind"][o])
                 oc = int(a["outcome"][o]) if "outcome" in a else -1
                 cs, ra = float(a["critical_size"][o]), float(a["rel_accuracy"][o])
@@ -297,8 +325,11 @@ async def get_data(
     NaN / -1 / empty).  Variables per point: ``critical_size`` (0 zero, inf infinite),
     ``kind`` (0 zero, 1 finite, 2 infinite, -1 missing/failed), ``outcome`` (0 stable,
     1 unstable, -1 missing or no size asked), ``rel_accuracy``, ``failed``, ``method``
-    (index into rsfcore.critical.METHODS), ``outcome_uncertain``.  Headers
-    ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``."""
+    (index into rsfcore.critical.METHODS), ``outcome_uncertain``; a sweep in SI also
+    ``critical_slip_rate_m_s`` or ``critical_load_point_velocity_m_s`` [m/s] (NetCDF
+    variable, CSV column after critical_size, JSON data), and with its size swept in SI
+    the dimensionless ``size`` (NetCDF, CSV).  Headers ``X-Sweep-Status`` and
+    ``X-Sweep-Progress: n_done/n_total``."""
     fmt = choice(format, _DATA_FORMATS, "format")
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
