@@ -7,15 +7,22 @@ so ``rsf si critical ... --json`` prints exactly what POST /v1/critical answers 
 field and its valid range.
 
 SI machine options (all commands of ``si`` and ``protocol``): --a, --b, --dc-m,
---sigma-pa, --k-pa-per-m, --v-star-m-s, --v-load-m-s (default V_*), --eps.
+--sigma-pa, --k-pa-per-m, --v-star-m-s, --v-load-m-s (default V_*; ``si`` only), --eps,
+and --f-star (``protocol``); ``si`` also --perturbation and (classify, trajectory) the
+size as --size, --factor, --new-slip-rate-m-s or --new-load-point-velocity-m-s.  They are
+declared once (:func:`_machine_command` puts them first in each command's signature, in
+this order) and reach the command as one :class:`Machine`.
 """
 
 from __future__ import annotations
 
 import csv
+import inspect
 import io
 import json
+import typing
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
 from typing import Any
@@ -108,22 +115,6 @@ def _run(model: Any, body: dict[str, Any], fn: Callable[[Any], dict[str, Any]]) 
     raise AssertionError("unreachable")
 
 
-def _physical(
-    a: float, b: float, dc: float, sigma: float, k: float, vs: float, vl: float | None
-) -> dict[str, Any]:
-    d: dict[str, Any] = {
-        "a": a,
-        "b": b,
-        "Dc_m": dc,
-        "sigma_Pa": sigma,
-        "k_Pa_per_m": k,
-        "V_star_m_s": vs,
-    }
-    if vl is not None:
-        d["V_load_m_s"] = vl
-    return d
-
-
 def _emit(obj: dict[str, Any], as_json: bool, lines: list[str]) -> None:
     if as_json:
         typer.echo(json.dumps(obj, allow_nan=False))
@@ -163,45 +154,6 @@ def _g(x: Any) -> str:
     return "-" if x is None else (f"{x:.6g}" if isinstance(x, float) else str(x))
 
 
-# --------------------------------------------------------------------------- rsf si
-def _si_body(
-    a: float,
-    b: float,
-    dc: float,
-    sigma: float,
-    k: float,
-    vs: float,
-    vl: float | None,
-    eps: float,
-    rtol: float,
-    pert: Pert,
-) -> dict[str, Any]:
-    return {
-        "physical": _physical(a, b, dc, sigma, k, vs, vl),
-        "eps": eps,
-        "rtol": rtol,
-        "perturbation": pert.value,
-    }
-
-
-def _perturbation(
-    body: dict[str, Any],
-    size: float | None,
-    factor: float | None,
-    new_v: float | None,
-    new_vlp: float | None,
-) -> dict[str, Any]:
-    for name, v in (
-        ("size", size),
-        ("factor", factor),
-        ("new_slip_rate_m_s", new_v),
-        ("new_load_point_velocity_m_s", new_vlp),
-    ):
-        if v is not None:
-            body[name] = v
-    return body
-
-
 SIZE = typer.Option(
     None, "--size", help="Dimensionless size (d = ln(V_new/V_before) or dv = V_new/V_load - 1)."
 )
@@ -213,37 +165,138 @@ NEWVLP = typer.Option(
     None, "--new-load-point-velocity-m-s", help="Load-point jump to this velocity [m/s]."
 )
 PERT = typer.Option(Pert.velocity_jump, "--perturbation", help="Kind of perturbation.")
+FSTAR = typer.Option(0.6, "--f-star", help="Reference friction f_* at V_*, [-10, 10].")
+NPPS = typer.Option(200, "--n-points-per-segment", help="Samples per segment, [2, 100000].")
 
 
-@si_app.command("classify")
-def si_classify(
-    a: float = A,
-    b: float = B,
-    dc_m: float = DC,
-    sigma_pa: float = SIGMA,
-    k_pa_per_m: float = K,
-    v_star_m_s: float = VSTAR,
-    v_load_m_s: float | None = VLOAD,
-    eps: float = EPS,
-    perturbation: Pert = PERT,
-    size: float | None = SIZE,
-    factor: float | None = FACTOR,
-    new_slip_rate_m_s: float | None = NEWV,
-    new_load_point_velocity_m_s: float | None = NEWVLP,
-    rtol: float = RTOL,
-    as_json: bool = JSON_OUT,
-) -> None:
+@dataclass(frozen=True)
+class Machine:
+    """The shared options of a ``si`` / ``protocol`` command.
+
+    Attributes:
+        physical: the SI machine {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s[,
+            V_load_m_s]} (the request models' names).
+        eps: evolution-law parameter (-); f_star: reference friction (protocols).
+        perturbation: kind (``si``), None for protocols.
+        size: the size options given ({size | factor | new_slip_rate_m_s |
+            new_load_point_velocity_m_s: value}).
+    """
+
+    physical: dict[str, Any]
+    eps: float
+    f_star: float | None = None
+    perturbation: Pert | None = None
+    size: dict[str, float] = field(default_factory=dict)
+
+    def si_body(self, rtol: float) -> dict[str, Any]:
+        """Body of an SI query (ClassifyRequest, CriticalRequest, TrajectoryRequest)."""
+        pert = self.perturbation or Pert.velocity_jump
+        return {
+            "physical": self.physical,
+            "eps": self.eps,
+            "rtol": rtol,
+            "perturbation": pert.value,
+            **self.size,
+        }
+
+    def protocol_body(self, rtol: float) -> dict[str, Any]:
+        """Common part of a protocol body (velocity step, slide-hold-slide, load history)."""
+        return {"physical": self.physical, "eps": self.eps, "f_star": self.f_star, "rtol": rtol}
+
+
+_KW = inspect.Parameter.KEYWORD_ONLY
+#: The size options of ``si classify`` / ``si trajectory``: (parameter, request field, option).
+_SIZE_OPTIONS: tuple[tuple[str, str, Any], ...] = (
+    ("size", "size", SIZE),
+    ("factor", "factor", FACTOR),
+    ("new_slip_rate_m_s", "new_slip_rate_m_s", NEWV),
+    ("new_load_point_velocity_m_s", "new_load_point_velocity_m_s", NEWVLP),
+)
+#: The machine options: (parameter, request field, option, annotation).
+_MACHINE_OPTIONS: tuple[tuple[str, str, Any, Any], ...] = (
+    ("a", "a", A, float),
+    ("b", "b", B, float),
+    ("dc_m", "Dc_m", DC, float),
+    ("sigma_pa", "sigma_Pa", SIGMA, float),
+    ("k_pa_per_m", "k_Pa_per_m", K, float),
+    ("v_star_m_s", "V_star_m_s", VSTAR, float),
+)
+
+
+def _shared_params(*, v_load: bool, f_star: bool, perturbation: str) -> list[inspect.Parameter]:
+    """The shared options, in the order the commands list them."""
+    ps = [inspect.Parameter(n, _KW, default=o, annotation=t) for n, _, o, t in _MACHINE_OPTIONS]
+    if v_load:
+        ps.append(inspect.Parameter("v_load_m_s", _KW, default=VLOAD, annotation=float | None))
+    ps.append(inspect.Parameter("eps", _KW, default=EPS, annotation=float))
+    if f_star:
+        ps.append(inspect.Parameter("f_star", _KW, default=FSTAR, annotation=float))
+    if perturbation != "none":
+        ps.append(inspect.Parameter("perturbation", _KW, default=PERT, annotation=Pert))
+    if perturbation == "sized":
+        ps += [
+            inspect.Parameter(n, _KW, default=o, annotation=float | None)
+            for n, _, o in _SIZE_OPTIONS
+        ]
+    return ps
+
+
+def _machine_command(
+    app: typer.Typer,
+    name: str,
+    *,
+    v_load: bool = False,
+    f_star: bool = False,
+    perturbation: str = "none",
+) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Register ``fn(machine: Machine, **own options)`` as command ``name`` of ``app``,
+    with the shared options (machine; ``v_load``: --v-load-m-s; --eps; ``f_star``:
+    --f-star; ``perturbation`` "kind": --perturbation, "sized": also the size options)
+    listed first, then ``fn``'s own options."""
+
+    def register(fn: Callable[..., None]) -> Callable[..., None]:
+        shared = _shared_params(v_load=v_load, f_star=f_star, perturbation=perturbation)
+        own = [p.replace(kind=_KW) for p in inspect.signature(fn).parameters.values()][
+            1:
+        ]  # without ``machine``
+        own_hints = typing.get_type_hints(fn)
+
+        def command(**kw: Any) -> None:
+            physical = {f: kw.pop(n) for n, f, _, _ in _MACHINE_OPTIONS}
+            vl = kw.pop("v_load_m_s", None)
+            if vl is not None:
+                physical["V_load_m_s"] = vl
+            sizes = {f: kw.pop(n) for n, f, _ in _SIZE_OPTIONS if n in kw}
+            machine = Machine(
+                physical=physical,
+                eps=kw.pop("eps"),
+                f_star=kw.pop("f_star", None),
+                perturbation=kw.pop("perturbation", None),
+                size={f: v for f, v in sizes.items() if v is not None},
+            )
+            fn(machine, **kw)
+
+        params = [*shared, *own]
+        command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+        command.__annotations__ = {
+            p.name: (own_hints[p.name] if p in own else p.annotation) for p in params
+        }
+        command.__name__ = fn.__name__
+        command.__qualname__ = fn.__qualname__
+        command.__doc__ = fn.__doc__
+        app.command(name)(command)
+        return fn
+
+    return register
+
+
+@_machine_command(si_app, "classify", v_load=True, perturbation="sized")
+def si_classify(machine: Machine, rtol: float = RTOL, as_json: bool = JSON_OUT) -> None:
     """Stable or unstable, for a perturbation stated in SI; times in s, peak in m/s."""
     from rsfapp import adapter
     from rsfapp.requests import ClassifyRequest
 
-    body = _perturbation(
-        _si_body(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s, eps, rtol, perturbation),
-        size,
-        factor,
-        new_slip_rate_m_s,
-        new_load_point_velocity_m_s,
-    )
+    body = machine.si_body(rtol)
     d = _run(ClassifyRequest, body, lambda r: adapter.classify(r, max_steps=None))
     si = d["si"]
     _emit(
@@ -260,29 +313,14 @@ def si_classify(
     )
 
 
-@si_app.command("critical")
-def si_critical(
-    a: float = A,
-    b: float = B,
-    dc_m: float = DC,
-    sigma_pa: float = SIGMA,
-    k_pa_per_m: float = K,
-    v_star_m_s: float = VSTAR,
-    v_load_m_s: float | None = VLOAD,
-    eps: float = EPS,
-    perturbation: Pert = PERT,
-    rtol: float = RTOL,
-    as_json: bool = JSON_OUT,
-) -> None:
+@_machine_command(si_app, "critical", v_load=True, perturbation="kind")
+def si_critical(machine: Machine, rtol: float = RTOL, as_json: bool = JSON_OUT) -> None:
     """Critical perturbation in SI: the slip rate [m/s] (and stress jump [Pa]) of the
     critical velocity jump, or the critical load-point velocity [m/s]."""
     from rsfapp import adapter
     from rsfapp.requests import CriticalRequest
 
-    body = _si_body(
-        a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s, eps, rtol, perturbation
-    )
-    d = _run(CriticalRequest, body, adapter.critical)
+    d = _run(CriticalRequest, machine.si_body(rtol), adapter.critical)
     si = d["si"]
     jump = si.get("velocity_jump") or si.get("load_point_jump") or {}
     lines = [
@@ -295,21 +333,9 @@ def si_critical(
     _emit(d, as_json, lines)
 
 
-@si_app.command("trajectory")
+@_machine_command(si_app, "trajectory", v_load=True, perturbation="sized")
 def si_trajectory(
-    a: float = A,
-    b: float = B,
-    dc_m: float = DC,
-    sigma_pa: float = SIGMA,
-    k_pa_per_m: float = K,
-    v_star_m_s: float = VSTAR,
-    v_load_m_s: float | None = VLOAD,
-    eps: float = EPS,
-    perturbation: Pert = PERT,
-    size: float | None = SIZE,
-    factor: float | None = FACTOR,
-    new_slip_rate_m_s: float | None = NEWV,
-    new_load_point_velocity_m_s: float | None = NEWVLP,
+    machine: Machine,
     rtol: float = RTOL,
     n_points: int = typer.Option(200, "--n-points", help="Samples, [2, 10000]."),
     sampling: Sampling = typer.Option(
@@ -323,13 +349,7 @@ def si_trajectory(
     from rsfapp import adapter
     from rsfapp.requests import TrajectoryRequest
 
-    body = _perturbation(
-        _si_body(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, v_load_m_s, eps, rtol, perturbation),
-        size,
-        factor,
-        new_slip_rate_m_s,
-        new_load_point_velocity_m_s,
-    )
+    body = machine.si_body(rtol)
     body.update(n_points=n_points, sampling=sampling.value)
     if t_end_s is not None:
         body["t_end_s"] = t_end_s
@@ -354,28 +374,6 @@ def si_trajectory(
 
 
 # --------------------------------------------------------------------------- rsf protocol
-def _machine(
-    a: float,
-    b: float,
-    dc: float,
-    sigma: float,
-    k: float,
-    vs: float,
-    eps: float,
-    f_star: float,
-    rtol: float,
-) -> dict[str, Any]:
-    return {
-        "physical": _physical(a, b, dc, sigma, k, vs, None),
-        "eps": eps,
-        "f_star": f_star,
-        "rtol": rtol,
-    }
-
-
-FSTAR = typer.Option(0.6, "--f-star", help="Reference friction f_* at V_*, [-10, 10].")
-
-
 def _protocol_out(d: dict[str, Any], out: Path | None, as_json: bool) -> None:
     from rsfapp import adapter
 
@@ -398,16 +396,9 @@ def _protocol_out(d: dict[str, Any], out: Path | None, as_json: bool) -> None:
     _emit(d, as_json, lines)
 
 
-@protocol_app.command("velocity-step")
+@_machine_command(protocol_app, "velocity-step", f_star=True)
 def protocol_velocity_step(
-    a: float = A,
-    b: float = B,
-    dc_m: float = DC,
-    sigma_pa: float = SIGMA,
-    k_pa_per_m: float = K,
-    v_star_m_s: float = VSTAR,
-    eps: float = EPS,
-    f_star: float = FSTAR,
+    machine: Machine,
     v1: float = typer.Option(..., "--v1-m-s", help="Velocity before [m/s]."),
     v2: float = typer.Option(..., "--v2-m-s", help="Velocity after [m/s]."),
     slip_total_m: float | None = typer.Option(
@@ -423,30 +414,21 @@ def protocol_velocity_step(
     from rsfapp import adapter
     from rsfapp.requests.protocols import VelocityStepRequest
 
-    body = _machine(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, eps, f_star, rtol)
+    body = machine.protocol_body(rtol)
     body.update(V1_m_s=v1, V2_m_s=v2, n_points=n_points)
     if slip_total_m is not None:
         body["slip_total_m"] = slip_total_m
     _protocol_out(_run(VelocityStepRequest, body, adapter.protocol_velocity_step), out, as_json)
 
 
-@protocol_app.command("slide-hold-slide")
+@_machine_command(protocol_app, "slide-hold-slide", f_star=True)
 def protocol_shs(
-    a: float = A,
-    b: float = B,
-    dc_m: float = DC,
-    sigma_pa: float = SIGMA,
-    k_pa_per_m: float = K,
-    v_star_m_s: float = VSTAR,
-    eps: float = EPS,
-    f_star: float = FSTAR,
+    machine: Machine,
     v: float = typer.Option(..., "--v-m-s", help="Sliding velocity [m/s]."),
     hold_s: float = typer.Option(..., "--hold-s", help="Hold time [s]."),
     before_s: float = typer.Option(..., "--slide-before-s", help="Slide before [s]."),
     after_s: float = typer.Option(..., "--slide-after-s", help="Reslide [s]."),
-    n_points: int = typer.Option(
-        200, "--n-points-per-segment", help="Samples per segment, [2, 100000]."
-    ),
+    n_points: int = NPPS,
     rtol: float = RTOL,
     out: Path | None = OUT,
     as_json: bool = JSON_OUT,
@@ -455,7 +437,7 @@ def protocol_shs(
     from rsfapp import adapter
     from rsfapp.requests.protocols import SlideHoldSlideRequest
 
-    body = _machine(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, eps, f_star, rtol)
+    body = machine.protocol_body(rtol)
     body.update(
         V_m_s=v,
         hold_s=hold_s,
@@ -468,22 +450,13 @@ def protocol_shs(
     )
 
 
-@protocol_app.command("load-history")
+@_machine_command(protocol_app, "load-history", f_star=True)
 def protocol_history(
-    a: float = A,
-    b: float = B,
-    dc_m: float = DC,
-    sigma_pa: float = SIGMA,
-    k_pa_per_m: float = K,
-    v_star_m_s: float = VSTAR,
-    eps: float = EPS,
-    f_star: float = FSTAR,
+    machine: Machine,
     segment: list[str] = typer.Option(
         ..., "--segment", help="DURATION_S:V_LOAD_M_S, repeated in order (V 0 = hold)."
     ),
-    n_points: int = typer.Option(
-        200, "--n-points-per-segment", help="Samples per segment, [2, 100000]."
-    ),
+    n_points: int = NPPS,
     rtol: float = RTOL,
     out: Path | None = OUT,
     as_json: bool = JSON_OUT,
@@ -501,7 +474,7 @@ def protocol_history(
             _fail(
                 f"segment[{i}]: {s!r} is invalid (valid range: DURATION_S:V_LOAD_M_S, e.g. 10:1e-6)"
             )
-    body = _machine(a, b, dc_m, sigma_pa, k_pa_per_m, v_star_m_s, eps, f_star, rtol)
+    body = machine.protocol_body(rtol)
     body.update(segments=segs, n_points_per_segment=n_points)
     _protocol_out(_run(LoadHistoryRequest, body, adapter.protocol_load_history), out, as_json)
 

@@ -154,3 +154,45 @@ def test_si_ranges_are_the_ones_lab_values_need() -> None:
     assert si_range_text(limits.SI_V_LOAD_M_S) == "[0, 1e3]" and limits.SI_A.text == "(0, 1]"
     assert si_range_text(limits.SI_K_PA_PER_M) == "[0, 1e30]"
     assert si_range_text(limits.EPS) == "[0, 1]" and si_range_text(limits.VO) == "[0, 1e300]"
+
+
+def _lab_params(group: str, command: str) -> list[Any]:
+    top: Any = typer.main.get_command(cli)
+    return [p for p in top.commands[group].commands[command].params if p.name]
+
+
+#: The SI machine options of `rsf si` / `rsf protocol` (declared once in rsfcli.lab) and
+#: the rsfcore.limits range their help states.
+CLI_SI = [
+    ("a", limits.SI_A),
+    ("dc_m", limits.SI_DC_M),
+    ("sigma_pa", limits.SI_SIGMA_PA),
+    ("v_star_m_s", limits.SI_V_STAR_M_S),
+    ("v_load_m_s", limits.SI_V_LOAD_M_S),
+    ("eps", limits.EPS),
+    ("rtol", limits.RTOL),
+]
+LAB_COMMANDS = [
+    ("si", "classify"),
+    ("si", "critical"),
+    ("si", "trajectory"),
+    ("protocol", "velocity-step"),
+    ("protocol", "slide-hold-slide"),
+    ("protocol", "load-history"),
+]
+
+
+@pytest.mark.parametrize(("group", "command"), LAB_COMMANDS)
+def test_cli_si_options_agree_with_limits(group: str, command: str) -> None:
+    """Every SI command lists the shared machine options first, in one order, and their
+    help states the rsfcore.limits ranges."""
+    params = _lab_params(group, command)
+    names = [p.name for p in params]
+    head = ["a", "b", "dc_m", "sigma_pa", "k_pa_per_m", "v_star_m_s"]
+    head += ["v_load_m_s", "eps", "perturbation"] if group == "si" else ["eps", "f_star"]
+    assert names[: len(head)] == head
+    by_name = {p.name: p for p in params}
+    for name, limit in CLI_SI:
+        if name in by_name:
+            assert si_range_text(limit) in (by_name[name].help or ""), (command, name)
+    assert by_name["a"].required and by_name["v_star_m_s"].required
