@@ -231,11 +231,6 @@ class SweepSpec:
         ``new_load_point_velocity_m_s``) that is swept, else None."""
         return next((n for n in self.swept if n in SI_SIZE_FIELDS), None)
 
-    def sizes(self, i0: int, i1: int) -> F64 | None:
-        """Dimensionless perturbation sizes of flat indices [i0, i1) (None for a sweep of
-        critical sizes)."""
-        return self.params(i0, i1)["size"]
-
     @property
     def swept(self) -> list[str]:
         """Names of the swept parameters, in axis (or points) order."""

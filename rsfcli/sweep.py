@@ -6,7 +6,10 @@
     rsf sweep cancel ID [--purge]
 
 The spec file is the JSON body of ``POST /v1/sweeps`` (``axes``, ``points`` or ``x``/``y``,
-with ``fixed``, ``perturbation``, ``rtol``).  ``--url`` (or RSF_URL) names the service,
+with ``fixed``, ``perturbation``, ``rtol``); in lab units: the machine as
+``fixed.physical`` and the perturbation size as ``factor``, ``new_slip_rate_m_s`` or
+``new_load_point_velocity_m_s`` (fixed or swept; docs/lab-api.md).  A CSV download of such
+a sweep has the critical size in m/s too.  ``--url`` (or RSF_URL) names the service,
 ``--api-key`` (or RSF_API_KEY) its key when one is required.
 """
 
