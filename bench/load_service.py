@@ -17,7 +17,10 @@ latency, bytes per point) is measured by bench/bench_sweep.py.
 throughput of cached lookups (repeated POST /v1/classify, answered from the result store)
 next to the trivial endpoint GET /health/live (no I/O) in the same run.  Targets (issue
 12): cached >= 0.8x trivial; 2 API processes >= 1.6x one.  The load generator runs on
-the same machine, so on 2 cores it competes with the API processes for the CPU.
+the same machine, so on 2 cores it competes with the API processes for the CPU.  With
+``--with-key`` it also measures the cached lookups sent with an API key (made with the
+real `rsf keys create`, revoked after the phase): every such request verifies the key
+in the database (revocation is immediate), the cost every deployment with keys pays.
 """
 
 from __future__ import annotations
@@ -49,7 +52,7 @@ def _free_port() -> int:
 
 def _client_loop(args: tuple) -> tuple[list[float], int]:
     """One client process: keep-alive connection, closed loop; (latencies [s], errors)."""
-    host, port, kind, n_max, t_end, seed, bodies = args
+    host, port, kind, n_max, t_end, seed, bodies, headers = args
     rnd = random.Random(seed)
     conn = http.client.HTTPConnection(host, port, timeout=30)
     lat: list[float] = []
@@ -65,7 +68,7 @@ def _client_loop(args: tuple) -> tuple[list[float], int]:
             errors += r.status != 200
             i += 1
             continue
-        if kind == "cached":
+        if kind in ("cached", "cached_key"):
             path, body = "/v1/classify", bodies[i % len(bodies)]
         elif kind == "closed":
             path, body = (
@@ -88,11 +91,11 @@ def _client_loop(args: tuple) -> tuple[list[float], int]:
             )
         data = json.dumps(body)
         t0 = time.perf_counter()
-        conn.request("POST", path, data, {"Content-Type": "application/json"})
+        conn.request("POST", path, data, {"Content-Type": "application/json", **headers})
         r = conn.getresponse()
         r.read()
         lat.append(time.perf_counter() - t0)
-        if r.status != 200 or (kind == "cached" and r.getheader("X-Cache") != "hit"):
+        if r.status != 200 or (kind.startswith("cached") and r.getheader("X-Cache") != "hit"):
             errors += 1
         i += 1
     conn.close()
@@ -105,7 +108,13 @@ def _pct(xs: list[float], q: float) -> float:
 
 
 def phase(
-    url: str, kind: str, clients: int, max_requests: int, seconds: float, bodies: list[dict]
+    url: str,
+    kind: str,
+    clients: int,
+    max_requests: int,
+    seconds: float,
+    bodies: list[dict],
+    headers: dict[str, str] | None = None,
 ) -> dict:
     u = urlparse(url)
     t0 = time.perf_counter()
@@ -114,7 +123,10 @@ def phase(
     with mp.get_context("fork").Pool(clients) as pool:
         res = pool.map(
             _client_loop,
-            [(u.hostname, u.port, kind, per, t_end, 1000 * k + 7, bodies) for k in range(clients)],
+            [
+                (u.hostname, u.port, kind, per, t_end, 1000 * k + 7, bodies, headers or {})
+                for k in range(clients)
+            ],
         )
     wall = time.perf_counter() - t0
     lat = [x for r in res for x in r[0]]
@@ -209,7 +221,23 @@ def start_api(data_dir: str, workers: int) -> tuple[subprocess.Popen, str]:
     raise SystemExit("API did not start; see " + str(Path(data_dir) / "api.log"))
 
 
-def api_scaling(clients: int, max_req: int, secs: float) -> list[dict]:
+def _rsf_keys(data_dir: str, *args: str) -> str:
+    """`rsf keys ARGS` on ``data_dir`` (the real CLI in another process); its output."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RSF_")}
+    env["RSF_DATA_DIR"] = data_dir
+    r = subprocess.run(
+        [sys.executable, "-m", "rsfcli.main", "keys", *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    return r.stdout.strip()
+
+
+def api_scaling(clients: int, max_req: int, secs: float, with_key: bool = False) -> list[dict]:
     """Trivial vs cached throughput with 1 and 2 API processes (see the module doc)."""
     bodies = [{"ba": 2.0 + 0.01 * k, "kappa": 0.9, "eps": 0.5, "size": 1.0} for k in range(50)]
     rows = []
@@ -220,15 +248,26 @@ def api_scaling(clients: int, max_req: int, secs: float) -> list[dict]:
             for b in bodies:  # warm the cache (shared database: only the first run computes)
                 _req(url, "POST", "/v1/classify", b)
             phase(url, "trivial", clients, 200, 1.0, bodies)  # warm every API process
+            phase(url, "cached", clients, 400, 1.0, bodies)  # every process learns the bodies
             triv = phase(url, "trivial", clients, max_req, secs, bodies)
             cached = phase(url, "cached", clients, max_req, secs, bodies)
+            keyed = None
+            if with_key:  # after the anonymous phases: a key makes keys necessary
+                name = f"bench{n}"
+                key = _rsf_keys(tmp, "create", "--name", name, "--scope", "read")
+                auth = {"Authorization": f"Bearer {key}"}
+                keyed = phase(url, "cached_key", clients, max_req, secs, bodies, auth)
+                _rsf_keys(tmp, "revoke", name)  # the next server serves loopback anonymously
         finally:
             os.killpg(proc.pid, signal.SIGTERM)
             try:
                 proc.wait(30)
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
-        rows.append({"api_processes": n, "trivial": triv, "cached": cached})
+        row = {"api_processes": n, "trivial": triv, "cached": cached}
+        if keyed is not None:
+            row["cached_key"] = keyed
+        rows.append(row)
     shutil.rmtree(tmp, ignore_errors=True)
     return rows
 
@@ -239,14 +278,16 @@ def print_api_scaling(rows: list[dict], clients: int) -> None:
         f"{os.cpu_count()} CPUs"
     )
     print(
-        f"{'API procs':>9} {'phase':<8} {'requests':>9} {'errors':>7} {'req/s':>9} "
+        f"{'API procs':>9} {'phase':<10} {'requests':>9} {'errors':>7} {'req/s':>9} "
         f"{'p50 ms':>8} {'p99 ms':>8}"
     )
     for r in rows:
-        for k in ("trivial", "cached"):
+        for k in ("trivial", "cached", "cached_key"):
+            if k not in r:
+                continue
             p = r[k]
             print(
-                f"{r['api_processes']:>9} {k:<8} {p['n']:>9} {p['errors']:>7} "
+                f"{r['api_processes']:>9} {k:<10} {p['n']:>9} {p['errors']:>7} "
                 f"{p['req_per_s']:>9.0f} {p['p50_ms']:>8.2f} {p['p99_ms']:>8.2f}"
             )
     for r in rows:
@@ -254,6 +295,9 @@ def print_api_scaling(rows: list[dict], clients: int) -> None:
         print(
             f"{r['api_processes']} API process(es): cached / trivial = {ratio:.2f} (target >= 0.8)"
         )
+        if "cached_key" in r:
+            rk = r["cached_key"]["req_per_s"] / r["trivial"]["req_per_s"]
+            print(f"{r['api_processes']} API process(es): cached with a key / trivial = {rk:.2f}")
     up = rows[1]["cached"]["req_per_s"] / rows[0]["cached"]["req_per_s"]
     upt = rows[1]["trivial"]["req_per_s"] / rows[0]["trivial"]["req_per_s"]
     print(f"2 API processes / 1: cached {up:.2f}x, trivial {upt:.2f}x (target >= 1.6x)")
@@ -271,12 +315,17 @@ def main() -> int:
         action="store_true",
         help="only the API: trivial vs cached with 1 and 2 API processes",
     )
+    ap.add_argument(
+        "--with-key",
+        action="store_true",
+        help="with --api-scaling: also cached lookups sent with an API key",
+    )
     a = ap.parse_args()
     clients = min(max(a.clients, 1), 32)
     max_req = min(max(a.max_requests, 1), 100_000)
     secs = min(max(a.seconds, 0.5), 60.0)
     if a.api_scaling:
-        rows = api_scaling(clients, max_req, secs)
+        rows = api_scaling(clients, max_req, secs, a.with_key)
         if a.json:
             print(json.dumps(rows))
         else:

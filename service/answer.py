@@ -84,6 +84,10 @@ class HotResults:
             self.hits += 1
         return text
 
+    def holds(self, key: str) -> bool:
+        """True if ``key`` is held (counts nothing, changes no order)."""
+        return key in self._d
+
     def put(self, key: str, text: str) -> None:
         """Hold ``text`` for ``key`` (results larger than an eighth of the budget are not
         held), forgetting the least recently used beyond the bounds."""
@@ -180,8 +184,8 @@ class FastHits:
         key, need = known
         settings = get_settings()
         stores = self._stores_of(settings)
-        text = hot_for(stores).get(key)
-        if text is None:
+        hot = hot_for(stores)
+        if not hot.holds(key):
             return None
 
         async def receive() -> dict[str, Any]:
@@ -191,8 +195,11 @@ class FastHits:
         try:
             creds = await auth.bearer(request)
             await auth.authorize(request, creds, settings, auth.get_key_store(stores), need)
-        except (auth.AuthError, ProblemError):
-            return None  # the app gives the refusal
+        except Exception:  # noqa: BLE001 - refusals and database errors: the app answers
+            return None
+        text = hot.get(key)
+        if text is None:  # forgotten meanwhile
+            return None
         self.served += 1
         return Response(
             body(text, key, True), media_type="application/json", headers={"X-Cache": "hit"}

@@ -17,7 +17,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from rsfapp.config import get_settings
-from rsfapp.db.engine import Database
+from rsfapp.db.engine import Database, DatabaseUnavailable
 from rsfapp.store import stores_for
 from rsfapp.store.keys import KeyStore, Scope, hash_key
 from rsfapp.store.ratelimits import RateLimitStore, capacity_of
@@ -198,3 +198,20 @@ def test_bucket_refill_and_charges(tmp_path: Path) -> None:
     assert not lagging.admitted and lagging.tokens == -1.0
     with pytest.raises(ValueError, match="rate"):
         store.take("k", 0.0)
+
+
+def test_fast_hit_database_down_is_503_not_500(two: Two, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A database error while the fast path authenticates is left to the app, which
+    answers 503 problem+json (never a 500 from outside the app's error handlers)."""
+    h = two.key()
+    body = {"size": 0.151}
+    for _ in range(2):  # answered, then learnt by the fast path
+        assert two.a.post("/v1/classify", json=body, headers=h).status_code == 200
+
+    def down(self: KeyStore, key: str) -> None:
+        raise DatabaseUnavailable("connection refused (test)")
+
+    monkeypatch.setattr(KeyStore, "verify", down)
+    r = two.a.post("/v1/classify", json=body, headers=h)
+    assert r.status_code == 503 and r.headers["content-type"].startswith(PROBLEM), r.text
+    assert "retry-after" in r.headers
