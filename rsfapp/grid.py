@@ -82,7 +82,9 @@ def si_to_size(
     load-point jump: dv = factor - 1 = V_new/V_load - 1), exact to a few ulp.
 
     Raises ParameterError (field ``perturbation.<name>``, from rsfcore.units) for a value
-    out of range; IndexError-free for empty input.  Cost: ~1 us per distinct value."""
+    out of range; empty input gives an empty array.  Cost: ~1 us per distinct value
+    (measured 0.8-1.1 us; a numpy formula would take ~5 ns but would be a second copy of
+    the conversions, which live in rsfcore.units)."""
     v = np.asarray(values, dtype=np.float64)
     if v.size == 0:
         return np.empty(0)
