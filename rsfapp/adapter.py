@@ -534,7 +534,9 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                 if m.physical is None:
                     pd = {"ba": m.ba, "kappa": m.kappa, "eps": m.eps, "vo": m.vo}
                 else:
-                    p, physs[i] = resolve_params(m)
+                    p, ph = resolve_params(m)
+                    if ph is not None:
+                        physs[i] = ph
                     pd = p.as_dict()
                 pert = _PERT_INDEX[m.perturbation]
                 if pert == 1 and pd["vo"] == 0.0:
