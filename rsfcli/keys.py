@@ -21,7 +21,10 @@ import typer
 __all__ = ["app", "check_bind", "is_loopback"]
 
 app = typer.Typer(
-    name="keys", help="API keys: create (shown once), list, revoke.", no_args_is_help=True
+    rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
+    name="keys",
+    help="API keys: create (shown once), list, revoke.",
+    no_args_is_help=True,
 )
 
 DATA_DIR = typer.Option(

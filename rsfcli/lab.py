@@ -32,6 +32,7 @@ import typer
 __all__ = ["si_app", "protocol_app", "fit_command"]
 
 si_app = typer.Typer(
+    rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
     name="si",
     no_args_is_help=True,
     help="Queries in SI units: the "
@@ -39,6 +40,7 @@ si_app = typer.Typer(
     "answers also in s, m/s and Pa.",
 )
 protocol_app = typer.Typer(
+    rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
     name="protocol",
     no_args_is_help=True,
     help="Lab protocols in SI "

@@ -20,6 +20,7 @@ from rsfcore import limits
 from rsfcore.limits import Limit
 
 app = typer.Typer(
+    rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
     name="rsf",
     help="Non-linear slip-stability analysis of rate-and-state friction (spring-slider, "
     "aging-to-slip evolution laws; Ciardo & Viesca).",

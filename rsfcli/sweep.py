@@ -25,6 +25,7 @@ import typer
 __all__ = ["app"]
 
 app = typer.Typer(
+    rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
     help="Sweeps on a running service (rsf serve / rsf api): submit, follow, download.",
     no_args_is_help=True,
 )
