@@ -38,6 +38,7 @@ import numpy as np
 
 from .laws import G, L_star
 from .ode import rk
+from .ode import rodas4_tableau as _ro
 
 __all__ = [
     "SeparatrixStatus",
@@ -48,6 +49,7 @@ __all__ = [
     "S_BUDGET",
     "S_OVERFLOW",
     "S_NO_START",
+    "S_STIFF",
     "N_WORK",
 ]
 
@@ -75,6 +77,20 @@ _H_MAX = 0.5
 #: the same for phase (B), in u (measured: 15-step phase-B solutions 100x off at h <= 0.5)
 _H_MAX_B = 0.1
 _MAX_STEPS = 200_000
+#: stiffness switch: DOP853 hands over to RODAS4 after _STIFF_RUN accepted steps with
+#: h |d(rhs)/dy| > _STIFF_HJ (not interrupted by 6 in a row below it) (DOP853's stability interval on the negative real
+#: axis ends near -6, so such steps are limited by stability, not accuracy; where kappa is
+#: large the separatrix attracts at a rate ~kappa and explicit steps shrink like 1/kappa)
+_STIFF_HJ = 2.0
+_STIFF_RUN = 10
+#: largest relaxation of RODAS4's local tolerance where later contraction damps the
+#: errors (:func:`_rodas_scalar`); the propagated estimate checks the outcome
+_RELAX_CAP = 1.0e6
+_RELAX_RATE = 0.25
+_RELAX_MARGIN = 5.0
+#: stiff runs whose propagated estimate misses the requested rtol are repeated at 0.1x,
+#: then 0.01x the tolerance
+_STIFF_RETRIES = 2
 
 
 class SeparatrixStatus(IntEnum):
@@ -94,6 +110,9 @@ class SeparatrixStatus(IntEnum):
     OVERFLOW = 5
     #: asymptotic start not usable
     NO_START = 6
+    #: internal (never returned by the method): DOP853's steps are limited by stability,
+    #: the driver continues with RODAS4
+    STIFF = 7
 
 
 # ints for the compiled kernels (and for old callers: critical.S_OK, ...)
@@ -104,6 +123,7 @@ S_UNDERFLOW = int(SeparatrixStatus.UNDERFLOW)
 S_BUDGET = int(SeparatrixStatus.BUDGET)
 S_OVERFLOW = int(SeparatrixStatus.OVERFLOW)
 S_NO_START = int(SeparatrixStatus.NO_START)
+S_STIFF = int(SeparatrixStatus.STIFF)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -155,6 +175,21 @@ def _jac(mode, x, y, kappa, kc, eps):
 
 
 @nb.njit(cache=True, nogil=True)
+def _dfdx(mode, x, y, kappa, kc, eps):
+    """d(rhs)/dx of (A) (mode 0, x = s_theta) or (B) (mode 1, x = u), analytic (RODAS4)."""
+    if mode == 0:
+        # f = kappa expm1(t - u)/G(u) - kc: d/dt = kappa e^(t - u)/G(u)
+        return kappa * math.exp(x - y) / G(y, eps)
+    # f = G(u)/den, den = kappa expm1(t - u) - kc G(u), G'(u) = -e^(-eps u)
+    g = G(x, eps)
+    gp = -math.exp(-eps * x)
+    den = kappa * math.expm1(y - x) - kc * g
+    dden = -kappa * math.exp(y - x) - kc * gp
+    r = (gp * den - g * dden) / (den * den)
+    return r if math.isfinite(r) else 0.0
+
+
+@nb.njit(cache=True, nogil=True)
 def _rhs(mode, x, y, kappa, kc, eps):
     if mode == 0:
         return _f_theta(x, y, kappa, kc, eps)
@@ -163,7 +198,23 @@ def _rhs(mode, x, y, kappa, kc, eps):
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _dop853_scalar(
-    mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K, h_max=_H_MAX
+    mode,
+    x0,
+    y0,
+    x_end,
+    kappa,
+    kc,
+    eps,
+    rtol,
+    atol,
+    ycap,
+    switch_slope,
+    h0,
+    K,
+    h_max=_H_MAX,
+    err0=0.0,
+    detect_stiff=False,
+    relax_cap=1.0,
 ):
     """Integrate the scalar ODE (mode 0: (A), mode 1: (B)) from (x0, y0) towards x_end.
 
@@ -172,9 +223,13 @@ def _dop853_scalar(
     h_max.  Stops exactly at x_end, or (mode 0 with switch_slope > 0) after the first
     accepted step whose end slope |dy/dx| exceeds switch_slope.
     Returns (status, x, y, err_prop, n_rhs, h).  err_prop is the propagated absolute
-    error estimate: after each accepted step err <- err * exp(h J) + |local error
-    estimate|, with h J the less contractive of the analytic d(rhs)/dy at the step ends
-    (the separatrix attracts: J h < 0, old errors shrink).
+    error estimate, starting from err0: after each accepted step err <- err * exp(h J) +
+    |local error estimate|, with h J the less contractive of the analytic d(rhs)/dy at the
+    step ends (the separatrix attracts: J h < 0, old errors shrink).  With detect_stiff,
+    returns S_STIFF at the end of an accepted step once _STIFF_RUN consecutive steps had
+    h |J| > _STIFF_HJ (the caller continues with :func:`_rodas_scalar`).  relax_cap > 1:
+    local tolerance relaxed where later contraction damps the errors (:func:`_relax`,
+    never for x_end infinite).
     """
     Kw = K.reshape((K.shape[0], 1))  # the shared kernels take (stages, components)
     sc = np.empty(1)
@@ -186,9 +241,11 @@ def _dop853_scalar(
     if not math.isfinite(f):
         return S_NO_START, x, y, 0.0, n_rhs, h0
     h = min(abs(h0), h_max)
-    err_sum = 0.0
+    err_sum = err0
     J = _jac(mode, x, y, kappa, kc, eps)
     n = 0
+    n_stiff = 0
+    n_easy = 0
     last_rejected = False
     while n < _MAX_STEPS:
         n += 1
@@ -219,7 +276,8 @@ def _dop853_scalar(
             fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
             if math.isfinite(fnew) and math.isfinite(ynew):
                 Kw[rk.N_STAGES, 0] = fnew
-                sc[0] = rk.error_scale(y, ynew, rtol, atol, ycap)
+                relax = _relax(relax_cap, J, rem, False)
+                sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
                 err = rk.error_norm(Kw, h, sc, 1)
         if not (err <= 1.0):
             h *= rk.reject_factor(err)
@@ -239,6 +297,18 @@ def _dop853_scalar(
             return S_OK, x, y, err_sum, n_rhs, h
         if switch_slope > 0.0 and abs(f) > switch_slope:
             return S_OK, x, y, err_sum, n_rhs, h
+        if detect_stiff:
+            # Hairer's counting (dop853.f): _STIFF_RUN stiff steps, reset after 6 in a row
+            # that are not
+            if h * abs(J) > _STIFF_HJ:
+                n_stiff += 1
+                n_easy = 0
+                if n_stiff >= _STIFF_RUN:
+                    return S_STIFF, x, y, err_sum, n_rhs, h
+            else:
+                n_easy += 1
+                if n_easy >= 6:
+                    n_stiff = 0
         # elementary controller (no predictive correction: h_prev = 0); err = 0 gives 10
         fac, _ = rk.accept_factor(err, h, 0.0, 1.0, last_rejected)
         last_rejected = False
@@ -246,16 +316,307 @@ def _dop853_scalar(
     return S_BUDGET, x, y, err_sum, n_rhs, h
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _relax(relax_cap, J, rem, inf_relaxes):
+    """Factor on the local tolerance of a step with d(rhs)/dy = J and rem left to x_end.
+
+    An error made here is damped by about exp(-integral of |J|) before the end: by
+    exp(-|J| rem/2) if |J| falls linearly to 0 there (phase (B) near u = 0).  The factor is
+    min(relax_cap, exp(_RELAX_RATE |J| rem - _RELAX_MARGIN)) (>= 1), so a relaxed error
+    arrives at the end damped by at least e^-_RELAX_MARGIN under that model; where the model
+    is optimistic the propagated estimate, which uses every step's own J, shows it.  rem
+    infinite (load-point phase (A), followed by the contraction of phase (B)): relax_cap
+    if inf_relaxes, else 1."""
+    if relax_cap <= 1.0:
+        return 1.0
+    if not math.isfinite(rem):
+        return relax_cap if inf_relaxes else 1.0
+    return min(
+        relax_cap, math.exp(min(max(_RELAX_RATE * abs(J) * rem - _RELAX_MARGIN, 0.0), 700.0))
+    )
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _ros_solve(fac, fx, fy, rx, ry):
+    """(k_x, k_y) solving (fac I - J) k = r for J = [[0, 0], [fx, fy]] (x' = 1)."""
+    kx = rx / fac
+    return kx, (ry + fx * kx) / (fac - fy)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _rodas_step(mode, x, y, f, fx, fy, hs, kappa, kc, eps):
+    """One RODAS4 step of signed length hs from (x, y) with f = rhs, fx, fy its partials there.
+
+    Returns (ok, y_new, k6): the 4th-order solution and RODAS's embedded error estimate
+    (the error of its 3rd-order solution); ok False when a stage left the ODE's domain."""
+    fac = 1.0 / (hs * _ro.gamma)
+    if not (math.isfinite(fy) and math.isfinite(fx) and (fac - fy) != 0.0):
+        return False, y, math.inf
+    k1x, k1y = _ros_solve(fac, fx, fy, 1.0, f)
+    g2 = _rhs(mode, x + _ro.a21 * k1x, y + _ro.a21 * k1y, kappa, kc, eps)
+    k2x, k2y = _ros_solve(fac, fx, fy, 1.0 + _ro.c21 / hs * k1x, g2 + _ro.c21 / hs * k1y)
+    g3 = _rhs(
+        mode, x + _ro.a31 * k1x + _ro.a32 * k2x, y + _ro.a31 * k1y + _ro.a32 * k2y, kappa, kc, eps
+    )
+    k3x, k3y = _ros_solve(
+        fac,
+        fx,
+        fy,
+        1.0 + (_ro.c31 * k1x + _ro.c32 * k2x) / hs,
+        g3 + (_ro.c31 * k1y + _ro.c32 * k2y) / hs,
+    )
+    g4 = _rhs(
+        mode,
+        x + _ro.a41 * k1x + _ro.a42 * k2x + _ro.a43 * k3x,
+        y + _ro.a41 * k1y + _ro.a42 * k2y + _ro.a43 * k3y,
+        kappa,
+        kc,
+        eps,
+    )
+    k4x, k4y = _ros_solve(
+        fac,
+        fx,
+        fy,
+        1.0 + (_ro.c41 * k1x + _ro.c42 * k2x + _ro.c43 * k3x) / hs,
+        g4 + (_ro.c41 * k1y + _ro.c42 * k2y + _ro.c43 * k3y) / hs,
+    )
+    z5x = x + _ro.a51 * k1x + _ro.a52 * k2x + _ro.a53 * k3x + _ro.a54 * k4x
+    z5y = y + _ro.a51 * k1y + _ro.a52 * k2y + _ro.a53 * k3y + _ro.a54 * k4y
+    g5 = _rhs(mode, z5x, z5y, kappa, kc, eps)
+    k5x, k5y = _ros_solve(
+        fac,
+        fx,
+        fy,
+        1.0 + (_ro.c51 * k1x + _ro.c52 * k2x + _ro.c53 * k3x + _ro.c54 * k4x) / hs,
+        g5 + (_ro.c51 * k1y + _ro.c52 * k2y + _ro.c53 * k3y + _ro.c54 * k4y) / hs,
+    )
+    # stage 6 at the embedded (3rd-order) solution z5 + k5; k6 is its error
+    z6x = z5x + k5x
+    z6y = z5y + k5y
+    g6 = _rhs(mode, z6x, z6y, kappa, kc, eps)
+    rx = 1.0 + (_ro.c61 * k1x + _ro.c62 * k2x + _ro.c63 * k3x + _ro.c64 * k4x + _ro.c65 * k5x) / hs
+    ry = g6 + (_ro.c61 * k1y + _ro.c62 * k2y + _ro.c63 * k3y + _ro.c64 * k4y + _ro.c65 * k5y) / hs
+    _, k6y = _ros_solve(fac, fx, fy, rx, ry)
+    ynew = z6y + k6y
+    ok = math.isfinite(g2 + g3 + g4 + g5 + g6) and math.isfinite(ynew)
+    return ok, ynew, k6y
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _rodas_scalar(
+    mode,
+    x0,
+    y0,
+    x_end,
+    kappa,
+    kc,
+    eps,
+    rtol,
+    atol,
+    ycap,
+    switch_slope,
+    h0,
+    h_max,
+    err0,
+    relax_cap=1.0,
+    y_stop=math.nan,
+    handback=False,
+):
+    """RODAS4 (rsfcore.ode.rodas4_tableau) for the scalar ODE (mode 0: (A), mode 1: (B)).
+
+    The non-autonomous scalar problem y' = f(x, y) is integrated as the autonomous pair
+    (x, y), x' = 1, whose Jacobian [[0, 0], [df/dx, df/dy]] is analytic (:func:`_jac`,
+    :func:`_dfdx`), so each stage costs one right-hand side and a 2 x 2 triangular solve.
+    L-stable: where the separatrix attracts at a rate ~kappa the step is limited by
+    accuracy, not stability.  Same arguments, error weight, landing on x_end, switch_slope
+    stop, step cap and propagated error estimate (from err0) as :func:`_dop853_scalar`.
+
+    relax_cap > 1: the local tolerance is multiplied by min(relax_cap, exp(|J| rem / 2)),
+    rem = |x_end - x| (relax_cap itself when x_end is infinite): an error made here is
+    damped by about exp(-integral of |J|) before the end, which is exp(-|J| rem/2) when
+    |J| falls linearly to 0 at the end (phase (B) near u = 0).  Where this is optimistic
+    the propagated estimate (which uses the actual J of every step) shows it; callers
+    check it and retry with relax_cap = 1.
+
+    y_stop finite: stop where y crosses y_stop (located by the Illinois method on the
+    length of the last step, each trial one RODAS4 step from its start); returns the
+    crossing x and y = y_stop.
+
+    handback: return S_STIFF once |J| rem/4 < 1 (little damping left before x_end): the
+    caller finishes with DOP853, whose 8th order needs few steps for the tight tolerance
+    that such undamped errors need.
+
+    Returns (status, x, y, err_prop, n_rhs, h).  RODAS4 loses order on this stiff problem
+    (a local error ~h/kappa, as on the Prothero-Robinson test problem, where Steinebach's
+    RODAS4P would not), so tight tolerances need short steps; the relaxation makes that
+    cheap where the errors die out anyway.
+    """
+    x = x0
+    y = y0
+    direction = 1.0 if x_end >= x0 else -1.0
+    f = _rhs(mode, x, y, kappa, kc, eps)
+    n_rhs = 1
+    if not math.isfinite(f):
+        return S_NO_START, x, y, err0, n_rhs, h0
+    h = min(abs(h0), h_max)
+    err_sum = err0
+    fy = _jac(mode, x, y, kappa, kc, eps)
+    fx = _dfdx(mode, x, y, kappa, kc, eps)
+    n = 0
+    last_rejected = False
+    stop = math.isfinite(y_stop)
+    while n < _MAX_STEPS:
+        n += 1
+        rem = (x_end - x) * direction
+        if rem <= 0.0:
+            return S_OK, x, y, err_sum, n_rhs, h
+        final = False
+        if h >= rem or (1.3 * h >= rem and not last_rejected):
+            h = rem
+            final = True
+        hs = h * direction
+        if handback and math.isfinite(rem) and _RELAX_RATE * abs(fy) * rem < 1.0:
+            return S_STIFF, x, y, err_sum, n_rhs, h
+        relax = _relax(relax_cap, fy, rem, True)
+        ok, ynew, k6 = _rodas_step(mode, x, y, f, fx, fy, hs, kappa, kc, eps)
+        n_rhs += 5
+        err = math.inf
+        fnew = math.nan
+        sc = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
+        if ok:
+            fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
+            n_rhs += 1
+            if math.isfinite(fnew):
+                err = abs(k6) / sc
+        if not (err <= 1.0):
+            h *= 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err**-0.25)
+            last_rejected = True
+            if h < 1e-15 * max(1.0, abs(x)):
+                return S_UNDERFLOW, x, y, err_sum, n_rhs, h
+            continue
+        if stop and (ynew - y_stop) * (y - y_stop) <= 0.0 and ynew != y:
+            # Illinois on the step length: g(s) = y(x + s) - y_stop, g(0) = y - y_stop
+            s0 = 0.0
+            g0 = y - y_stop
+            s1 = hs
+            g1 = ynew - y_stop
+            xs = x + hs
+            e_loc = abs(k6)
+            for _ in range(60):
+                sm = s1 - g1 * (s1 - s0) / (g1 - g0)
+                if not (min(s0, s1) < sm < max(s0, s1)):
+                    sm = 0.5 * (s0 + s1)
+                okm, ym, km = _rodas_step(mode, x, y, f, fx, fy, sm, kappa, kc, eps)
+                n_rhs += 5
+                if not okm:
+                    break
+                gm = ym - y_stop
+                xs = x + sm
+                e_loc = abs(km)
+                if gm == 0.0 or abs(s1 - s0) <= 1e-15 * max(abs(x), 1.0):
+                    break
+                if gm * g1 < 0.0:
+                    s0, g0 = s1, g1
+                else:
+                    g0 *= 0.5
+                s1, g1 = sm, gm
+            prop = max(hs * fy, 0.0)
+            return S_OK, xs, y_stop, err_sum * math.exp(min(prop, 50.0)) + e_loc, n_rhs, h
+        fyn = _jac(mode, x + hs, ynew, kappa, kc, eps)
+        prop = max(hs * fy, hs * fyn)
+        err_sum = err_sum * math.exp(min(prop, 50.0)) + err * sc
+        x = x_end if final else x + hs
+        y = ynew
+        f = fnew
+        fy = fyn
+        fx = _dfdx(mode, x, y, kappa, kc, eps)
+        if final:
+            return S_OK, x, y, err_sum, n_rhs, h
+        if switch_slope > 0.0 and abs(f) > switch_slope:
+            return S_OK, x, y, err_sum, n_rhs, h
+        # rodas.f controller: safety 0.9, factor in [0.2, 6]; no growth after a rejection
+        fac_h = 1.0 / max(1.0 / 6.0, min(5.0, max(err, 1e-12) ** 0.25 / 0.9))
+        if last_rejected:
+            fac_h = min(1.0, fac_h)
+        last_rejected = False
+        h = min(h * fac_h, h_max)
+    return S_BUDGET, x, y, err_sum, n_rhs, h
+
+
+@nb.njit(cache=True, nogil=True)
+def _integrate(
+    mode,
+    x0,
+    y0,
+    x_end,
+    kappa,
+    kc,
+    eps,
+    rtol,
+    atol,
+    ycap,
+    switch_slope,
+    h0,
+    K,
+    h_max,
+    err0,
+    relax_cap,
+    stiff_slope,
+):
+    """DOP853 (:func:`_dop853_scalar`), handing over to RODAS4 (:func:`_rodas_scalar`, with
+    relax_cap and switch slope stiff_slope) for the rest of the phase once its steps are
+    limited by stability.  Returns (status, x, y, err_prop, n_rhs, h, used RODAS4)."""
+    st, x, y, es, nr, h = _dop853_scalar(
+        mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K, h_max, err0,
+        True, relax_cap,
+    )  # fmt: skip
+    if st != S_STIFF:
+        return st, x, y, es, nr, h, False
+    st, x, y, es, nr2, h = _rodas_scalar(
+        mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, stiff_slope, h, h_max, es, relax_cap,
+        math.nan, True,
+    )  # fmt: skip
+    nr += nr2
+    if st == S_STIFF:
+        # no longer stiff: the rest (little damping left) with DOP853
+        st, x, y, es, nr3, h = _dop853_scalar(
+            mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h, K, h_max, es,
+            False,
+        )  # fmt: skip
+        nr += nr3
+    return st, x, y, es, nr, h, True
+
+
 @nb.njit(cache=True, nogil=True)
 def _separatrix(kappa, kc, eps, pert, rtol, K):
     """Critical size by the separatrix method (kappa > kappa_crit, x < 1, v_o > 0).
 
     pert 0: velocity jump (returns d_crit); pert 1: load-point jump (returns dv_crit).
-    Returns (status, value, abs_err, n_rhs).
+    Returns (status, value, abs_err, n_rhs).  Stiff runs (RODAS4 took over) first use the
+    relaxed local tolerance (_RELAX_CAP, :func:`_rodas_scalar`); if the propagated error
+    estimate then exceeds the requested rtol they are repeated at 0.1x and 0.01x the
+    tolerance (each relaxed run costs ~1e4 right-hand sides; without the relaxation the
+    same estimate needs ~1e6).
     """
+    st, val, err, nr, stiff = _separatrix_run(kappa, kc, eps, pert, rtol, K, _RELAX_CAP)
+    rt = rtol
+    for _ in range(_STIFF_RETRIES):
+        if not stiff or st == S_OVERFLOW or (st == S_OK and err <= rtol * abs(val)):
+            break
+        rt *= 0.1
+        st2, val2, err2, nr2, stiff = _separatrix_run(kappa, kc, eps, pert, rt, K, _RELAX_CAP)
+        nr += nr2
+        if st2 == S_OK or st != S_OK:
+            st, val, err = st2, val2, err2
+    return st, val, err, nr
+
+
+@nb.njit(cache=True, nogil=True)
+def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap):
+    """One run of the separatrix method: (status, value, abs_err, n_rhs, used RODAS4)."""
     Ls, c1, c2 = _asym_coeffs(kappa, kc, eps)
     if not (Ls > 0.0) or not math.isfinite(Ls):
-        return S_NO_START, math.nan, math.nan, 0
+        return S_NO_START, math.nan, math.nan, 0, False
     # start far enough out that the neglected O(z^3) terms are ~1e-3 rtol: measured
     # truncation ~1e-13 relative at c z0 = 1e-5, scaling as z0^3 (tests/core/test_critical.py)
     cz = max(abs(c1), math.sqrt(abs(c2)), 1e-300)
@@ -264,47 +625,74 @@ def _separatrix(kappa, kc, eps, pert, rtol, K):
     z0 = math.exp(s0 - Ls)
     u0 = Ls - z0 * (c1 + c2 * z0)
     rt = rtol * (_TOL_FACTOR_V if pert == 0 else _TOL_FACTOR_L)
+    # phase (B) ends near the separatrix's turning point, where s_theta is ~ l = ln(1 + dv)
+    # and l >= ln(1 + 1/(kappa_crit (1 - eps))) (its value at kappa = kappa_crit; dv grows
+    # with kappa): absolute errors in s_theta there must be ~rtol l, not rtol
+    l_lo = math.log1p(1.0 / (kc * (1.0 - eps)))
+    atol_b = rt * 1e-3 * min(1.0, l_lo)
     if pert == 0:
-        # (A) from s0 to s_theta = 0; atol keeps a floor for tiny d_crit
-        st, t, u, es, nr, h = _dop853_scalar(
-            0, s0, u0, 0.0, kappa, kc, eps, rt, rt * 1e-3 * Ls, math.inf, 0.0, 1.0, K
-        )
+        # (A) from s0 to s_theta = 0; atol keeps a floor for tiny d_crit.  If RODAS4 took
+        # over (stiff) and the slope |du/ds_theta| exceeds 1 first, the end lies near the
+        # turning point: continue in (B) down in u until s_theta crosses 0
+        st, t, u, es, nr, h, stiff = _integrate(
+            0, s0, u0, 0.0, kappa, kc, eps, rt, rt * 1e-3 * Ls, math.inf, 0.0, 1.0, K, _H_MAX,
+            0.0, relax_cap, 1.0,
+        )  # fmt: skip
         if st != S_OK:
             if st == S_NO_START:
                 st = S_U_NONPOSITIVE
-            return st, math.nan, math.nan, nr
+            return st, math.nan, math.nan, nr, stiff
         if not (u > 0.0):
-            return S_U_NONPOSITIVE, math.nan, math.nan, nr
-        return S_OK, u, es, nr
+            return S_U_NONPOSITIVE, math.nan, math.nan, nr, stiff
+        if t == 0.0:
+            return S_OK, u, es, nr, stiff
+        fb = _f_u(u, t, kappa, kc, eps)
+        st2, u2, t2, es2, nr2, h2 = _rodas_scalar(
+            1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, _H_MAX_B,
+            es * abs(fb), relax_cap, 0.0,
+        )  # fmt: skip
+        nr += nr2
+        if st2 != S_OK or t2 != 0.0 or not (u2 > 0.0):
+            # s_theta stays below 0 down to L = 0: the separatrix misses the line
+            return S_U_NONPOSITIVE, math.nan, math.nan, nr, stiff
+        # an error dt in s_theta moves the crossing by dt / |ds_theta/du|
+        slope = abs(_f_u(u2, 0.0, kappa, kc, eps))
+        if not (slope > 0.0):
+            return S_U_NONPOSITIVE, math.nan, math.nan, nr, stiff
+        return S_OK, u2, es2 / slope, nr, stiff
     # load-point jump: (A) until the slope |du/ds_theta| exceeds 1, then (B) down to u = 0.
     # The relative error of dv is the absolute error of l = ln(1 + dv) times
     # e^l/(e^l - 1), so errors are controlled in absolute terms (scale capped at 1).
     # l may exceed 709 (dv beyond the double range): then the status is S_OVERFLOW and the
     # value returned is l itself, with its absolute error (the relative error of dv).
     t_far = math.inf
-    st, t, u, es, nr, h = _dop853_scalar(
-        0, s0, u0, t_far, kappa, kc, eps, rt, rt * 1e-3, 1.0, 1.0, 1.0, K
-    )
+    st, t, u, es, nr, h, stiff = _integrate(
+        0, s0, u0, t_far, kappa, kc, eps, rt, rt * 1e-3, 1.0, 1.0, 1.0, K, _H_MAX, 0.0,
+        relax_cap, 1.0,
+    )  # fmt: skip
     if st != S_OK:
         if st == S_NO_START:
             st = S_TURNING
-        return st, math.nan, math.nan, nr
+        return st, math.nan, math.nan, nr, stiff
     if not (u > 0.0):
-        return S_TURNING, math.nan, math.nan, nr
-    st2, u2, t2, es2, nr2, h2 = _dop853_scalar(
-        1, u, t, 0.0, kappa, kc, eps, rt, rt * 1e-3, 1.0, 0.0, 0.1 * u, K, _H_MAX_B
-    )
+        return S_TURNING, math.nan, math.nan, nr, stiff
+    # the phase-A error in u at the switch moves the path by (dt/du) du in t: it enters
+    # phase B as its initial error and is propagated (damped) with it
+    es_t = es * abs(_f_u(u, t, kappa, kc, eps))
+    st2, u2, t2, es2, nr2, h2, stiff2 = _integrate(
+        1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K, _H_MAX_B, es_t,
+        relax_cap, 0.0,
+    )  # fmt: skip
     nr += nr2
+    stiff = stiff or stiff2
     if st2 != S_OK:
         if st2 == S_NO_START:
             st2 = S_TURNING
-        return st2, math.nan, math.nan, nr
-    # the phase-A error in u at the switch moves the end point by (dt/du) * du there;
-    # propagate it as an error in t through phase B, then d dv = e^t dt
-    es_t = es * abs(_f_u(u, t, kappa, kc, eps))
+        return st2, math.nan, math.nan, nr, stiff
     dv = math.expm1(t2)
     if dv == math.inf:
-        return S_OVERFLOW, t2, es_t + es2, nr
+        return S_OVERFLOW, t2, es2, nr, stiff
     if not (dv > 0.0):
-        return S_TURNING, math.nan, math.nan, nr
-    return S_OK, dv, (es_t + es2) * math.exp(t2), nr
+        return S_TURNING, math.nan, math.nan, nr, stiff
+    # d dv = e^l dl
+    return S_OK, dv, es2 * math.exp(t2), nr, stiff
