@@ -45,7 +45,13 @@ Methods, in the order they are tried:
 
    is integrated down to u = 0 exactly; then dv = expm1(s_theta).  Both are run by a
    compiled scalar DOP853 (Dormand-Prince 8(5,3); rsfcore.separatrix drives the shared
-   kernels of rsfcore.ode.rk, the same ones as the trajectory engine).  The separatrix method finds
+   kernels of rsfcore.ode.rk, the same ones as the trajectory engine).  Where kappa is
+   large the separatrix attracts its neighbours at a rate ~kappa and DOP853's steps
+   become stability-limited: it then hands over to RODAS4 (L-stable Rosenbrock, analytic
+   Jacobian), whose local tolerance is relaxed where the contraction still to come damps
+   the errors; a velocity jump whose end lies near the turning point (slope
+   |du/ds_theta| > 1 before s_theta = 0) is finished in (B), locating s_theta = 0
+   (rsfcore.separatrix, docs/accuracy.md "The stiff corner").  The separatrix method finds
    the crossing nearest to infinity; whenever its assumptions fail (u reaches 0 before
    s_theta = 0 for a velocity jump, u stops decreasing before L = 0 for a load-point
    jump, step-size underflow) it reports failure and :func:`bisect_critical` is used.
@@ -59,7 +65,10 @@ s_theta, 0.1 in u) and the internal tolerance is calibrated (0.02 rtol for veloc
 kappa/kappa_crit in [1.01, 6], eps up to x = 0.99) and rtol in {1e-6, 1e-8, 1e-10} the
 delivered error was at most 0.23 rtol (velocity) and 0.52 rtol (load point).
 ``rel_accuracy`` reports max(rtol, propagated a-posteriori estimate); the estimate
-propagates local errors with the analytic Jacobian of (A)/(B).  The truncation of the
+propagates local errors with the analytic Jacobian of (A)/(B).  Stiff runs whose estimate
+misses rtol are repeated at 0.1x and 0.01x the tolerance; over the stiff corner the
+estimate bounds the error measured against the explicit method (where it converges) and
+bisection on classify (tests/core/test_critical_stiff.py).  The truncation of the
 asymptotic start is ~1e-3 rtol (z0 chosen from rtol; measured to scale as z0^3).
 """
 
@@ -78,7 +87,14 @@ from .errors import UndecidedError
 from .laws import L_star
 from .limits import DEFAULT_RTOL, RTOL_RANGE
 from .params import ParameterError, Params
-from .separatrix import N_WORK, S_OK, S_OVERFLOW, _asym_coeffs, _separatrix
+from .separatrix import (
+    N_WORK,
+    S_OK,
+    S_OVERFLOW,
+    _asym_coeffs,
+    _separatrix,
+    _separatrix_explicit,
+)
 
 __all__ = [
     "CriticalResult",
@@ -117,7 +133,8 @@ METHODS: tuple[str, ...] = (
     "closed form: load-point jump at kappa = kappa_crit, dv = 1/(kappa_crit (1 - eps))"
     " (eq: trajectories 1)",
     "closed form: eq: analytical phi crit (v_o = 0), d_crit = L*",
-    "separatrix: backward integration of the separatrix from its asymptote (compiled DOP853)",
+    "separatrix: backward integration of the separatrix from its asymptote (compiled DOP853,"
+    " RODAS4 where stiff)",
     "bisection on certified classify() outcomes",
     "zero: kappa = 0 with a stationary load point (L* = 0)",
     "separatrix: finite beyond the double range, ln(1 + dv) > 709 (dv > 8e307): reported by"
@@ -207,12 +224,19 @@ def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method,
 
 
 def separatrix_raw(
-    params: Params, perturbation: str = "velocity-jump", rtol: float = DEFAULT_RTOL
+    params: Params,
+    perturbation: str = "velocity-jump",
+    rtol: float = DEFAULT_RTOL,
+    *,
+    explicit: bool = False,
 ) -> tuple[int, float, float, int]:
     """Run the separatrix method alone: (status, value, absolute error estimate, n_rhs).
 
     Requires kappa > kappa_crit, eps kappa < kappa_crit and v_o > 0 (else ParameterError).
     status 0 = success; otherwise value is nan (see the S_* codes).  For tests and study.
+    explicit=True: DOP853 alone at the strict tolerance (no RODAS4 switch, no relaxed
+    tolerance), the method as it was before the stiff corner was handled; a reference
+    where its step budget (2e5 steps) suffices, status 4 (budget) where not.
     """
     pert = _pert_code(perturbation)
     if not (
@@ -223,9 +247,8 @@ def separatrix_raw(
         raise ParameterError(
             "params", params.as_dict(), "kappa >= kappa_crit, eps*kappa < kappa_crit, v_o > 0"
         )
-    st, v, e, nr = _separatrix(
-        params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(N_WORK)
-    )
+    run = _separatrix_explicit if explicit else _separatrix
+    st, v, e, nr = run(params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(N_WORK))
     return int(st), float(v), float(e), int(nr)
 
 
