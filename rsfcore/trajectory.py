@@ -10,6 +10,10 @@ A trajectory of `eq:psi_T` / `eq:phi_T` is integrated with the compiled DOP853 e
 * ``converged_to_steady_state``: for kappa > kappa_crit, a monotone approach (from below
   or above, as on stiff machines) reached |phi - ln v_o|, |L| < min(1e-6, 1e-3/kappa_crit)
   (:func:`eq_tol`: 1e-3 of the basin's narrowest extent, 1/kappa_crit).
+* ``below_separatrix`` / ``above_separatrix``: a load-point jump with ln(1 + dv) >= 3
+  closer to the critical size than the forward integration can resolve (the start sits at
+  the separatrix's turning point), but farther than the critical size's error bound: the
+  side of the traced separatrix (rsfcore.critical) decides; no times (complete False).
 * ``U_negative_closed_orbit`` / ``U_nonnegative_open_orbit``: kappa = kappa_crit, v_o > 0,
   sign of the closed-form U of `eq: trajectories 1` (every orbit closed at eps = 1).
 * ``vo0_L_below_Lstar`` / ``vo0_L_above_Lstar`` / ``vo0_L_on_Lstar``: v_o = 0, where
@@ -26,6 +30,7 @@ times include the analytic tail beyond phi - ln c = 40 (< e^-40 of time).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -349,6 +354,65 @@ def _plan(p: Params, phi0: float, psi0: float, resolution: float = 0.0) -> _Plan
     return _Plan(True, True, None, None)
 
 
+#: Load-point jumps with ln(1 + dv) below this are always integrated (no disagreement
+#: between classify and the critical size was found there; above, starts within the
+#: integration's resolution of the separatrix are decided by it, see _load_jump_side).
+LJ_SEPARATRIX_LOG_MIN = 3.0
+
+
+def _load_jump_side(params: Params, lg: float, rtol: float, resolution: float) -> tuple[int, bool]:
+    """Side of the separatrix of a load-point jump l = ln(1 + dv) >= LJ_SEPARATRIX_LOG_MIN,
+    from the critical size itself: (-1 below (stable) / +1 above (unstable) / 0 unknown,
+    whether the start is within ``resolution`` of it).
+
+    The start (L = 0, t = l) lies at the separatrix's turning point, from which the path
+    climbs almost vertically in L; integrating (phi, ln theta) there blurs t by ~rtol |l|
+    per unit of the climb (19 of 155 random cases disagreed with the critical size at
+    dv_crit (1 -/+ 10 rel_accuracy), ln(1 + dv_crit) 29 .. 8800; at b/a = 1 + 8.6e-12 the
+    integration's boundary was 2.8e-5 relative off at rtol 1e-10, farther than its nominal
+    resolution).  The separatrix traced backwards from its asymptote is well conditioned,
+    and checked by an independent forward integration of the scalar ODE t(u) in
+    tests/core/test_critical_agreement.py.  A start farther from l_crit than its error
+    bound (2 rel_accuracy dv/(1 + dv) plus 8 ulp of l_crit) is on the side it says; closer,
+    or where the separatrix method does not apply (bisection fallback, kind zero or
+    infinite), the side is unknown (0)."""
+    if not lg >= LJ_SEPARATRIX_LOG_MIN:
+        return 0, False
+    crit = _load_jump_critical_log(params.ba, params.kappa, params.eps, params.vo, rtol)
+    if crit is None:
+        return 0, False
+    lc, band = crit
+    gap = lg - lc
+    if abs(gap) <= band:
+        return 0, False
+    return (-1 if gap < 0.0 else 1), abs(gap) <= resolution
+
+
+@functools.lru_cache(maxsize=256)
+def _load_jump_critical_log(
+    ba: float, kappa: float, eps: float, vo: float, rtol: float
+) -> tuple[float, float] | None:
+    """(l_crit, error band of l_crit) of a load-point jump by the separatrix method, or None
+    where it does not apply.  Cached: a bisection on classify asks the same parameters
+    ~60 times, and where the separatrix method fails it fails only after its budget."""
+    from .critical import FLAG_FALLBACK, FLAG_LOG_VALUE, KIND_FINITE, _first_decision
+
+    p = Params(ba, kappa, eps, vo)
+    _, kind, val, acc, _, flags, _, _ = _first_decision(p, "load-point-jump", rtol)
+    if flags & FLAG_FALLBACK or kind != KIND_FINITE:
+        return None
+    lc = float(val) if flags & FLAG_LOG_VALUE else math.log1p(float(val))
+    if not math.isfinite(lc):
+        return None
+    return lc, 2.0 * float(acc) * -math.expm1(-lc) + 8.0 * math.ulp(lc)
+
+
+#: Plans of a start decided by the side of the separatrix (-1 below, +1 above).
+_SEPARATRIX_PLANS: dict[int, _Plan] = {
+    -1: _Plan(False, True, "stable", "below_separatrix"),
+    1: _Plan(True, False, "unstable", "above_separatrix"),
+}
+
 _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, 5))
 
@@ -522,6 +586,7 @@ def simulate(
     if method not in ("auto", "integrate"):
         raise ParameterError("method", method, "'auto' or 'integrate'")
     lg_named: float | None = None  # d or ln(1 + dv) of a named perturbation (v_o > 0)
+    sep_side, sep_near = 0, False  # side of the separatrix of a large load-point jump
     # The closed-form decisions are frame-invariant; for a velocity jump they are taken in
     # the v_o = 1 frame, where its start (d, d) is exact: from (phi0, psi0) the jump is
     # blurred by the rounding of psi0 = (1 - b/a) ln v_o + d (1e-9 relative at b/a = 1e4,
@@ -543,6 +608,14 @@ def simulate(
             # (in its own frame the start is steady sliding at the old v_o, L = 0 exactly,
             # which the v_o = 1 frame (-l, (b/a - 1) l) would blur)
             plan = _plan(p_run, phi0, psi0, res_)
+            only_outcome = not n_points and not times and t_end is None
+            if plan.outcome is None and method == "auto" and only_outcome:
+                # near the separatrix the side of the traced separatrix decides without an
+                # integration; farther out the integration runs (for the times) and is
+                # overruled if it crossed the separatrix (_load_jump_side)
+                sep_side, sep_near = _load_jump_side(params, lg, rtol, math.inf if beyond else res_)
+                if sep_side and sep_near:
+                    plan = _SEPARATRIX_PLANS[sep_side]
         kc = p_run.kappa_crit
         if plan.certificate in _U_CERTS and abs(p_run.kappa - kc) <= KCRIT_TOL * kc:
             # kappa = kappa_crit: the closed form's own residual decides the side exactly
@@ -574,7 +647,7 @@ def simulate(
     frame_shift = 0.0  # ln v_o of the run when it is integrated in the v_o = 1 frame
     if (
         beyond
-        or plan.certificate in ("at_equilibrium",)
+        or plan.certificate in ("at_equilibrium", "below_separatrix", "above_separatrix")
         or (plan.certificate or "").endswith("_L_on_Lstar")
     ):
         # decided in closed form; nothing to integrate
@@ -584,7 +657,11 @@ def simulate(
         # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
         # (kappa < kappa_crit with a moving load point is decided too: every perturbation
         # grows, and a slow outward spiral near kappa_crit would otherwise use 1e7 steps)
-        decided = plan.outcome is not None or (p_run.kappa < p_run.kappa_crit and method == "auto")
+        decided = (
+            plan.outcome is not None
+            or sep_side != 0
+            or (p_run.kappa < p_run.kappa_crit and method == "auto")
+        )
         budget = min(DECIDED_BUDGET, max_steps) if decided else max_steps
         # A named perturbation is integrated in the v_o = 1 frame, where its start is exact
         # (from (phi0, psi0) it is blurred by the rounding of psi0 = (1 - b/a) ln v_o + ...:
@@ -667,6 +744,8 @@ def simulate(
         outcome, cert = "unstable", "linear_instability"
         peak_phi, peak_T = math.inf, None
         complete = False
+    elif sep_side:
+        outcome = "undecided"  # overruled by the separatrix just below
     else:
         msg = (
             f"no certificate within {max_steps} steps "
@@ -676,6 +755,14 @@ def simulate(
         if status == Status.STEP_UNDERFLOW:
             raise UndecidedError(msg, reason="step_underflow")
         raise BudgetExceeded(msg)
+
+    if sep_side and outcome != _SEPARATRIX_PLANS[sep_side].outcome:
+        # the forward integration crossed the separatrix (or could not decide): its side
+        # decides, and the integrated times and peak belong to the wrong side
+        plan = _SEPARATRIX_PLANS[sep_side]
+        outcome, cert = plan.outcome, plan.certificate  # type: ignore[assignment]
+        blowup_time = return_time = None
+        peak_phi, peak_T, complete = phi0, 0.0, False
 
     traj = None
     want = n_points > 0 or (times is not None and len(times) > 0)
