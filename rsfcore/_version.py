@@ -17,4 +17,5 @@ __all__ = ["NUMERICS_VERSION"]
 #:    (it was 1e-6, as large as the whole basin at b/a = kappa = 1e6, where the bisection's
 #:    load-point dv_crit came out 1.9e-6 instead of 1.0013e-6); classify of load-point
 #:    jumps with large ln(1 + dv) near the separatrix is decided by the traced separatrix.
+#:    Separatrix: stiff runs switch to RODAS4 (no bisection at b/a = kappa = 1e6); changes <= 9.2e-11.
 NUMERICS_VERSION = "3"

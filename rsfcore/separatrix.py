@@ -19,6 +19,31 @@ driver over the shared DOP853 kernels of rsfcore.ode.rk (the same stage, error n
 controller as the spring-slider engine), with steps capped (``_H_MAX``) because the
 embedded error estimate under-estimates long steps on this problem.
 
+The stiff corner (kappa large, e.g. b/a = kappa = 1e6): the separatrix attracts its
+neighbours at a rate ~kappa (d(rhs)/du of (A) is ~ -kappa e^(s_theta - u)/|G(u)|), so
+DOP853's steps are limited by stability and the old driver ran out of its 2e5 steps
+(bisection fallback, 0.2 - 0.6 s) or took 2e6 right-hand sides.  Now:
+
+* DOP853 hands over to RODAS4 (:func:`_rodas_scalar`: L-stable, the scalar ODE as the
+  pair (x, y) with x' = 1 and the analytic Jacobian) once its steps are stability-limited
+  (Hairer's test with the analytic d(rhs)/dy), and back where the problem stops being
+  stiff before the end;
+* RODAS4's local tolerance is relaxed (up to 1e6 x, never above 1e-6) where the
+  contraction still to come damps the errors (:func:`_relax`); RODAS4 loses order on this
+  problem (local error ~h/kappa), so this, not the stiffness switch alone, makes it cheap;
+* a velocity jump whose end lies near the separatrix's turning point (RODAS4 reaches
+  |du/ds_theta| > 1 before s_theta = 0, where (A) is nearly singular) is finished in (B),
+  locating the crossing of s_theta = 0;
+* the phase-A error of a load-point jump enters phase B as its initial error and is
+  propagated (damped) with it, and phase B's absolute tolerance scales with the smallest
+  possible l = ln(1 + 1/(kappa_crit (1 - eps))) (l ~ 1e-6 at b/a = 1e6 needs s_theta to
+  ~1e-16);
+* runs whose propagated estimate misses rtol are repeated with tighter settings
+  (``_RETRIES``).
+
+Measured (docs/accuracy.md, "The stiff corner"): b/a = kappa = 1e5 and 1e6, both
+perturbations, in 2e4 - 2e5 right-hand sides (0.5 - 7 ms) with rel_accuracy 1e-10 met.
+
 Units: all quantities dimensionless (`eq: characteristic scales`).  Valid for
 kappa > kappa_crit, x = eps kappa/kappa_crit < 1, v_o > 0; callers
 (rsfcore.critical) decide every other case first.
