@@ -128,7 +128,12 @@ _RELAX_EXPLICIT = False
 #: brackets): b/a = kappa = 1e6 meets it on the second (12k + 21k); b/a = 8543,
 #: kappa = 23741 (load-point) on the third (2k + 2k + 50k); the last, unrelaxed, is the
 #: slow safety net (~1e6 at b/a = 1e6)
-_RETRIES = ((0.1, 1.0e6), (0.01, 1.0e3), (0.01, 1.0))
+_RETRIES = ((0.1, 1.0e6), (0.1, 1.0e6), (0.01, 1.0e3), (0.01, 1.0))
+#: contraction profile buffer (steps per phase) of the retries; a run with more steps
+#: leaves no profile (the next one relaxes by the linear model)
+_PROF_LEN = 8192
+#: with a recorded profile the factor is exp(_PROF_RATE x (contraction to come) - margin)
+_PROF_RATE = 0.5
 
 
 class SeparatrixStatus(IntEnum):
@@ -249,10 +254,15 @@ def _dop853_scalar(
     switch_slope,
     h0,
     K,
-    h_max=_H_MAX,
-    err0=0.0,
-    detect_stiff=False,
-    relax_cap=1.0,
+    h_max,
+    err0,
+    detect_stiff,
+    relax_cap,
+    rec,
+    rec_n,
+    use,
+    use_n,
+    tail,
 ):
     """Integrate the scalar ODE (mode 0: (A), mode 1: (B)) from (x0, y0) towards x_end.
 
@@ -279,6 +289,8 @@ def _dop853_scalar(
     n_rhs = 1
     if not math.isfinite(f):
         return S_NO_START, x, y, 0.0, n_rhs, h0
+    if rec_n[0] == 0:
+        _record(rec, rec_n, x, 0.0)
     h = min(abs(h0), h_max)
     err_sum = err0
     J = _jac(mode, x, y, kappa, kc, eps)
@@ -315,7 +327,10 @@ def _dop853_scalar(
             fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
             if math.isfinite(fnew) and math.isfinite(ynew):
                 Kw[rk.N_STAGES, 0] = fnew
-                relax = _relax(relax_cap, J, rem, False) if _RELAX_EXPLICIT else 1.0
+                if use_n > 1:
+                    relax = _relax_profile(x, direction, relax_cap, use, use_n, tail)
+                else:
+                    relax = _relax(relax_cap, J, rem, False) if _RELAX_EXPLICIT else 1.0
                 sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
                 err = rk.error_norm(Kw, h, sc, 1)
         if not (err <= 1.0):
@@ -328,6 +343,7 @@ def _dop853_scalar(
         # least contractive end of the step (a trapezoid over-contracts on long steps)
         prop = max(hs * J, hs * Jn)
         err_sum = err_sum * math.exp(min(prop, 50.0)) + err * sc[0]
+        _record(rec, rec_n, x + hs, max(0.0, -0.5 * (hs * J + hs * Jn)))
         J = Jn
         x = x_end if final else x + hs
         y = ynew
@@ -373,6 +389,51 @@ def _relax(relax_cap, J, rem, inf_relaxes):
     return min(
         relax_cap, math.exp(min(max(_RELAX_RATE * abs(J) * rem - _RELAX_MARGIN, 0.0), 700.0))
     )
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _relax_profile(x, direction, relax_cap, use, use_n, tail):
+    """Relaxation factor from a recorded contraction profile (a previous run of the phase).
+
+    use[0, :use_n]: x at the accepted steps (monotone along ``direction``); use[1]: the
+    integral of |J| dx from the phase start.  The contraction still to come from x is
+    use[1, use_n - 1] - (use[1] interpolated at x) + tail (tail: later phases); the factor
+    is min(relax_cap, exp(_PROF_RATE * that - _RELAX_MARGIN)) (>= 1).
+    """
+    last = use_n - 1
+    if (x - use[0, 0]) * direction <= 0.0:
+        lx = use[1, 0]
+    elif (x - use[0, last]) * direction >= 0.0:
+        lx = use[1, last]
+    else:
+        lo = 0
+        hi = last
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if (use[0, mid] - x) * direction <= 0.0:
+                lo = mid
+            else:
+                hi = mid
+        dx = use[0, hi] - use[0, lo]
+        w = (x - use[0, lo]) / dx if dx != 0.0 else 0.0
+        lx = use[1, lo] + w * (use[1, hi] - use[1, lo])
+    rem = use[1, last] - lx + tail
+    return min(relax_cap, math.exp(min(max(_PROF_RATE * rem - _RELAX_MARGIN, 0.0), 700.0)))
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _record(rec, rec_n, x, lam_step):
+    """Append (x, previous integral + lam_step) to the profile; rec_n[0] = -1 once full."""
+    i = rec_n[0]
+    if i < 0:
+        return
+    if i >= rec.shape[1]:
+        rec_n[0] = -1
+        return
+    base = rec[1, i - 1] if i > 0 else 0.0
+    rec[0, i] = x
+    rec[1, i] = base + (lam_step if i > 0 else 0.0)
+    rec_n[0] = i + 1
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -457,9 +518,14 @@ def _rodas_scalar(
     h0,
     h_max,
     err0,
-    relax_cap=1.0,
-    y_stop=math.nan,
-    handback=False,
+    relax_cap,
+    y_stop,
+    handback,
+    rec,
+    rec_n,
+    use,
+    use_n,
+    tail,
 ):
     """RODAS4 (rsfcore.ode.rodas4_tableau) for the scalar ODE (mode 0: (A), mode 1: (B)).
 
@@ -498,6 +564,8 @@ def _rodas_scalar(
     n_rhs = 1
     if not math.isfinite(f):
         return S_NO_START, x, y, err0, n_rhs, h0
+    if rec_n[0] == 0:
+        _record(rec, rec_n, x, 0.0)
     h = min(abs(h0), h_max)
     err_sum = err0
     fy = _jac(mode, x, y, kappa, kc, eps)
@@ -517,7 +585,10 @@ def _rodas_scalar(
         hs = h * direction
         if handback and math.isfinite(rem) and _RELAX_RATE * abs(fy) * rem < 1.0:
             return S_STIFF, x, y, err_sum, n_rhs, h
-        relax = _relax(relax_cap, fy, rem, True)
+        if use_n > 1:
+            relax = _relax_profile(x, direction, relax_cap, use, use_n, tail)
+        else:
+            relax = _relax(relax_cap, fy, rem, True)
         ok, ynew, k6 = _rodas_step(mode, x, y, f, fx, fy, hs, kappa, kc, eps)
         n_rhs += 5
         err = math.inf
@@ -565,6 +636,7 @@ def _rodas_scalar(
         fyn = _jac(mode, x + hs, ynew, kappa, kc, eps)
         prop = max(hs * fy, hs * fyn)
         err_sum = err_sum * math.exp(min(prop, 50.0)) + err * sc
+        _record(rec, rec_n, x + hs, max(0.0, -0.5 * (hs * fy + hs * fyn)))
         x = x_end if final else x + hs
         y = ynew
         f = fnew
@@ -602,28 +674,35 @@ def _integrate(
     err0,
     relax_cap,
     stiff_slope,
-    stiff_ok=True,
+    stiff_ok,
+    rec,
+    rec_n,
+    use,
+    use_n,
+    tail,
 ):
     """DOP853 (:func:`_dop853_scalar`), handing over to RODAS4 (:func:`_rodas_scalar`, with
     relax_cap and switch slope stiff_slope) for the rest of the phase once its steps are
     limited by stability (never with stiff_ok False: DOP853 alone, the reference the
-    tests compare with).  Returns (status, x, y, err_prop, n_rhs, h, used RODAS4)."""
+    tests compare with).  rec/rec_n: the contraction profile is recorded there;
+    use/use_n/tail: a profile recorded by an earlier run relaxes the tolerance
+    (:func:`_relax_profile`).  Returns (status, x, y, err_prop, n_rhs, h, used RODAS4)."""
     st, x, y, es, nr, h = _dop853_scalar(
         mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K, h_max, err0,
-        stiff_ok, relax_cap,
+        stiff_ok, relax_cap, rec, rec_n, use, use_n, tail,
     )  # fmt: skip
     if st != S_STIFF:
         return st, x, y, es, nr, h, False
     st, x, y, es, nr2, h = _rodas_scalar(
         mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, stiff_slope, h, h_max, es, relax_cap,
-        math.nan, True,
+        math.nan, True, rec, rec_n, use, use_n, tail,
     )  # fmt: skip
     nr += nr2
     if st == S_STIFF:
         # no longer stiff: the rest (little damping left) with DOP853
         st, x, y, es, nr3, h = _dop853_scalar(
             mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h, K, h_max, es,
-            False,
+            False, relax_cap, rec, rec_n, use, use_n, tail,
         )  # fmt: skip
         nr += nr3
     return st, x, y, es, nr, h, True
@@ -640,22 +719,47 @@ def _separatrix(kappa, kc, eps, pert, rtol, K):
     tighter settings of _RETRIES until one meets it (a relaxed run costs ~1e4 right-hand
     sides at b/a = kappa = 1e6; without the relaxation the same estimate needs ~1e6).
     """
-    st, val, err, nr, _ = _separatrix_run(kappa, kc, eps, pert, rtol, K, _RELAX_CAP)
+    # the first run records nothing (1-column buffers fill at once); retries record the
+    # contraction profiles (phases A, B) and, after the first retry, relax by the previous
+    # run's profile instead of the linear model
+    tiny = np.empty((2, 2, 1))
+    tiny_n = np.zeros(2, dtype=np.int64)
+    st, val, err, nr, _ = _separatrix_run(
+        kappa, kc, eps, pert, rtol, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
+    )
+    if st != S_OK or err <= rtol * abs(val):
+        return st, val, err, nr
+    prof = np.empty((2, 2, 2, _PROF_LEN))
+    pn = np.zeros((2, 2), dtype=np.int64)
+    cur = 0
+    na = 0
+    nb_ = 0
     for i in range(len(_RETRIES)):
-        if st != S_OK or err <= rtol * abs(val):
-            break  # failures go to the caller's fallback as they are
+        pn[cur, 0] = 0
+        pn[cur, 1] = 0
         st2, val2, err2, nr2, _ = _separatrix_run(
-            kappa, kc, eps, pert, rtol * _RETRIES[i][0], K, _RETRIES[i][1]
-        )
+            kappa, kc, eps, pert, rtol * _RETRIES[i][0], K, _RETRIES[i][1], True, prof[cur],
+            pn[cur], prof[1 - cur], na, nb_,
+        )  # fmt: skip
         nr += nr2
         if st2 == S_OK:
             st, val, err = st2, val2, err2
+            if err <= rtol * abs(val):
+                break
+        na = max(pn[cur, 0], 0)
+        nb_ = max(pn[cur, 1], 0)
+        cur = 1 - cur
     return st, val, err, nr
 
 
 @nb.njit(cache=True, nogil=True)
-def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok=True):
+def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec_n, use, na, nb_):
     """One run of the separatrix method: (status, value, abs_err, n_rhs, used RODAS4).
+
+    rec (2, 2, P), rec_n (2,): the contraction profiles of phases A and B are recorded
+    there; use (2, 2, P) with counts na, nb_ (0: none): profiles of an earlier run, which
+    then set the relaxation (the contraction still to come from each point: the rest of
+    the phase plus phase B's total for phase A).
 
     stiff_ok False with relax_cap 1: DOP853 alone with the strict tolerance (the method
     before the stiff switch; a reference where its step budget suffices)."""
@@ -670,6 +774,9 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok=True):
     z0 = math.exp(s0 - Ls)
     u0 = Ls - z0 * (c1 + c2 * z0)
     rt = rtol * (_TOL_FACTOR_V if pert == 0 else _TOL_FACTOR_L)
+    tail_a = use[1, 1, nb_ - 1] if nb_ > 0 else 0.0
+    if na < 2:
+        nb_ = 0  # profiles only as a pair
     # phase (B) ends near the separatrix's turning point, where s_theta is ~ l = ln(1 + dv)
     # and l >= ln(1 + 1/(kappa_crit (1 - eps))) (its value at kappa = kappa_crit; dv grows
     # with kappa): absolute errors in s_theta there must be ~rtol l, not rtol
@@ -681,7 +788,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok=True):
         # turning point: continue in (B) down in u until s_theta crosses 0
         st, t, u, es, nr, h, stiff = _integrate(
             0, s0, u0, 0.0, kappa, kc, eps, rt, rt * 1e-3 * Ls, math.inf, 0.0, 1.0, K, _H_MAX,
-            0.0, relax_cap, 1.0, stiff_ok,
+            0.0, relax_cap, 1.0, stiff_ok, rec[0], rec_n[0:1], use[0], na, tail_a,
         )  # fmt: skip
         if st != S_OK:
             if st == S_NO_START:
@@ -694,7 +801,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok=True):
         fb = _f_u(u, t, kappa, kc, eps)
         st2, u2, t2, es2, nr2, h2 = _rodas_scalar(
             1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, _H_MAX_B,
-            es * abs(fb), relax_cap, 0.0,
+            es * abs(fb), relax_cap, 0.0, False, rec[1], rec_n[1:2], use[1], nb_, 0.0,
         )  # fmt: skip
         nr += nr2
         if st2 != S_OK or t2 != 0.0 or not (u2 > 0.0):
@@ -713,7 +820,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok=True):
     t_far = math.inf
     st, t, u, es, nr, h, stiff = _integrate(
         0, s0, u0, t_far, kappa, kc, eps, rt, rt * 1e-3, 1.0, 1.0, 1.0, K, _H_MAX, 0.0,
-        relax_cap, 1.0, stiff_ok,
+        relax_cap, 1.0, stiff_ok, rec[0], rec_n[0:1], use[0], na, tail_a,
     )  # fmt: skip
     if st != S_OK:
         if st == S_NO_START:
@@ -726,7 +833,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok=True):
     es_t = es * abs(_f_u(u, t, kappa, kc, eps))
     st2, u2, t2, es2, nr2, h2, stiff2 = _integrate(
         1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K, _H_MAX_B, es_t,
-        relax_cap, 0.0, stiff_ok,
+        relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0,
     )  # fmt: skip
     nr += nr2
     stiff = stiff or stiff2
@@ -746,5 +853,9 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok=True):
 @nb.njit(cache=True, nogil=True)
 def _separatrix_explicit(kappa, kc, eps, pert, rtol, K):
     """The separatrix method with DOP853 alone (no RODAS4, no relaxation): a reference."""
-    st, val, err, nr, _ = _separatrix_run(kappa, kc, eps, pert, rtol, K, 1.0, False)
+    tiny = np.empty((2, 2, 1))
+    tiny_n = np.zeros(2, dtype=np.int64)
+    st, val, err, nr, _ = _separatrix_run(
+        kappa, kc, eps, pert, rtol, K, 1.0, False, tiny, tiny_n, tiny, 0, 0
+    )
     return st, val, err, nr

@@ -240,9 +240,12 @@ def test_asymptotic_start_truncation():
         for zt in (1e-8, 1e-5, 1e-4):
             s0 = min(Ls + math.log(zt / cz), -5.0)
             a = asymptotic_start(p, s0)
+            # DOP853 alone (no stiffness switch, no relaxation, no profile recorded)
+            rec, rec_n = np.empty((2, 1)), np.zeros(1, dtype=np.int64)
             st, t, u, *_ = _dop853_scalar(
-                0, s0, a["u"], 0.0, p.kappa, kc, eps, 1e-14, 1e-17, math.inf, 0.0, 1.0, K
-            )
+                0, s0, a["u"], 0.0, p.kappa, kc, eps, 1e-14, 1e-17, math.inf, 0.0, 1.0, K,
+                0.5, 0.0, False, 1.0, rec, rec_n, rec, 0, 0.0,
+            )  # fmt: skip
             assert st == 0 and t == 0.0
             res[zt] = u
         ref = res[1e-8]
