@@ -33,6 +33,9 @@ CORNERS = [
     Params(1e6, 1e6, 0.0),
     Params(1e6, 1e6, 0.5e-6),
     Params(1e5, 1e5 * 1.01, 0.3),
+    # kappa/kappa_crit = 1.10: the linear damping model over-relaxed here (0.13 s and
+    # rel_accuracy 2.6e-10 before the retries relaxed by the recorded profile; now 0.7 ms)
+    Params(906304.7116743376, 1e6, 0.0),
 ]
 
 
@@ -54,11 +57,11 @@ def test_corner_by_separatrix_with_accuracy_met(p: Params, pert: str) -> None:
 
 
 @pytest.mark.parametrize("pert", [VJ, LJ])
-@pytest.mark.parametrize("p", CORNERS[:3], ids=str)
+@pytest.mark.parametrize("p", CORNERS[:3] + CORNERS[4:], ids=str)
 def test_corner_agrees_with_bisection(p: Params, pert: str) -> None:
     # bisection on classify integrates the full system with the engine (DOP853/RODAS4 in
     # (phi, ln theta)), sharing nothing with the scalar separatrix ODE.  Measured
-    # differences 1.3e-13 .. 3.5e-11; the bound is the sum of both reported accuracies.
+    # differences 2e-12 .. 3.5e-11; the bound is the sum of both reported accuracies.
     r = critical_perturbation(p, pert, rtol=1e-10)
     b = bisect_critical(p, pert, rtol=1e-10)
     assert r.critical_size is not None and b.critical_size is not None
