@@ -477,7 +477,7 @@ def _bisect_critical(
 
     def unstable(size: float) -> bool:
         nonlocal n_rhs
-        r = classify(p_run, perturbation, size, rtol=crtol, **kw)
+        r = classify(p_run, perturbation, size, rtol=crtol, check_accuracy=False, **kw)
         n_rhs += r.n_rhs
         return r.outcome == "unstable"
 

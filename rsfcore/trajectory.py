@@ -10,10 +10,11 @@ A trajectory of `eq:psi_T` / `eq:phi_T` is integrated with the compiled DOP853 e
 * ``converged_to_steady_state``: for kappa > kappa_crit, a monotone approach (from below
   or above, as on stiff machines) reached |phi - ln v_o|, |L| < min(1e-6, 1e-3/kappa_crit)
   (:func:`eq_tol`: 1e-3 of the basin's narrowest extent, 1/kappa_crit).
-* ``below_separatrix`` / ``above_separatrix``: a load-point jump with ln(1 + dv) >= 3
-  closer to the critical size than the forward integration can resolve (the start sits at
-  the separatrix's turning point), but farther than the critical size's error bound: the
-  side of the traced separatrix (rsfcore.critical) decides; no times (complete False).
+* ``below_separatrix`` / ``above_separatrix``: a load-point jump with ln(1 + dv) >= 3 whose
+  forward integration ended on the other side of the traced separatrix (rsfcore.critical)
+  than the start, while the start is farther from the critical size than its error bound
+  (the start sits at the separatrix's turning point, where integrating (phi, ln theta)
+  blurs the side): the separatrix decides; no times (complete False).
 * ``U_negative_closed_orbit`` / ``U_nonnegative_open_orbit``: kappa = kappa_crit, v_o > 0,
   sign of the closed-form U of `eq: trajectories 1` (every orbit closed at eps = 1).
 * ``vo0_L_below_Lstar`` / ``vo0_L_above_Lstar`` / ``vo0_L_on_Lstar``: v_o = 0, where
@@ -33,7 +34,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -363,7 +364,7 @@ LJ_SEPARATRIX_LOG_MIN = 3.0
 def _load_jump_side(params: Params, lg: float, rtol: float, resolution: float) -> tuple[int, bool]:
     """Side of the separatrix of a load-point jump l = ln(1 + dv) >= LJ_SEPARATRIX_LOG_MIN,
     from the critical size itself: (-1 below (stable) / +1 above (unstable) / 0 unknown,
-    whether the start is within ``resolution`` of it).
+    whether the start is within ``resolution`` of it, i.e. decided without integrating).
 
     The start (L = 0, t = l) lies at the separatrix's turning point, from which the path
     climbs almost vertically in L; integrating (phi, ln theta) there blurs t by ~rtol |l|
@@ -472,6 +473,7 @@ def classify(
     max_steps: int = MAX_STEPS,
     integrator: IntegratorName = "auto",
     log_size: float | None = None,
+    check_accuracy: bool = True,
 ) -> TrajectoryResult:
     """Certified stable/unstable outcome of one perturbation (no trajectory returned).
 
@@ -487,6 +489,9 @@ def classify(
         log_size: the perturbation by its logarithm instead of ``size`` (d for a velocity
             jump, any finite value; ln(1 + dv) for a load-point jump, so every reported
             critical size, log_critical_size, can be checked); see :func:`start_from_log`.
+        check_accuracy: run the second integration at rtol/10 that makes rel_accuracy of
+            the times and peak a bound (:func:`simulate`); False where only the outcome is
+            wanted (bisection, point fallbacks): half the cost, outcome unchanged.
 
     Returns a TrajectoryResult with outcome, certificate, blow-up or return time and the
     true peak.  Raises UndecidedError if no certificate is reached within the budget
@@ -502,6 +507,7 @@ def classify(
         max_steps=max_steps,
         integrator=integrator,
         log_size=log_size,
+        check_accuracy=check_accuracy,
     )
 
 
@@ -521,6 +527,7 @@ def simulate(
     max_steps: int = MAX_STEPS,
     integrator: IntegratorName = "auto",
     log_size: float | None = None,
+    check_accuracy: bool = True,
 ) -> TrajectoryResult:
     """Classify a perturbation and optionally return its trajectory.
 
@@ -551,7 +558,101 @@ def simulate(
     jump d = 1e5) is answered only where a closed form decides it (L >= L*, the
     separatrix asymptote, v_o = 0, ...; times and peak then None/lower bound, complete
     False), else ParameterError.
+
+    ``rel_accuracy`` is checked by a second integration at rtol/10 (10 rtol at 1e-13;
+    ``check_accuracy=False`` skips it where only the outcome matters):
+    near the separatrix, errors across it are amplified on the way past the saddle-like
+    region (1/distance; the sum of local errors cannot see that: 280x optimistic at
+    d = d_crit (1 + 1e-7)), so the difference of the two runs, scaled by tolerance
+    proportionality, raises it where needed (:data:`SECOND_RUN_FACTOR`).
     """
+    res = _simulate(
+        params,
+        perturbation,
+        size,
+        start=start,
+        rtol=rtol,
+        t_end=t_end,
+        n_points=n_points,
+        times=times,
+        sampling=sampling,
+        physical=physical,
+        method=method,
+        max_steps=max_steps,
+        integrator=integrator,
+        log_size=log_size,
+    )
+    if res.n_steps == 0 or not check_accuracy:  # nothing integrated, or not asked
+        return res
+    r = float(rtol)
+    other = r / 10.0 if r / 10.0 >= lim.RTOL_RANGE[0] else r * 10.0
+    try:
+        check = _simulate(
+            params,
+            perturbation,
+            size,
+            start=start,
+            rtol=other,
+            t_end=t_end,
+            method=method,
+            max_steps=max_steps,
+            integrator=integrator,
+            log_size=log_size,
+        )
+    except (UndecidedError, ParameterError):
+        return res  # no second opinion to be had; the first run's estimate stands
+    return replace(res, rel_accuracy=_checked_accuracy(res, check, other / r))
+
+
+#: The second run of :func:`simulate` (at rtol/10) estimates the first run's error as
+#: |x - x'| / (1 - 1/10) (tolerance proportionality: DOP853's global error scales with rtol,
+#: including the amplification near the separatrix); the reported accuracy is at least
+#: this factor times that.  Measured against rtol = 1e-13 references at d_crit (1 -/+ 1e-2
+#: .. 1e-7), 6 parameter sets, rtol 1e-6 .. 1e-10 (tests/core/test_trajectory.py): with
+#: a factor 3 the delivered error reached 1.28x the claim (peak phi = 122 at rtol 1e-6,
+#: where tolerance proportionality is weakest); 5 leaves it at <= 0.8x.
+SECOND_RUN_FACTOR = 5.0
+
+
+def _checked_accuracy(res: TrajectoryResult, check: TrajectoryResult, ratio: float) -> float:
+    """rel_accuracy of ``res`` raised to SECOND_RUN_FACTOR x the error that the run at
+    ``ratio`` x its rtol implies; 1.0 (no digit certain) where the outcomes differ."""
+    if check.outcome != res.outcome:
+        return 1.0
+    if not (res.complete and check.complete):
+        return res.rel_accuracy  # a budget cut a run short: its peak is only a lower bound
+    worst = 0.0
+    for name in ("blowup_time", "return_time", "peak_time", "peak_phi"):
+        a, b = getattr(res, name), getattr(check, name)
+        if a is None or b is None or not (math.isfinite(a) and math.isfinite(b)):
+            continue
+        scale = max(abs(a), 1.0) if name == "peak_phi" else abs(a)
+        if scale > 1e-290:  # (subnormal times, e.g. 5e-309 after d = 700, carry no digits)
+            worst = max(worst, abs(a - b) / scale)
+    # with errors proportional to rtol, |a - b| = err (ratio - 1) for the looser run
+    # (ratio 10) and err (1 - ratio) for the tighter one (ratio 0.1)
+    est = worst / abs(ratio - 1.0)
+    return float(max(res.rel_accuracy, min(1.0, SECOND_RUN_FACTOR * est)))
+
+
+def _simulate(
+    params: Params,
+    perturbation: str = "velocity-jump",
+    size: float = 1.0,
+    *,
+    start: tuple[float, float] | None = None,
+    rtol: float = DEFAULT_RTOL,
+    t_end: float | None = None,
+    n_points: int = 0,
+    times: Sequence[float] | None = None,
+    sampling: Literal["tau", "time"] = "tau",
+    physical: PhysicalParams | None = None,
+    method: Literal["auto", "integrate"] = "auto",
+    max_steps: int = MAX_STEPS,
+    integrator: IntegratorName = "auto",
+    log_size: float | None = None,
+) -> TrajectoryResult:
+    """:func:`simulate` without the second run (one integration)."""
     rtol = lim.RTOL.check(rtol)
     if integrator not in _INTEGRATORS:
         raise ParameterError("integrator", integrator, "'auto', 'explicit' or 'rosenbrock'")
@@ -610,10 +711,10 @@ def simulate(
             plan = _plan(p_run, phi0, psi0, res_)
             only_outcome = not n_points and not times and t_end is None
             if plan.outcome is None and method == "auto" and only_outcome:
-                # near the separatrix the side of the traced separatrix decides without an
-                # integration; farther out the integration runs (for the times) and is
-                # overruled if it crossed the separatrix (_load_jump_side)
-                sep_side, sep_near = _load_jump_side(params, lg, rtol, math.inf if beyond else res_)
+                # the integration runs (for the times) and is overruled by the side of the
+                # traced separatrix if it ended on the other side; starts the integration
+                # cannot take are decided by the side alone (_load_jump_side)
+                sep_side, sep_near = _load_jump_side(params, lg, rtol, math.inf if beyond else 0.0)
                 if sep_side and sep_near:
                     plan = _SEPARATRIX_PLANS[sep_side]
         kc = p_run.kappa_crit

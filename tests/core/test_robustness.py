@@ -30,6 +30,18 @@ SIZES = [1e-12, 1.0, 700.0]
 MATRIX_BUDGET = 400_000
 
 
+#: The matrices check robustness (no NaN, no hang, a certified outcome), and that
+#: rel_accuracy is a number in (0, 1].  It is not asserted small: the second run at
+#: rtol/10 (rsfcore.simulate) reports ill-conditioned times honestly in these corners,
+#: where the sum of local errors claimed ~1e-9 (measured, rtol 1e-10 against 1e-13):
+#: d = 1e-12 above L* (within the integration's resolution of the repelling line or the
+#: separatrix: blow-up time 11620 vs 11438 at b/a = 1.01, kappa = kappa_crit/2), v_o = 0
+#: peaks after a long creep (phi 2746 vs 2737 at b/a = 1.01, eps = 1e-12), and orbits at
+#: eps = 1, d = 700 whose peak phi is ~1e19.  Accuracy as a bound is tested in
+#: test_trajectory.py (delivered error <= rel_accuracy against tighter runs).
+ACCURACY_MAX = 1.0
+
+
 def _finite_or_none(*vals: float | None) -> bool:
     return all(v is None or math.isfinite(v) for v in vals)
 
@@ -43,7 +55,7 @@ def test_matrix_velocity_jumps(vo: float) -> None:
         ctx = (eps, ba, kr, d, vo, r.certificate)
         assert r.outcome in ("stable", "unstable"), ctx
         assert _finite_or_none(r.blowup_time, r.return_time, r.peak_time, r.rel_accuracy), ctx
-        assert not math.isnan(r.peak_phi) and 0 < r.rel_accuracy < 1e-3, ctx
+        assert not math.isnan(r.peak_phi) and 0 < r.rel_accuracy <= ACCURACY_MAX, ctx
         Ls = L_star(p.kappa, p.kappa_crit, p.eps)
         if vo == 0.0 or kr == 0.0:
             # exact: dL/ds = g(L), L0 = d
@@ -68,7 +80,7 @@ def _check_load_point_jump(
     ctx = (eps, ba, kr, dv, r.certificate)
     assert r.outcome in ("stable", "unstable"), ctx
     assert _finite_or_none(r.blowup_time, r.return_time, r.peak_time), ctx
-    assert not math.isnan(r.peak_phi) and 0 < r.rel_accuracy < 1e-3, ctx
+    assert not math.isnan(r.peak_phi) and 0 < r.rel_accuracy <= ACCURACY_MAX, ctx
     assert r.complete or r.certificate == "linear_instability", ctx  # (no blow-up time: by design)
     if 0.0 < kr < 1.0:
         assert r.outcome == "unstable", ctx  # kind "zero": every perturbation grows
