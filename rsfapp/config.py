@@ -69,6 +69,12 @@ class Settings(BaseSettings):
         max_body_bytes_batch: largest body of the batch, fit and sweep endpoints [bytes].
         max_header_bytes: largest total size of the request headers [bytes], else 431.
         cors_origins: comma-separated origins allowed by CORS (empty: CORS off).
+        request_lease_s: lease of a computing request of an API key in flight [s],
+            (0, 3600], default 30 (the ``concurrent_requests`` quota, counted in the
+            database: :mod:`rsfapp.store.inflight`).  The API process renews it every
+            ``request_lease_s / 3`` while the request runs, so a longer request keeps
+            counting; a lease left by an API process that died stops counting after at
+            most ``request_lease_s``.
         quota_concurrent_sweeps, quota_points_per_day, quota_fresh_per_s,
         quota_concurrent_requests, quota_trajectory_points, quota_step_budget: default
             quotas of every key
@@ -104,6 +110,7 @@ class Settings(BaseSettings):
     max_body_bytes_batch: int = Field(default=64 * 2**20, ge=1024)
     max_header_bytes: int = Field(default=16 * 2**10, ge=1024)
     cors_origins: str = ""
+    request_lease_s: float = Field(default=30.0, gt=0, le=3600)
     quota_concurrent_sweeps: int = Field(default=4, ge=0)
     quota_points_per_day: int = Field(default=1_000_000, ge=0)
     quota_fresh_per_s: float = Field(default=10.0, gt=0)

@@ -44,6 +44,7 @@ from .limits import (
     SELF_ADMITTED,
     FreshGate,
     QuotaError,
+    inflight_store_for,
     is_computing,
     rate_store_for,
     request_state,
@@ -276,9 +277,12 @@ async def guard(
     Routes outside the OpenAPI schema are open.  The principal is left in
     ``request.scope["rsf.principal"]`` for the rate limiter (:mod:`service.limits`) and
     for handlers (:func:`current`).  On a computing endpoint, a key's shared
-    fresh-computation bucket is attached to the request (:class:`service.limits.FreshGate`)
-    and, on the endpoints that cannot take a token themselves before computing (all but
-    the single queries), the request is refused 429 while that bucket is empty.
+    fresh-computation bucket and in-flight leases are attached to the request
+    (:class:`service.limits.FreshGate`) and, on the endpoints that cannot take a token
+    themselves before computing (all but the single queries), the request is refused 429
+    while that bucket is empty, or else takes a lease on one of the key's
+    ``concurrent_requests`` for its whole duration (429 if they are all taken; the
+    single queries take theirs only when they compute).
     """
     route = request.scope.get("route")
     if route is not None and not getattr(route, "include_in_schema", True):
@@ -289,10 +293,18 @@ async def guard(
     if state is not None:
         state.need = need.value
         if p.key_id is not None and p.key_id == state.key_id:
-            gate = state.gate = FreshGate(rate_store_for(keys.db), p.key_id, p.quotas.fresh_per_s)
+            gate = state.gate = FreshGate(
+                rate_store_for(keys.db),
+                p.key_id,
+                p.quotas.fresh_per_s,
+                inflight_store_for(keys.db),
+                p.quotas.concurrent_requests,
+                settings.request_lease_s,
+            )
             path = request.url.path
             if is_computing(path) and path not in SELF_ADMITTED:
                 await gate.check()
+                await gate.hold()
     return p
 
 

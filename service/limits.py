@@ -8,7 +8,8 @@
    single body byte is read; a chunked body is counted as it streams and refused as
    soon as it passes the limit;
 3. per API key, on the endpoints that may compute (single queries, batch, fit,
-   figures): at most ``concurrent_requests`` in flight in this API process, and fresh
+   figures): at most ``concurrent_requests`` computing requests in flight over every API
+   process and host (leases in the database, :mod:`rsfapp.store.inflight`), and fresh
    computations limited to ``fresh_per_s`` per second by a token bucket (burst
    ``max(1, fresh_per_s)``) shared by every API process and host: it lives in the
    database (:mod:`rsfapp.store.ratelimits`, one atomic statement per change).  A key
@@ -30,10 +31,20 @@ Only fresh computations touch the bucket, and cached lookups never do:
   answer that was computed (``X-Cache: miss``) or deferred (202); the level may go below
   zero, and the key waits until it is back to >= 1.
 
-Anonymous requests (loopback without keys, ``RSF_AUTH=off``) are not limited.  The
-in-flight count (``concurrent_requests``) bounds what one process holds for a key and is
-kept by that process (it is not state another process needs: it dies with the process
-and its connections).
+The in-flight count (``concurrent_requests``) counts the requests that compute, as a
+lease each (:class:`FreshGate`): one row in the database, taken atomically only while
+the key holds fewer than its quota (else 429 + ``Retry-After: 1``), renewed every
+``RSF_REQUEST_LEASE_S / 3`` while the request runs and deleted when it ends (a lease
+left by a process that died stops counting after ``RSF_REQUEST_LEASE_S``):
+
+* a single query (:data:`SELF_ADMITTED`) takes its lease together with its token, once
+  it is known to compute (or join a computation, or queue): a cached lookup takes none
+  (it is answered in ~100 us from memory and cannot pile up, and a lease would cost two
+  database writes on every lookup);
+* the other computing endpoints take theirs in :func:`service.auth.guard`, before their
+  work, and hold it for the whole request, cached or not (they cannot tell before).
+
+Anonymous requests (loopback without keys, ``RSF_AUTH=off``) are not limited.
 
 All refusals are ``application/problem+json``.
 
@@ -42,16 +53,17 @@ CORS (:func:`install`) is off unless ``RSF_CORS_ORIGINS`` lists allowed origins.
 
 from __future__ import annotations
 
+import asyncio
 import hashlib
 import logging
 import math
 import re
-from collections import OrderedDict
 from collections.abc import Callable
 from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import anyio
 from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
@@ -60,6 +72,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from rsfapp.config import Settings, get_settings
 from rsfapp.db.engine import Database
+from rsfapp.store.inflight import InflightStore
 from rsfapp.store.ratelimits import RateLimitStore
 
 from .errors import problem
@@ -74,6 +87,7 @@ __all__ = [
     "QuotaError",
     "RequestState",
     "SELF_ADMITTED",
+    "inflight_store_for",
     "install",
     "is_computing",
     "rate_store_for",
@@ -147,20 +161,93 @@ def rate_store_for(db: Database) -> RateLimitStore:
     return st
 
 
+_inflight_stores: dict[int, InflightStore] = {}
+
+
+def inflight_store_for(db: Database) -> InflightStore:
+    """The in-flight leases of ``db`` (one store per database and process)."""
+    st = _inflight_stores.get(id(db))
+    if st is None or st.db is not db:
+        st = _inflight_stores[id(db)] = InflightStore(db)
+    return st
+
+
 class FreshGate:
-    """The fresh-computation bucket of one key, for one request (made by
-    :func:`service.auth.guard` once the key is authenticated).
+    """The fresh-computation bucket and the in-flight lease of one key, for one request
+    (made by :func:`service.auth.guard` once the key is authenticated; the middleware
+    releases the lease when the request ends).
 
     Args:
         store: the token buckets.
         key_id: SHA-256 of the key.
         rate: the key's quota ``fresh_per_s`` [1/s], > 0.
+        slots: the in-flight leases (None: ``concurrent_requests`` not enforced).
+        quota: the key's quota ``concurrent_requests``, >= 1.
+        lease_s: lease length [s], > 0 (``RSF_REQUEST_LEASE_S``).
     """
 
-    def __init__(self, store: RateLimitStore, key_id: str, rate: float) -> None:
+    def __init__(
+        self,
+        store: RateLimitStore,
+        key_id: str,
+        rate: float,
+        slots: InflightStore | None = None,
+        quota: int = 1,
+        lease_s: float = 30.0,
+    ) -> None:
         self.store, self.key_id, self.rate = store, key_id, rate
+        self.slots, self.quota, self.lease_s = slots, quota, lease_s
         #: True once this request took or was charged its token.
         self.taken = False
+        #: the lease this request holds, if any
+        self.lease_id: str | None = None
+        self._renewer: asyncio.Task[None] | None = None
+
+    async def hold(self) -> None:
+        """Take a lease on one of the key's ``concurrent_requests`` (at most once per
+        request; renewed until :meth:`release`).
+
+        Raises:
+            QuotaError: the key already has ``concurrent_requests`` leases (429 with
+                ``Retry-After: 1``).
+        """
+        if self.slots is None or self.lease_id is not None:
+            return
+        lease = await run_in_threadpool(self.slots.acquire, self.key_id, self.quota, self.lease_s)
+        if not lease.admitted:
+            raise QuotaError(
+                "too many requests of this key in flight (quota "
+                f"concurrent_requests = {self.quota})",
+                retry_after=1,
+            )
+        self.lease_id = lease.lease_id
+        self._renewer = asyncio.get_running_loop().create_task(self._renew(lease.lease_id))
+
+    async def _renew(self, lease_id: str | None) -> None:
+        slots = self.slots
+        assert slots is not None and lease_id is not None
+        while True:
+            await asyncio.sleep(self.lease_s / 3.0)
+            try:
+                if not await run_in_threadpool(slots.renew, lease_id, self.lease_s):
+                    return  # expired (the database was out of reach for a whole lease)
+            except Exception:  # noqa: BLE001 - try again at the next beat
+                log.warning("could not renew the lease of a request in flight", exc_info=True)
+
+    async def release(self) -> None:
+        """Give the lease back (if one is held); never raises, and runs to the end even
+        when the request is cancelled (a lease that could not be deleted expires)."""
+        lease_id, self.lease_id = self.lease_id, None
+        if self._renewer is not None:
+            self._renewer.cancel()
+            self._renewer = None
+        if lease_id is None or self.slots is None:
+            return
+        with anyio.CancelScope(shield=True):
+            try:
+                await run_in_threadpool(self.slots.release, lease_id)
+            except Exception:  # noqa: BLE001 - the lease expires by itself
+                log.warning("could not release the lease of a request", exc_info=True)
 
     def _refusal(self, wait_s: float) -> QuotaError:
         return QuotaError(
@@ -169,15 +256,19 @@ class FreshGate:
         )
 
     async def admit(self) -> None:
-        """Take one token before a fresh computation (at most once per request).
+        """Take a lease (:meth:`hold`), then one token, before a fresh computation (each
+        at most once per request); the lease is given back if there is no token.
 
         Raises:
-            QuotaError: the bucket is empty (429 with ``Retry-After``).
+            QuotaError: too many requests of the key in flight, or its bucket is empty
+                (429 with ``Retry-After``).
         """
         if self.taken:
             return
+        await self.hold()
         adm = await run_in_threadpool(self.store.take, self.key_id, self.rate)
         if not adm.admitted:
+            await self.release()
             raise self._refusal(adm.wait_s)
         self.taken = True
 
@@ -200,7 +291,8 @@ class RequestState:
 
     Attributes:
         key_id: SHA-256 of the bearer token sent, if any.
-        gate: the key's bucket, set by :func:`service.auth.guard` once authenticated.
+        gate: the key's bucket and in-flight lease, set by :func:`service.auth.guard` once
+            authenticated (the middleware releases the lease when the request ends).
         need: the scope the guard checked (value of :class:`rsfapp.store.keys.Scope`).
         cache_key: set by :func:`service.answer.answer` once the request is validated.
     """
@@ -270,8 +362,8 @@ class Limits:
         app: the wrapped application.
         settings: callable returning the current settings (read on every request).
         fast: cached lookups answered from memory (None: off).
-        max_keys: keys whose ``concurrent_requests`` quota is remembered (least recently
-            used are forgotten).
+
+    It keeps no state about keys: the leases and buckets are in the database.
     """
 
     def __init__(
@@ -279,13 +371,8 @@ class Limits:
         app: ASGIApp,
         settings: Callable[[], Settings] = get_settings,
         fast: FastHits | None = None,
-        max_keys: int = 10_000,
     ) -> None:
-        self.app, self.settings, self.fast, self.max_keys = app, settings, fast, max_keys
-        #: computing requests of each key in flight in this process
-        self.inflight: dict[str, int] = {}
-        #: the ``concurrent_requests`` quota of each key, as last authenticated
-        self.allowed: OrderedDict[str, int] = OrderedDict()
+        self.app, self.settings, self.fast = app, settings, fast
 
     async def _refuse(
         self,
@@ -340,31 +427,7 @@ class Limits:
         if not is_computing(path):
             await self.app(scope, receive, _allow_fixed(scope, send))
             return
-        kid = _key_id(scope)
-        if kid is not None:
-            allowed = self.allowed.get(kid)
-            if allowed is not None and self.inflight.get(kid, 0) >= allowed:
-                await self._refuse(
-                    scope,
-                    receive,
-                    send,
-                    429,
-                    "Too many requests",
-                    "too many requests of this key in flight (quota "
-                    f"concurrent_requests = {allowed})",
-                    {"Retry-After": "1"},
-                )
-                return
-            self.inflight[kid] = self.inflight.get(kid, 0) + 1
-        try:
-            await self._computing(scope, receive, _allow_fixed(scope, send), kid, cl)
-        finally:
-            if kid is not None:
-                n = self.inflight.get(kid, 1) - 1
-                if n > 0:
-                    self.inflight[kid] = n
-                else:
-                    self.inflight.pop(kid, None)
+        await self._computing(scope, receive, _allow_fixed(scope, send), _key_id(scope), cl)
 
     async def _computing(
         self, scope: Scope, receive: Receive, send: Send, kid: str | None, cl: bytes | None
@@ -408,7 +471,11 @@ class Limits:
             await self.app(scope, receive, watch)
         finally:
             _state.reset(token)
-            await self._after(scope, state, bool(seen["fresh"]) or seen["status"] == 202)
+            try:
+                await self._after(scope, state, bool(seen["fresh"]) or seen["status"] == 202)
+            finally:
+                if state.gate is not None:
+                    await state.gate.release()
         if (
             fast is not None
             and body is not None
@@ -420,15 +487,11 @@ class Limits:
             fast.remember(scope, body, state.cache_key, state.need)
 
     async def _after(self, scope: Scope, state: RequestState, fresh: bool) -> None:
-        """Charge a fresh answer not admitted before; remember the key's concurrency."""
+        """Charge a fresh answer not admitted before."""
         p = scope.get("rsf.principal")
         kid = state.key_id
         if kid is None or p is None or getattr(p, "key_id", None) != kid:
             return  # not authenticated with this key: nothing to account
-        self.allowed[kid] = int(p.quotas.concurrent_requests)
-        self.allowed.move_to_end(kid)
-        while len(self.allowed) > self.max_keys:
-            self.allowed.popitem(last=False)
         if fresh and state.gate is not None and not state.gate.taken:
             try:
                 await state.gate.charge()

@@ -11,7 +11,9 @@
 * ``api_keys``, ``key_usage``, ``sweep_owners``: hashed API keys, their daily usage and
   the key that submitted each sweep (:mod:`rsfapp.store.keys`);
 * ``rate_buckets``: the fresh-computation token bucket of each API key, shared by every
-  API process and host (:mod:`rsfapp.store.ratelimits`).
+  API process and host (:mod:`rsfapp.store.ratelimits`);
+* ``inflight_leases``: one row per computing request of an API key in flight, on any
+  API process or host (its ``concurrent_requests`` quota; :mod:`rsfapp.store.inflight`).
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ __all__ = [
     "sweep_blocks",
     "sweep_inputs",
     "rate_buckets",
+    "inflight_leases",
 ]
 
 metadata = MetaData()
@@ -174,4 +177,14 @@ rate_buckets = Table(
     Column("stamp", Float, nullable=False),  # wall clock of ``tokens`` [s since 1970]
     Column("rate", Float, nullable=False),  # refill [tokens/s] of the last update
     Column("capacity", Float, nullable=False),  # burst [tokens] of the last update
+)
+
+# Leases of computing requests in flight, one row per request (:mod:`rsfapp.store.inflight`);
+# a new table too, added by ``create_all`` at start.
+inflight_leases = Table(
+    "inflight_leases",
+    metadata,
+    Column("lease_id", String(32), primary_key=True),
+    Column("key_id", String(64), nullable=False, index=True),  # SHA-256 of the API key
+    Column("expires_at", Float, nullable=False, index=True),  # wall clock [s since 1970]
 )

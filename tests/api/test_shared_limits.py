@@ -1,5 +1,6 @@
-"""Fresh-computation buckets shared through the database, and cached lookups answered
-from memory (service.limits, service.answer.FastHits, rsfapp.store.ratelimits).
+"""Fresh-computation buckets and in-flight leases (the concurrent_requests quota)
+shared through the database, and cached lookups answered from memory (service.limits,
+service.answer.FastHits, rsfapp.store.ratelimits, rsfapp.store.inflight).
 
 In process: two separate app instances (each with its own middleware, as two API
 processes have) on one SQLite file, RSF_AUTH=on.  The real-process version (two uvicorn
@@ -7,8 +8,10 @@ processes, SQLite and PostgreSQL) is tests/e2e/test_shared_limits_server.py."""
 
 from __future__ import annotations
 
+import asyncio
 import os
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -19,6 +22,7 @@ from fastapi.testclient import TestClient
 from rsfapp.config import get_settings
 from rsfapp.db.engine import Database, DatabaseUnavailable
 from rsfapp.store import stores_for
+from rsfapp.store.inflight import InflightStore
 from rsfapp.store.keys import KeyStore, Scope, hash_key
 from rsfapp.store.ratelimits import RateLimitStore, capacity_of
 from service.app import create_app
@@ -215,3 +219,152 @@ def test_fast_hit_database_down_is_503_not_500(two: Two, monkeypatch: pytest.Mon
     r = two.a.post("/v1/classify", json=body, headers=h)
     assert r.status_code == 503 and r.headers["content-type"].startswith(PROBLEM), r.text
     assert "retry-after" in r.headers
+
+
+def kid_of(h: dict[str, str]) -> str:
+    return hash_key(h["Authorization"].split()[1])
+
+
+def assert_429_inflight(r: Any, quota: int) -> None:
+    assert r.status_code == 429, (r.status_code, r.text)
+    assert r.headers["content-type"].startswith(PROBLEM)
+    assert f"concurrent_requests = {quota}" in r.json()["detail"]
+    assert r.headers["retry-after"] == "1"
+
+
+def wait_for(cond: Any, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, "condition not met in time"
+        time.sleep(0.02)
+
+
+def test_two_apps_share_the_concurrency_quota(two: Two, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A computing request in flight in app a uses the key's only lease: app b refuses
+    the key's next computing requests (single query and batch) until it ends; cached
+    lookups hold no lease and are answered meanwhile."""
+    import service.answer
+
+    h = two.key(Scope.submit, concurrent_requests=1)
+    kid = kid_of(h)
+    slots = InflightStore(Database(get_settings().effective_cache_url))
+    cached = {"size": 0.161, "eps": 0.2}
+    assert two.a.post("/v1/classify", json=cached, headers=h).status_code == 200
+    assert slots.held(kid) == 0  # released when the request ended
+
+    release = threading.Event()
+    entered = threading.Event()
+
+    original = service.answer._compute
+
+    async def blocked(*args: Any) -> str | None:  # size 0.162 stands for a long computation
+        if args[3].get("size") != 0.162:
+            return await original(*args)
+        entered.set()
+        await asyncio.to_thread(release.wait, 60)
+        return None  # answered 202 (deferred)
+
+    monkeypatch.setattr(service.answer, "_compute", blocked)
+    out: list[Any] = []
+    t = threading.Thread(
+        target=lambda: out.append(two.a.post("/v1/classify", json={"size": 0.162}, headers=h))
+    )
+    t.start()
+    try:
+        wait_for(entered.is_set)
+        assert slots.held(kid) == 1
+        assert_429_inflight(two.b.post("/v1/classify", json={"size": 0.163}, headers=h), 1)
+        r = two.b.post("/v1/classify/batch", json={"items": [{"size": 0.164}]}, headers=h)
+        assert_429_inflight(r, 1)
+        for c in (two.a, two.b):  # cached lookups take no lease
+            r = c.post("/v1/classify", json=cached, headers=h)
+            assert r.status_code == 200 and r.headers["x-cache"] == "hit", r.text
+        # another key is not affected
+        other = two.key(concurrent_requests=1)
+        assert two.b.post("/v1/classify", json={"size": 0.165}, headers=other).status_code == 200
+    finally:
+        release.set()
+        t.join(60)
+    assert out and out[0].status_code == 202, out
+    assert slots.held(kid) == 0  # given back when the request ended
+    r = two.b.post("/v1/classify/batch", json={"items": [{"size": 0.164}]}, headers=h)
+    assert r.status_code == 200, r.text
+    assert slots.held(kid) == 0
+
+
+def test_expired_leases_do_not_block(two: Two) -> None:
+    """A lease left by a process that died (expired) is ignored and deleted; a live one
+    of another process counts."""
+    h = two.key(concurrent_requests=1)
+    kid = kid_of(h)
+    db = Database(get_settings().effective_cache_url)
+    past = InflightStore(db, clock=lambda: time.time() - 3600.0)
+    dead = past.acquire(kid, 1, 60.0)  # expired 3540 s ago
+    assert dead.admitted
+    slots = InflightStore(db)
+    assert slots.held(kid) == 0
+    r = two.a.post("/v1/classify", json={"size": 0.171}, headers=h)
+    assert r.status_code == 200 and r.headers["x-cache"] == "miss", r.text
+    assert dead.lease_id is not None and not slots.renew(dead.lease_id, 60.0)  # purged
+    live = slots.acquire(kid, 1, 60.0)  # a request in flight in another process
+    assert live.admitted and live.lease_id is not None
+    assert_429_inflight(two.b.post("/v1/classify", json={"size": 0.172}, headers=h), 1)
+    slots.release(live.lease_id)
+    assert two.b.post("/v1/classify", json={"size": 0.172}, headers=h).status_code == 200
+
+
+def test_concurrent_acquires_never_exceed_the_quota(tmp_path: Path) -> None:
+    """Eight threads race for the 3 leases of one key through one SQLite file: exactly 3
+    are granted (frozen clock: nothing expires); a released one is granted again."""
+    store = InflightStore(Database(f"sqlite:///{tmp_path / 'l.sqlite3'}"), clock=lambda: 1000.0)
+    granted: list[str] = []
+    refused: list[int] = []
+    lock = threading.Lock()
+
+    def worker() -> None:
+        for _ in range(4):
+            lease = store.acquire("k", 3, 30.0)
+            with lock:
+                if lease.admitted and lease.lease_id is not None:
+                    granted.append(lease.lease_id)
+                else:
+                    refused.append(lease.held)
+
+    threads = [threading.Thread(target=worker) for _ in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(granted) == 3 and len(refused) == 29
+    assert set(refused) == {3} and store.held("k") == 3
+    store.release(granted[0])
+    assert store.held("k") == 2
+    again = store.acquire("k", 3, 30.0)
+    assert again.admitted and again.held == 3
+
+
+def test_lease_expiry_renewal_and_purge(tmp_path: Path) -> None:
+    """Leases expire ``lease_s`` after their last renewal (closed-form times), an expired
+    lease is neither counted nor revived, and purge deletes every expired lease."""
+    now = [1000.0]
+    store = InflightStore(Database(f"sqlite:///{tmp_path / 'e.sqlite3'}"), clock=lambda: now[0])
+    a, b = store.acquire("k", 2, 10.0), store.acquire("k", 2, 10.0)
+    assert a.admitted and b.admitted and a.lease_id and b.lease_id
+    assert store.acquire("k", 2, 10.0) == (False, None, 2)
+    now[0] = 1006.0
+    assert store.renew(a.lease_id, 10.0)  # a now expires at 1016, b at 1010
+    now[0] = 1010.0
+    assert store.held("k") == 1  # b expired exactly now
+    assert not store.renew(b.lease_id, 10.0)  # not revived
+    c = store.acquire("k", 2, 10.0)
+    assert c.admitted and c.held == 2
+    other = store.acquire("other", 1, 1.0)  # expires at 1011
+    assert other.admitted
+    now[0] = 1030.0
+    assert store.held("k") == 0 and store.held("other") == 0
+    assert store.purge() == 3  # a, c and other (b was deleted by c's acquisition)
+    assert store.purge() == 0
+    with pytest.raises(ValueError, match="quota"):
+        store.acquire("k", 0, 10.0)
+    with pytest.raises(ValueError, match="lease_s"):
+        store.acquire("k", 1, 0.0)
