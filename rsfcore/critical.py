@@ -288,7 +288,8 @@ class CriticalResult:
         log_critical_size: d (velocity jump) or l = ln(1 + dv) (load-point jump); finite for
             every "finite" and "zero" result, also where dv exceeds the double range
             (critical_size is then inf; classify(..., log_size=l) checks it); None for
-            "infinite".
+            "infinite", and for a finite size beyond reach (accuracy_met False, see reason:
+            load-point jumps at b/a -> 1 with kappa/kappa_crit >~ 3e4).
         accuracy_met: rel_accuracy <= the requested rtol (always True for exact decisions).
         reason: why the requested rtol is not met ("" when it is).
     """
@@ -350,7 +351,10 @@ def accuracy_verdict(kind: str, method: str, rel_accuracy: float, rtol: float) -
 
 
 def _with_accuracy(res: CriticalResult, rtol: float) -> CriticalResult:
-    """Set accuracy_met / reason of a result against the requested rtol."""
+    """Set accuracy_met / reason of a result against the requested rtol (a result that
+    already says why it cannot meet any, e.g. a size beyond reach, keeps its reason)."""
+    if not res.accuracy_met and res.reason:
+        return res
     met, reason = accuracy_verdict(res.kind, res.method, res.rel_accuracy, rtol)
     return replace(res, accuracy_met=met, reason=reason)
 
@@ -512,6 +516,30 @@ def _bisect_critical(
         while not unstable(math.expm1(l_hi)):
             l_lo = l_hi
             if l_hi >= l_max:
+                Ls = float(L_star(params.kappa, params.kappa_crit, params.eps))
+                if math.isfinite(Ls):
+                    # L* finite: a large enough jump (t = l far above the separatrix's
+                    # turning point) runs away, so the size is finite; it is beyond both
+                    # methods here (b/a -> 1 with kappa/kappa_crit >~ 3e4, where
+                    # ln(1 + dv_crit) ~ L* - ln(kappa_crit), measured to ~1/(kappa/kappa_crit)
+                    # at eps = 0 where the separatrix integration reaches)
+                    guess = Ls - math.log(params.kappa_crit)
+                    return CriticalResult(
+                        "finite",
+                        None,
+                        1.0,
+                        METHODS[M_BISECTION] + " (beyond reach)",
+                        perturbation,
+                        params,
+                        on_b,
+                        n_rhs,
+                        None,
+                        False,
+                        "the critical size is finite (L* is finite) but beyond what rsfcore"
+                        f" computes: ln(1 + dv_crit) > {l_max:.4g} (the separatrix"
+                        " integration ran out of budget); its asymptote suggests"
+                        f" ln(1 + dv_crit) ~ L* - ln(kappa_crit) = {guess:.6g} (unverified)",
+                    )
                 return CriticalResult(
                     "infinite",
                     None,

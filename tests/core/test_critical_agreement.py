@@ -195,3 +195,16 @@ def test_separatrix_side_agrees_with_a_forward_integration_of_t_of_u(p: Params) 
             assert r.outcome == outcome, (rel, sign, r)
             if r.certificate.endswith("_separatrix"):
                 assert not r.complete and r.blowup_time is None and r.return_time is None
+
+
+def test_load_point_size_beyond_reach_is_finite_not_infinite() -> None:
+    # b/a = 1 + 1e-3, kappa = 1e6 kappa_crit, eps kappa/kappa_crit = 0.5 < 1: L* is finite,
+    # so a large enough load-point jump runs away and the size is finite.  ln(1 + dv_crit)
+    # ~ 1.4e6 is beyond the separatrix integration's budget and beyond the sizes classify
+    # integrates; the bisection used to report kind "infinite" here (rel_accuracy 0).
+    p = Params(1.001, 1e6 * 0.001, 0.5 / 1e6)
+    r = critical_perturbation(p, LJ)
+    assert r.kind == "finite" and r.critical_size is None and r.log_critical_size is None
+    assert not r.accuracy_met and "beyond what rsfcore computes" in r.reason
+    # the size is not within the reach checked: a jump of ln(1 + dv) = 600 is stable
+    assert classify(p, LJ, log_size=600.0).outcome == "stable"
