@@ -18,4 +18,7 @@ __all__ = ["NUMERICS_VERSION"]
 #:    load-point dv_crit came out 1.9e-6 instead of 1.0013e-6); classify of load-point
 #:    jumps with large ln(1 + dv) near the separatrix is decided by the traced separatrix.
 #:    Separatrix: stiff runs switch to RODAS4 (no bisection at b/a = kappa = 1e6); changes <= 9.2e-11.
+#:    rel_accuracy of times and peaks is checked by a second run at rtol/10 (larger near the
+#:    separatrix and in ill-conditioned corners); load-point sizes beyond reach are kind
+#:    finite with a null size (were "infinite").
 NUMERICS_VERSION = "3"
