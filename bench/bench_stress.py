@@ -168,10 +168,17 @@ def _describe(q: Query, res: Any) -> None:
             f" rel_acc={res.rel_accuracy:.2g} met={res.accuracy_met} n_rhs={res.n_rhs}"
             f" method={res.method.split(':')[0]}"
         )
-        bad = res.kind == "finite" and (
-            res.log_critical_size is None
-            or not math.isfinite(res.log_critical_size)
-            or not math.isfinite(res.rel_accuracy)
+        # a finite size beyond reach is reported without a value, with accuracy_met False
+        # and its reason (counted below with the other accuracy_met = False answers)
+        beyond = res.log_critical_size is None and not res.accuracy_met and bool(res.reason)
+        bad = (
+            res.kind == "finite"
+            and not beyond
+            and (
+                res.log_critical_size is None
+                or not math.isfinite(res.log_critical_size)
+                or not math.isfinite(res.rel_accuracy)
+            )
         )
         if bad:
             q.error = "NaN/non-finite critical size or accuracy"
