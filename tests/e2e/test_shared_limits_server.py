@@ -1,16 +1,20 @@
-"""One key's fresh-computation bucket shared by two real API processes (two uvicorn
-servers on one database: a SQLite file, and PostgreSQL), as `rsf api --workers N` and
-several API hosts run; the key is made by the real `rsf keys` CLI.  In-process version:
-tests/api/test_shared_limits.py."""
+"""One key's fresh-computation bucket and in-flight leases (concurrent_requests) shared
+by two real API processes (two uvicorn servers on one database: a SQLite file, and
+PostgreSQL), as `rsf api --workers N` and several API hosts run; the key is made by the
+real `rsf keys` CLI.  In-process version: tests/api/test_shared_limits.py."""
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
 import pytest
 
+from rsfapp.db.engine import Database
+from rsfapp.store.inflight import InflightStore
+from rsfapp.store.keys import hash_key
 from tests.conftest import Postgres
 from tests.e2e.test_auth_server import AuthServer, h, problem
 
@@ -54,3 +58,69 @@ def test_two_api_processes_share_one_bucket(pair: tuple[AuthServer, AuthServer])
         # a cached answer needs no token
         r = cb.post("/v1/classify", json=first)
         assert r.status_code == 200 and r.headers["x-cache"] == "hit", r.text
+
+
+def test_two_api_processes_share_the_concurrency_quota(
+    pair: tuple[AuthServer, AuthServer],
+) -> None:
+    """A lease taken in the shared database (a request of the key in flight in some
+    other API process) is counted by both servers; cached lookups need none."""
+    a, b = pair
+    key = a.rsf("keys", "create", "--name", "one", "--quota", "concurrent_requests=1").stdout
+    key = key.strip()
+    cached = {"size": 0.221, "eps": 0.17}
+    with httpx.Client(base_url=a.url, timeout=60, headers=h(key)) as ca:
+        r = ca.post("/v1/classify", json=cached)
+        assert r.status_code == 200 and r.headers["x-cache"] == "miss", r.text
+    db = Database(a.env["RSF_CACHE_URL"])
+    try:
+        slots = InflightStore(db)
+        lease = slots.acquire(hash_key(key), 1, 60.0)
+        assert lease.admitted and lease.lease_id is not None
+        try:
+            for srv in (a, b):
+                with httpx.Client(base_url=srv.url, timeout=60, headers=h(key)) as c:
+                    p = problem(c.post("/v1/classify", json={"size": 0.222}), 429)
+                    assert "concurrent_requests = 1" in p["detail"]
+                    r = c.post("/v1/classify", json=cached)
+                    assert r.status_code == 200 and r.headers["x-cache"] == "hit", r.text
+        finally:
+            slots.release(lease.lease_id)
+        with httpx.Client(base_url=b.url, timeout=60, headers=h(key)) as cb:
+            r = cb.post("/v1/classify", json={"size": 0.222})
+            assert r.status_code == 200 and r.headers["x-cache"] == "miss", r.text
+        assert slots.held(hash_key(key)) == 0  # every request gave its lease back
+    finally:
+        db.dispose()
+
+
+def test_concurrent_acquires_never_exceed_the_quota_on_postgres(postgres: Postgres) -> None:
+    """Eight threads (own pooled connections, READ COMMITTED) race for the 3 leases of
+    one key, five times (five keys): exactly 3 are granted each time (the per-key
+    advisory lock serialises them; without it, 5 were granted in 1 of 5 such races)."""
+    db = Database(postgres.url)
+    store = InflightStore(db, clock=lambda: 1000.0)
+    try:
+        lock = threading.Lock()
+        for key in ("k0", "k1", "k2", "k3", "k4"):
+            granted: list[bool] = []
+            start = threading.Barrier(8)
+
+            def worker(
+                key: str = key, granted: list[bool] = granted, start: threading.Barrier = start
+            ) -> None:
+                start.wait()
+                for _ in range(4):
+                    ok = store.acquire(key, 3, 30.0).admitted
+                    with lock:
+                        granted.append(ok)
+
+            threads = [threading.Thread(target=worker) for _ in range(8)]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            assert len(granted) == 32 and sum(granted) == 3, key
+            assert store.held(key) == 3
+    finally:
+        db.dispose()
