@@ -368,3 +368,33 @@ def test_lease_expiry_renewal_and_purge(tmp_path: Path) -> None:
         store.acquire("k", 0, 10.0)
     with pytest.raises(ValueError, match="lease_s"):
         store.acquire("k", 1, 0.0)
+
+
+def test_gate_renews_its_lease_and_gives_it_back(tmp_path: Path) -> None:
+    """A request outliving its lease keeps it (renewed every lease_s / 3: here every
+    1 s for a 3 s lease, held 4.5 s; only a 2 s stall of the event loop could lose it);
+    a request refused a token gives its lease back at once."""
+    from service.limits import FreshGate, QuotaError
+
+    db = Database(f"sqlite:///{tmp_path / 'g.sqlite3'}")
+    slots, buckets = InflightStore(db), RateLimitStore(db)
+
+    async def scenario() -> None:
+        gate = FreshGate(buckets, "k", 1000.0, slots, quota=1, lease_s=3.0)
+        await gate.admit()
+        await asyncio.sleep(4.5)
+        assert slots.held("k") == 1
+        assert not slots.acquire("k", 1, 3.0).admitted
+        await gate.release()
+        assert slots.held("k") == 0
+        await asyncio.sleep(1.2)  # the renewer is stopped: nothing comes back
+        assert slots.held("k") == 0
+        # an empty bucket (rate 0.2: capacity 1, taken here first)
+        assert buckets.take("slow", 0.2).admitted
+        refused = FreshGate(buckets, "slow", 0.2, slots, quota=1, lease_s=3.0)
+        with pytest.raises(QuotaError, match="fresh_per_s"):
+            await refused.admit()
+        assert refused.lease_id is None and slots.held("slow") == 0
+
+    asyncio.run(scenario())
+    db.dispose()
