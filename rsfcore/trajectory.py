@@ -582,7 +582,9 @@ def simulate(
         integrator=integrator,
         log_size=log_size,
     )
-    if res.n_steps == 0 or not check_accuracy:  # nothing integrated, or not asked
+    if res.n_steps == 0 or not check_accuracy or not res.complete:
+        # nothing integrated, not asked, or cut short by the budget (its times are None
+        # and its peak a lower bound: nothing a second run could check)
         return res
     r = float(rtol)
     other = r / 10.0 if r / 10.0 >= lim.RTOL_RANGE[0] else r * 10.0
