@@ -34,8 +34,10 @@ Only fresh computations touch the bucket, and cached lookups never do:
 The in-flight count (``concurrent_requests``) counts the requests that compute, as a
 lease each (:class:`FreshGate`): one row in the database, taken atomically only while
 the key holds fewer than its quota (else 429 + ``Retry-After: 1``), renewed every
-``RSF_REQUEST_LEASE_S / 3`` while the request runs and deleted when it ends (a lease
-left by a process that died stops counting after ``RSF_REQUEST_LEASE_S``):
+``RSF_REQUEST_LEASE_S / 3`` while the request runs and deleted just before the last part
+of its answer is sent (so the client's next request never finds it), or in a
+``finally`` when the request ends otherwise (a lease left by a process that died stops
+counting after ``RSF_REQUEST_LEASE_S``):
 
 * a single query (:data:`SELF_ADMITTED`) takes its lease together with its token, once
   it is known to compute (or join a computation, or queue): a cached lookup takes none
@@ -453,6 +455,7 @@ class Limits:
                     await resp(scope, receive, send)
                     return
         seen: dict[str, Any] = {"status": 0, "fresh": False, "json": False}
+        state = RequestState(key_id=kid)
 
         async def watch(msg: Message) -> None:
             if msg["type"] == "http.response.start":
@@ -463,9 +466,16 @@ class Limits:
                         seen["fresh"] = True
                     elif k == b"content-type" and v == b"application/json":
                         seen["json"] = True
+            elif (
+                msg["type"] == "http.response.body"
+                and not msg.get("more_body", False)
+                and state.gate is not None
+            ):
+                # before the client has the whole answer: its next request must find
+                # the lease given back
+                await state.gate.release()
             await send(msg)
 
-        state = RequestState(key_id=kid)
         token = _state.set(state)
         try:
             await self.app(scope, receive, watch)

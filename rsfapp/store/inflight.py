@@ -30,6 +30,7 @@ clock error.
 
 from __future__ import annotations
 
+import logging
 import time
 import uuid
 from collections.abc import Callable
@@ -41,6 +42,7 @@ from ..db.engine import Database
 from ..db.tables import inflight_leases
 
 __all__ = ["InflightStore", "Lease", "LOCK_NAMESPACE"]
+log = logging.getLogger("rsf.store")
 
 #: First key of the PostgreSQL advisory locks of this module (the second is the hash of
 #: the API key); the two-key lock space does not overlap the one-key space of the
@@ -117,7 +119,10 @@ class InflightStore:
             )
         if time.monotonic() >= self._next_purge:
             self._next_purge = time.monotonic() + self.purge_every_s
-            self.purge()
+            try:
+                self.purge()
+            except Exception:  # noqa: BLE001 - the lease is taken; purge next time
+                log.warning("could not purge expired leases", exc_info=True)
         return Lease(True, lease_id, held + 1)
 
     def renew(self, lease_id: str, lease_s: float) -> bool:
@@ -152,10 +157,17 @@ class InflightStore:
             )
 
     def purge(self) -> int:
-        """Delete every expired lease (of every key); the number deleted."""
+        """Delete every expired lease (of every key); the number deleted.  On PostgreSQL
+        it skips rows locked by a concurrent transaction (``FOR UPDATE SKIP LOCKED``),
+        so it never waits for, nor deadlocks with, an acquisition."""
         t = inflight_leases
+        expired = (
+            select(t.c.lease_id)
+            .where(t.c.expires_at <= self.clock())
+            .with_for_update(skip_locked=True)
+        )
         with self.db.write() as conn:
             rows = conn.execute(
-                delete(t).where(t.c.expires_at <= self.clock()).returning(t.c.lease_id)
+                delete(t).where(t.c.lease_id.in_(expired)).returning(t.c.lease_id)
             ).all()
         return len(rows)
