@@ -355,16 +355,16 @@ def _plan(p: Params, phi0: float, psi0: float, resolution: float = 0.0) -> _Plan
     return _Plan(True, True, None, None)
 
 
-#: Load-point jumps with ln(1 + dv) below this are always integrated (no disagreement
-#: between classify and the critical size was found there; above, starts within the
-#: integration's resolution of the separatrix are decided by it, see _load_jump_side).
+#: Load-point jumps with ln(1 + dv) below this are decided by the integration alone (no
+#: disagreement between classify and the critical size was found there); above, the side
+#: of the traced separatrix overrules an integration that ends on the other side
+#: (_load_jump_side).
 LJ_SEPARATRIX_LOG_MIN = 3.0
 
 
-def _load_jump_side(params: Params, lg: float, rtol: float, resolution: float) -> tuple[int, bool]:
+def _load_jump_side(params: Params, lg: float, rtol: float) -> int:
     """Side of the separatrix of a load-point jump l = ln(1 + dv) >= LJ_SEPARATRIX_LOG_MIN,
-    from the critical size itself: (-1 below (stable) / +1 above (unstable) / 0 unknown,
-    whether the start is within ``resolution`` of it, i.e. decided without integrating).
+    from the critical size itself: -1 below (stable), +1 above (unstable), 0 unknown.
 
     The start (L = 0, t = l) lies at the separatrix's turning point, from which the path
     climbs almost vertically in L; integrating (phi, ln theta) there blurs t by ~rtol |l|
@@ -378,15 +378,15 @@ def _load_jump_side(params: Params, lg: float, rtol: float, resolution: float) -
     or where the separatrix method does not apply (bisection fallback, kind zero or
     infinite), the side is unknown (0)."""
     if not lg >= LJ_SEPARATRIX_LOG_MIN:
-        return 0, False
+        return 0
     crit = _load_jump_critical_log(params.ba, params.kappa, params.eps, params.vo, rtol)
     if crit is None:
-        return 0, False
+        return 0
     lc, band = crit
     gap = lg - lc
     if abs(gap) <= band:
-        return 0, False
-    return (-1 if gap < 0.0 else 1), abs(gap) <= resolution
+        return 0
+    return -1 if gap < 0.0 else 1
 
 
 @functools.lru_cache(maxsize=256)
@@ -689,7 +689,7 @@ def _simulate(
     if method not in ("auto", "integrate"):
         raise ParameterError("method", method, "'auto' or 'integrate'")
     lg_named: float | None = None  # d or ln(1 + dv) of a named perturbation (v_o > 0)
-    sep_side, sep_near = 0, False  # side of the separatrix of a large load-point jump
+    sep_side = 0  # side of the separatrix of a large load-point jump (0: not used)
     # The closed-form decisions are frame-invariant; for a velocity jump they are taken in
     # the v_o = 1 frame, where its start (d, d) is exact: from (phi0, psi0) the jump is
     # blurred by the rounding of psi0 = (1 - b/a) ln v_o + d (1e-9 relative at b/a = 1e4,
@@ -716,8 +716,8 @@ def _simulate(
                 # the integration runs (for the times) and is overruled by the side of the
                 # traced separatrix if it ended on the other side; starts the integration
                 # cannot take are decided by the side alone (_load_jump_side)
-                sep_side, sep_near = _load_jump_side(params, lg, rtol, math.inf if beyond else 0.0)
-                if sep_side and sep_near:
+                sep_side = _load_jump_side(params, lg, rtol)
+                if sep_side and beyond:
                     plan = _SEPARATRIX_PLANS[sep_side]
         kc = p_run.kappa_crit
         if plan.certificate in _U_CERTS and abs(p_run.kappa - kc) <= KCRIT_TOL * kc:
