@@ -207,6 +207,10 @@ def _timed(q: Query, rtol: float) -> None:
         print(f"  [slow {q.seconds:.1f} s] {_label(q)}", file=sys.stderr, flush=True)
 
 
+#: critical queries whose stated rel_accuracy is too coarse for the 0.5x / 2x check
+_UNCHECKABLE: list[Query] = []
+
+
 def _classify_around(crit: list[Query]) -> list[Query]:
     """classify at 0.5x and 2x every finite nonzero critical size (through log_size)."""
     out = []
@@ -216,6 +220,11 @@ def _classify_around(crit: list[Query]) -> list[Query]:
             continue
         lg = float(res.log_critical_size)
         if lg == 0.0 or not math.isfinite(lg):
+            continue
+        if res.rel_accuracy >= 0.5:
+            # 0.5x / 2x lie within the size's own stated accuracy (e.g. the asymptote at
+            # ln(1 + dv) ~ 1e15, where 8 ulp of l is ~1): nothing to check there
+            _UNCHECKABLE.append(q)
             continue
         for f, expect in ((0.5, "stable"), (2.0, "unstable")):
             cq = Query(
@@ -318,6 +327,12 @@ def main() -> None:
           f"{len(checks)} as expected")  # fmt: skip
     for q in bad[:10]:
         print(f"  expected {q.extra['expect']}: {_label(q)}\n      -> {q.info}")
+    timed_uncheckable = [q for q in _UNCHECKABLE if q in crit]
+    if timed_uncheckable:
+        print(
+            f"  not checked: {len(timed_uncheckable)} sizes whose stated rel_accuracy is >= 0.5"
+            " (0.5x / 2x lie within it)"
+        )
 
     all_t = [q.seconds for q in queries if not q.error]
     met = not slow and not errs

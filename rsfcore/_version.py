@@ -19,6 +19,6 @@ __all__ = ["NUMERICS_VERSION"]
 #:    jumps with large ln(1 + dv) near the separatrix is decided by the traced separatrix.
 #:    Separatrix: stiff runs switch to RODAS4 (no bisection at b/a = kappa = 1e6); changes <= 9.2e-11.
 #:    rel_accuracy of times and peaks is checked by a second run at rtol/10 (larger near the
-#:    separatrix and in ill-conditioned corners); load-point sizes beyond reach are kind
-#:    finite with a null size (were "infinite").
+#:    separatrix and in ill-conditioned corners); load-point sizes beyond the separatrix's
+#:    reach come from a fitted asymptote (were "infinite").
 NUMERICS_VERSION = "3"

@@ -193,7 +193,11 @@ def critical_points(
             kind[i] = _crit.KINDS.index(res.kind)
             value[i] = math.inf if res.critical_size is None else res.critical_size
             acc[i] = res.rel_accuracy
-            meth[i] = _crit.M_BISECTION
+            meth[i] = (
+                _crit.M_ASYMPTOTE
+                if res.method == _crit.METHODS[_crit.M_ASYMPTOTE]
+                else _crit.M_BISECTION
+            )
         except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
             failed[i] = True
             errors[int(i)] = f"{type(exc).__name__}: {exc}"[:2000]

@@ -101,6 +101,7 @@ __all__ = [
     "critical_perturbation",
     "accuracy_verdict",
     "bisect_critical",
+    "load_jump_asymptote",
     "asymptotic_start",
     "separatrix_raw",
     "PERTURBATIONS",
@@ -109,6 +110,8 @@ __all__ = [
     "BOUNDARY_RTOL",
     "DEFAULT_RTOL",
     "RTOL_RANGE",
+    "ASYM_R_MIN",
+    "ASYM_LSTAR_MIN",
 ]
 
 PERTURBATIONS: tuple[str, ...] = ("velocity-jump", "load-point-jump")
@@ -139,7 +142,10 @@ METHODS: tuple[str, ...] = (
     "zero: kappa = 0 with a stationary load point (L* = 0)",
     "separatrix: finite beyond the double range, ln(1 + dv) > 709 (dv > 8e307): reported by"
     " log_critical_size = ln(1 + dv)",
+    "asymptote: ln(1 + dv) = L* - ln(kappa_crit) - (1 - x)(1 - (pi^2/6 - 1) kappa_crit)/r"
+    " for r = kappa/kappa_crit >> 1 (fitted to the separatrix method, see docs/accuracy.md)",
 )
+M_ASYMPTOTE = 9
 
 # flag bits of the compiled kernel (_critical_point, critical_batch; they call the separatrix
 # driver, whose shared rk kernels numba's cache does not track: touch this file after
@@ -346,6 +352,7 @@ def accuracy_verdict(kind: str, method: str, rel_accuracy: float, rtol: float) -
         "separatrix": "the separatrix integration's propagated error estimate is",
         "bisection on certified classify() outcomes": "the bisection bracket (classify could"
         " not decide closer to the separatrix) is",
+        "asymptote": "the asymptote's error bound (the next order in kappa_crit/kappa) is",
     }.get(how, f"{how} reaches")
     return False, f"{why} {rel_accuracy:.2g} relative, above the requested rtol {rtol:.2g}"
 
@@ -398,6 +405,18 @@ def critical_perturbation(
     Returns a CriticalResult.  Never returns nan: if the separatrix method cannot be
     applied, bisection on classify() is used (slower, same accuracy target).
     """
+    if (
+        isinstance(params, Params)
+        and perturbation == PERTURBATIONS[1]
+        and params.vo > 0.0
+        and float(L_star(params.kappa, params.kappa_crit, params.eps)) >= ASYM_DIRECT_LSTAR
+    ):
+        # beyond the separatrix integration's budget for certain: skip its failed attempt
+        # (0.1-0.3 s) and answer by the asymptote
+        x = params.eps * params.kappa / params.kappa_crit
+        res = _asymptote_result(params, perturbation, abs(x - 1.0) <= BOUNDARY_RTOL)
+        if res is not None:
+            return _with_accuracy(res, lim.RTOL.check(rtol))
     rtol, kind, val, acc, meth, flags, nr, on_b = _first_decision(params, perturbation, rtol)
     if flags & FLAG_FALLBACK:
         res = bisect_critical(params, perturbation, rtol=rtol)
@@ -433,6 +452,58 @@ def _make_result(
     )
 
 
+#: The load-point asymptote is used where kappa/kappa_crit >= this and L* >= ASYM_LSTAR_MIN:
+#: there ln(1 + dv_crit) >~ 1e4 is beyond both the separatrix integration's budget (it
+#: steps through u ~ L* at <= 0.1) and the starts classify integrates.
+ASYM_R_MIN = 1.0e3
+ASYM_LSTAR_MIN = 1.0e4
+#: From this L* on the separatrix integration cannot finish (it failed at L* = 2e4 and
+#: took 1.44e6 right-hand sides at 1e4), so critical_perturbation goes to the asymptote
+#: at once.
+ASYM_DIRECT_LSTAR = 2.0e4
+_PI2_6_M1 = math.pi**2 / 6.0 - 1.0
+
+
+def load_jump_asymptote(
+    params: Params, lstar_min: float = ASYM_LSTAR_MIN
+) -> tuple[float, float] | None:
+    """(l, abs error of l) of the critical load-point jump, l = ln(1 + dv_crit), for
+    r = kappa/kappa_crit >> 1, or None outside its range (r < ASYM_R_MIN or L* <
+    ``lstar_min``, or L* infinite; a smaller ``lstar_min`` is for testing it where the
+    separatrix method runs too).
+
+    l = L* - ln(kappa_crit) - (1 - x)(1 - (pi^2/6 - 1) kappa_crit)/r + O((1 + kappa_crit^2)/r^2),
+    x = eps r.  Not derived: fitted to the separatrix method at r = 1e3 .. 1e4, kappa_crit =
+    1e-9 .. 30, x = 0 .. 0.99, where r (l - L* + ln kappa_crit) came out -(1 - x) A with
+    A = 1.000, 0.9994, 0.3551, -18.32 at kappa_crit = 1e-9, 1e-3, 1, 30 (1 - (pi^2/6 - 1)
+    kappa_crit: 1.000, 0.99936, 0.35507, -18.35).  The error bound 10 (1 + kappa_crit^2)/r^2
+    plus 8 ulp of l is 10x the largest second-order residual measured there, and is
+    tested against the separatrix method wherever both run
+    (tests/core/test_critical_agreement.py)."""
+    kc, kappa, eps = params.kappa_crit, params.kappa, params.eps
+    r = kappa / kc
+    if not r >= ASYM_R_MIN:
+        return None
+    ls = float(L_star(kappa, kc, eps))
+    if not (math.isfinite(ls) and ls >= lstar_min):
+        return None
+    x = eps * r
+    lg = ls - math.log(kc) - (1.0 - x) * (1.0 - _PI2_6_M1 * kc) / r
+    return lg, 10.0 * (1.0 + kc * kc) / (r * r) + 8.0 * math.ulp(lg)
+
+
+def _asymptote_result(params: Params, perturbation: str, on_b: bool) -> CriticalResult | None:
+    """The load-point critical size by :func:`load_jump_asymptote`, or None outside it."""
+    asym = load_jump_asymptote(params)
+    if asym is None:
+        return None
+    lg, err = asym
+    size = math.expm1(lg) if lg < 709.0 else math.inf
+    return CriticalResult(
+        "finite", size, err, METHODS[M_ASYMPTOTE], perturbation, params, on_b, 0, lg
+    )
+
+
 def bisect_critical(
     params: Params,
     perturbation: str = "velocity-jump",
@@ -454,6 +525,8 @@ def bisect_critical(
 
     integrate_only=True asks classify to certify by integration alone (ignoring its
     closed-form shortcuts at kappa = kappa_crit and v_o = 0), to check closed forms.
+    Otherwise a load-point jump whose size lies beyond both methods (kappa/kappa_crit >=
+    ASYM_R_MIN, L* >= ASYM_LSTAR_MIN) is answered by :func:`load_jump_asymptote`.
 
     With v_o > 0 the classifications run at v_o = 1: critical sizes are v_o-invariant
     (module docstring), so the answer is too, exactly (issue 13 measured 1.3 % between
@@ -474,6 +547,10 @@ def _bisect_critical(
         return _make_result(
             int(kind), float(val), float(acc), int(meth), perturbation, params, on_b
         )
+    if _pert_code(perturbation) == 1 and not integrate_only:
+        res = _asymptote_result(params, perturbation, on_b)
+        if res is not None:
+            return res
 
     crtol = max(1e-13, min(1e-10, rtol))
     kw: dict[str, Any] = {"method": "integrate"} if integrate_only else {}

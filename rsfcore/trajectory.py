@@ -396,11 +396,28 @@ def _load_jump_critical_log(
     """(l_crit, error band of l_crit) of a load-point jump by the separatrix method, or None
     where it does not apply.  Cached: a bisection on classify asks the same parameters
     ~60 times, and where the separatrix method fails it fails only after its budget."""
-    from .critical import FLAG_FALLBACK, FLAG_LOG_VALUE, KIND_FINITE, _first_decision
+    from .critical import (
+        ASYM_DIRECT_LSTAR,
+        FLAG_FALLBACK,
+        FLAG_LOG_VALUE,
+        KIND_FINITE,
+        _first_decision,
+        load_jump_asymptote,
+    )
 
     p = Params(ba, kappa, eps, vo)
-    _, kind, val, acc, _, flags, _, _ = _first_decision(p, "load-point-jump", rtol)
-    if flags & FLAG_FALLBACK or kind != KIND_FINITE:
+    # beyond the separatrix integration's reach the critical size is its asymptote (as
+    # critical_perturbation answers), with that asymptote's error bound
+    far = float(L_star(kappa, p.kappa_crit, eps)) >= ASYM_DIRECT_LSTAR
+    flags = 0
+    if not far:
+        _, kind, val, acc, _, flags, _, _ = _first_decision(p, "load-point-jump", rtol)
+    if far or flags & FLAG_FALLBACK:
+        asym = load_jump_asymptote(p)
+        if asym is None:
+            return None
+        return asym[0], 2.0 * asym[1] + 8.0 * math.ulp(asym[0])
+    if kind != KIND_FINITE:
         return None
     lc = float(val) if flags & FLAG_LOG_VALUE else math.log1p(float(val))
     if not math.isfinite(lc):

@@ -16,6 +16,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from rsfcore import Params, bisect_critical, classify, critical_perturbation
+from rsfcore.critical import load_jump_asymptote
 from rsfcore.laws import G, L_star
 
 VJ, LJ = "velocity-jump", "load-point-jump"
@@ -204,7 +205,53 @@ def test_load_point_size_beyond_reach_is_finite_not_infinite() -> None:
     # integrates; the bisection used to report kind "infinite" here (rel_accuracy 0).
     p = Params(1.001, 1e6 * 0.001, 0.5 / 1e6)
     r = critical_perturbation(p, LJ)
-    assert r.kind == "finite" and r.critical_size is None and r.log_critical_size is None
-    assert not r.accuracy_met and "beyond what rsfcore computes" in r.reason
-    # the size is not within the reach checked: a jump of ln(1 + dv) = 600 is stable
+    assert r.kind == "finite" and r.critical_size == math.inf
+    assert r.log_critical_size is not None and r.log_critical_size > 1e6
+    # a jump of ln(1 + dv) = 600, within classify's reach, is stable
     assert classify(p, LJ, log_size=600.0).outcome == "stable"
+    # where no method applies (L* >= 1e4 from x -> 1 at kappa/kappa_crit < 1e3) the size
+    # is finite with a null value and a reason, never "infinite"
+    q = Params(1.001, 500 * 0.001, (1.0 - 1e-9) / 500)
+    rq = critical_perturbation(q, LJ)
+    assert rq.kind == "finite"
+    if rq.log_critical_size is None:
+        assert not rq.accuracy_met and "beyond what rsfcore computes" in rq.reason
+
+
+ASYM_CASES = [
+    (kc, x, r)
+    for kc in (1e-9, 1e-3, 1.0, 30.0)
+    for x in (0.0, 0.5, 0.9, 0.99)
+    for r in (1.01e3, 3e3, 1e4)
+    if kc * r <= 1e6 and not (x >= 0.9 and r >= 1e4)  # there the separatrix runs out
+]
+
+
+@pytest.mark.parametrize("kc, x, r", ASYM_CASES)
+def test_load_point_asymptote_against_the_separatrix_method(kc: float, x: float, r: float) -> None:
+    # The asymptote answers load-point jumps beyond both methods (L* >= 1e4 with
+    # kappa/kappa_crit >= 1e3); where the separatrix method still runs (r <= 1e4) the
+    # asymptote must agree with it within its own error bound plus the separatrix's.
+    p = Params(1.0 + kc, kc * r, x / r)
+    sep = critical_perturbation(p, LJ, rtol=1e-12)
+    assert sep.method.startswith("separatrix") and sep.log_critical_size is not None
+    asym = load_jump_asymptote(p, lstar_min=0.0)
+    assert asym is not None
+    lg, err = asym
+    sep_err = sep.rel_accuracy  # relative error of dv = absolute error of l for l >> 1
+    assert abs(lg - sep.log_critical_size) <= err + sep_err, (lg, sep.log_critical_size, err)
+
+
+def test_load_point_asymptote_answers_beyond_reach() -> None:
+    # b/a = 1 + 1e-6, kappa/kappa_crit = 1e5: L* = 1e5, beyond the separatrix's budget.
+    # The answer lies between L* - ln(kappa_crit) - 2/r and L* - ln(kappa_crit) (the
+    # 1/r term of the asymptote is -(1 - 0.645 kappa_crit)/r), with a bound ~1e-9.
+    p = Params(1.0 + 1e-6, 1e-6 * 1e5, 0.0)
+    r = critical_perturbation(p, LJ)
+    assert r.kind == "finite" and r.method.startswith("asymptote")
+    lead = p.kappa / p.kappa_crit - math.log(p.kappa_crit)  # L* = kappa/kappa_crit at eps = 0
+    assert r.log_critical_size is not None
+    assert lead - 2.0 * p.kappa_crit / p.kappa < r.log_critical_size < lead
+    assert r.rel_accuracy < 2e-9 and not r.accuracy_met  # 1e-10 is not reached
+    assert "asymptote's error bound" in r.reason
+    assert critical_perturbation(p, LJ, rtol=1e-8).accuracy_met
