@@ -488,9 +488,7 @@ def _plain_critical_items(
             typed &= np.fromiter((type(v) is float for v in raw), dtype=bool, count=len(raw))
         good &= typed & ~lim.bad_mask(vals)
         cols[key] = vals
-    pert = np.array(
-        [_PERT_INDEX.get(d.get("perturbation", "velocity-jump"), -1) for d in plain], dtype=np.intp
-    )
+    pert = np.array([_pert_index(d.get("perturbation", "velocity-jump")) for d in plain], np.intp)
     # a load-point jump needs a moving load point (v_o > 0); the model path says so
     good &= (pert >= 0) & ~((pert == 1) & (cols["vo"] == 0.0))
     cols["perturbation"] = pert
@@ -498,6 +496,11 @@ def _plain_critical_items(
 
 
 _PERT_INDEX = {name: i for i, name in enumerate(_critical.PERTURBATIONS)}
+
+
+def _pert_index(value: object) -> int:
+    """Index of a perturbation name, -1 for anything else (any JSON value, lists too)."""
+    return _PERT_INDEX.get(value, -1) if isinstance(value, str) else -1
 
 
 def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:

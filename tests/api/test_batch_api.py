@@ -48,6 +48,8 @@ CRITICAL_ITEMS: list[dict[str, Any]] = [
     {"ba": 2.0, "kappa": 1e3, "eps": 0.0, "perturbation": "load-point-jump"},  # dv > 1e308
     {"ba": 10**400},  # invalid: an integer beyond double range
     {"ba": 2.0, "kappa": 3.0, "eps": 0.1, "vo": 0.0, "perturbation": "load-point-jump"},
+    {"perturbation": ["velocity-jump"]},  # invalid: a list is not a perturbation name
+    {"ba": [2.0]},  # invalid: a list is not a number
 ]
 BAD = {
     6: "ba",
@@ -60,6 +62,8 @@ BAD = {
     17: "rtol",
     19: "ba",
     20: "vo",
+    21: "perturbation",
+    22: "ba",
 }
 
 
