@@ -583,22 +583,20 @@ def simulate(
     d = d_crit (1 + 1e-7)), so the difference of the two runs, scaled by tolerance
     proportionality, raises it where needed (:data:`SECOND_RUN_FACTOR`).
     """
-    res = _simulate(
+    # the question (and its budget) is the same for both runs; only rtol and the samples differ
+    run = functools.partial(
+        _simulate,
         params,
         perturbation,
         size,
         start=start,
-        rtol=rtol,
         t_end=t_end,
-        n_points=n_points,
-        times=times,
-        sampling=sampling,
-        physical=physical,
         method=method,
         max_steps=max_steps,
         integrator=integrator,
         log_size=log_size,
     )
+    res = run(rtol=rtol, n_points=n_points, times=times, sampling=sampling, physical=physical)
     if res.n_steps == 0 or not check_accuracy or not res.complete:
         # nothing integrated, not asked, or cut short by the budget (its times are None
         # and its peak a lower bound: nothing a second run could check)
@@ -606,18 +604,7 @@ def simulate(
     r = float(rtol)
     other = r / 10.0 if r / 10.0 >= lim.RTOL_RANGE[0] else r * 10.0
     try:
-        check = _simulate(
-            params,
-            perturbation,
-            size,
-            start=start,
-            rtol=other,
-            t_end=t_end,
-            method=method,
-            max_steps=max_steps,
-            integrator=integrator,
-            log_size=log_size,
-        )
+        check = run(rtol=other)
     except (UndecidedError, ParameterError):
         return res  # no second opinion to be had; the first run's estimate stands
     return replace(res, rel_accuracy=_checked_accuracy(res, check, other / r))

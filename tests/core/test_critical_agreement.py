@@ -209,13 +209,19 @@ def test_load_point_size_beyond_reach_is_finite_not_infinite() -> None:
     assert r.log_critical_size is not None and r.log_critical_size > 1e6
     # a jump of ln(1 + dv) = 600, within classify's reach, is stable
     assert classify(p, LJ, log_size=600.0).outcome == "stable"
-    # where no method applies (L* >= 1e4 from x -> 1 at kappa/kappa_crit < 1e3) the size
-    # is finite with a null value and a reason, never "infinite"
+    # L* >= 1e4 from x -> 1 at kappa/kappa_crit = 500 (below the asymptote's range): the
+    # separatrix method still reaches it (ln(1 + dv_crit) = 10368.6)
     q = Params(1.001, 500 * 0.001, (1.0 - 1e-9) / 500)
     rq = critical_perturbation(q, LJ)
-    assert rq.kind == "finite"
-    if rq.log_critical_size is None:
-        assert not rq.accuracy_met and "beyond what rsfcore computes" in rq.reason
+    assert rq.kind == "finite" and rq.method.startswith("separatrix") and rq.accuracy_met
+    assert rq.log_critical_size is not None and rq.log_critical_size > 1e4
+    # at kappa/kappa_crit = 999, x = 1 - 1e-12 (L* = 2.8e4) neither the separatrix method,
+    # nor the asymptote (kappa/kappa_crit < 1e3), nor the bisection (ln(1 + dv) <= 690)
+    # reaches it: finite with null values and the reason, never "infinite"
+    z = Params(1.001, 999 * 0.001, (1.0 - 1e-12) / 999)
+    rz = critical_perturbation(z, LJ)
+    assert rz.kind == "finite" and rz.critical_size is None and rz.log_critical_size is None
+    assert not rz.accuracy_met and "beyond what rsfcore computes" in rz.reason
 
 
 ASYM_CASES = [
