@@ -23,7 +23,7 @@ from rsfapp.config import get_settings
 from rsfapp.db.engine import Database, DatabaseUnavailable
 from rsfapp.store import stores_for
 from rsfapp.store.inflight import InflightStore
-from rsfapp.store.keys import KeyStore, Scope, hash_key
+from rsfapp.store.keys import KeyStore, Scope, WouldBlock, hash_key
 from rsfapp.store.ratelimits import RateLimitStore, capacity_of
 from service.app import create_app
 from service.deps import get_queue
@@ -215,6 +215,10 @@ def test_fast_hit_database_down_is_503_not_500(two: Two, monkeypatch: pytest.Mon
     def down(self: KeyStore, key: str) -> None:
         raise DatabaseUnavailable("connection refused (test)")
 
+    def cannot(self: KeyStore, key: str) -> None:
+        raise WouldBlock  # the event-loop read gives up; the read in a thread finds it down
+
+    monkeypatch.setattr(KeyStore, "verify_inline", cannot)
     monkeypatch.setattr(KeyStore, "verify", down)
     r = two.a.post("/v1/classify", json=body, headers=h)
     assert r.status_code == 503 and r.headers["content-type"].startswith(PROBLEM), r.text
