@@ -14,13 +14,29 @@ latency, bytes per point) is measured by bench/bench_sweep.py.
 
 ``--api-scaling`` measures the API alone: for 1 and 2 API processes (`rsf api
 --workers N`, SQLite under a temporary data directory, no worker) it prints the
-throughput of cached lookups (repeated POST /v1/classify, answered from the result store)
-next to the trivial endpoint GET /health/live (no I/O) in the same run.  Targets (issue
-12): cached >= 0.8x trivial; 2 API processes >= 1.6x one.  The load generator runs on
-the same machine, so on 2 cores it competes with the API processes for the CPU.  With
+throughput of cached lookups (POST /v1/classify cycling through 50 cached queries,
+answered from memory) next to the trivial endpoint GET /health/live (no I/O) in the same
+run.  Targets (issue 12): cached >= 0.8x trivial; 2 API processes >= 1.6x one.  With
 ``--with-key`` it also measures the cached lookups sent with an API key (made with the
 real `rsf keys create`, revoked after the phase): every such request verifies the key
 in the database (revocation is immediate), the cost every deployment with keys pays.
+
+The load generator runs on the same machine.  When ``wrk`` is on PATH (``apt-get
+install wrk``) it is used (``--generator auto``): one thread, ``--connections``
+keep-alive connections, a Lua script generated into a temporary directory that cycles
+through the pre-formatted requests; phases then last ``--seconds`` (no request bound).
+Otherwise the Python generator (``--clients`` processes) is used; the printout names
+the one used.  With wrk, the API processes and wrk are pinned (``taskset``, unless
+``--no-pin``): n API processes on CPUs 0..n-1, wrk on the last CPU.  For every phase it
+prints the CPU budget read from /proc: CPU time per request of the API processes and of
+the generator, cores each used, the cores used by the rest of the machine (other users:
+a non-zero figure means the run was disturbed), the share of each API process and the
+load average; and, for 2 processes / 1, the ceiling the CPU allows:
+``min(2 / s2, ncpu / (s2 + g2)) / (1 / s1)`` with ``s`` and ``g`` the server and
+generator CPU time per request (one process uses at most one core; two processes share
+the machine's cores with the generator).  On 2 cores the generator's share decides
+whether 1.6x is reachable: wrk costs ~20-35 us per request, the Python generator ~150 us
+(as much as the server), which caps it at ~1.0-1.2x.
 """
 
 from __future__ import annotations
