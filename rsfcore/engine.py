@@ -54,6 +54,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from .excursion import PHI_LEG
+from .excursion import fast_leg as _fast_leg
 from .laws import EXP_CLIP, G_clipped
 from .ode import rk
 from .ode import rodas4_tableau as _ro
@@ -132,7 +134,8 @@ class EngineResult(NamedTuple):
     Attributes:
         status: why the run stopped.
         y_end: final state (phi, ln theta, T[, s, s_o]).
-        tau_end: final hybrid time.
+        tau_end: final hybrid time (over the integrated steps: a closed-form fast-slip
+            leg, n_legs > 0, adds none).
         T_cert: T of the runaway certificate L > L* (nan if none).
         T_return: T of the return certificate (nan if none).
         peak_phi, peak_T: largest phi reached (located on the dense output) and its T.
@@ -141,6 +144,7 @@ class EngineResult(NamedTuple):
         err_sum: sum over accepted steps of rtol times the normalised local error estimate.
         n_filled: number of sample rows written.
         n_stiff_steps: accepted steps taken by RODAS4 (stiff phases); n_jacobians: Jacobians.
+        n_legs: fast-slip legs taken in closed form (rsfcore.excursion; fast_leg=True).
     """
 
     status: Status
@@ -159,6 +163,7 @@ class EngineResult(NamedTuple):
     n_filled: int
     n_stiff_steps: int = 0
     n_jacobians: int = 0
+    n_legs: int = 0
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -483,6 +488,7 @@ def integrate(
     sample_T_in,
     samples,
     integrator=1,
+    fast_leg=False,
 ):
     """Integrate from y0 = (phi, ln theta, T, s, s_o) until a certificate or a stop.
 
@@ -506,10 +512,14 @@ def integrate(
         integrator: 0 = DOP853 only; 1 = automatic (DOP853, switching to RODAS4 when
             Hairer's stiffness test fires 15 times in a row, and back when h |lambda| < 2
             for 20 steps); 2 = RODAS4 only.
+        fast_leg: take the fast-slip leg of an excursion above phi - ln c = PHI_LEG in
+            closed form (rsfcore.excursion) instead of stepping through it; only while no
+            hybrid-time sample is pending (tau itself does not advance over the leg).
 
     Returns:
         (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, peak_psi, peak_psi_T,
-         n_steps, n_rhs, n_rejected, err_sum, n_filled, n_stiff_steps, n_jacobians) where
+         n_steps, n_rhs, n_rejected, err_sum, n_filled, n_stiff_steps, n_jacobians,
+         n_legs) where
         T_cert is the T of the runaway certificate (nan if none) and err_sum the sum over
         accepted steps of the normalised local error estimate times rtol (an a-posteriori
         accuracy indicator).
@@ -608,6 +618,7 @@ def integrate(
             n_filled,
             0,
             0,
+            0,
         )
     if check_runaway and y[0] + y[1] > Lstar:
         runaway = True
@@ -624,6 +635,7 @@ def integrate(
     n_easy = 0  # consecutive accepted RODAS4 steps with h |lambda| < 2
     n_stiff_steps = 0
     n_jac = 0
+    n_legs = 0
     while n_steps + n_rej < max_steps:
         if stiff:
             # ---- one RODAS4 step (stiff phase) ----------------------------------
@@ -988,6 +1000,37 @@ def integrate(
                 h_acc_prev = 0.0
                 err_acc_prev = 1.0
 
+        # ---- fast-slip leg in closed form (rsfcore.excursion) ---------------------
+        if fast_leg and not fixed_L and not runaway and i_tau >= n_tau and y[0] - lnc >= PHI_LEG:
+            leg = _fast_leg(y[0], y[1], ba, kappa, eps)
+            if leg[0]:
+                L_exit, phi_pk, dJ, rate_in, rate_exit = leg[1], leg[2], leg[3], leg[4], leg[5]
+                # c T spent on the two flanks (the top takes < e^-phi of it)
+                e_in = math.exp(-(y[0] - lnc))
+                dcT_up = e_in / rate_in
+                dcT = dcT_up + e_in / rate_exit
+                if y[2] + dcT < t_end and not (i_T < n_T and sample_T[i_T] <= y[2] + dcT):
+                    if phi_pk > peak_phi:
+                        peak_phi = phi_pk
+                        peak_T = y[2] + dcT_up
+                    if n > 3:
+                        y[3] += -dJ / (ba - 1.0)
+                        y[4] += dcT
+                    y[2] += dcT
+                    y[1] = L_exit - y[0]  # phi is back at its entry value
+                    _rhs(y, f, ba, kappa, eps, vo, c, lnc)
+                    n_rhs += 1
+                    n_legs += 1
+                    # restart the step size (the exit flank is not the entry's)
+                    h0, d1 = rk.initial_step_trial(y, f, rtol, atol, 3)
+                    for j in range(n):
+                        tmp[j] = y[j] + h0 * f[j]
+                    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+                    n_rhs += 1
+                    h = rk.initial_step(h0, d1, y, f, ftmp, rtol, atol, 3)
+                    h_acc_prev = 0.0
+                    err_acc_prev = 1.0
+
     if status == _BUDGET and runaway:
         status = _RUNAWAY if y[0] - lnc > phi_stop else _BUDGET
     y[2] /= c
@@ -1010,6 +1053,7 @@ def integrate(
         n_filled,
         n_stiff_steps,
         n_jac,
+        n_legs,
     )
 
 
@@ -1046,6 +1090,7 @@ def run(
     sample_T: NDArray[np.float64],
     samples: NDArray[np.float64],
     integrator: int = 1,
+    fast_leg: bool = False,
 ) -> EngineResult:
     """:func:`integrate` with its result as an :class:`EngineResult` (status a :class:`Status`).
 
@@ -1073,6 +1118,7 @@ def run(
         sample_T,
         samples,
         int(integrator),
+        bool(fast_leg),
     )
     # the kernel already returns Python ints and floats: only the status is wrapped
     return EngineResult(_STATUS_OF[res[0]], *res[1:])

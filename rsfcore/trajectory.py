@@ -75,8 +75,14 @@ _INTEGRATORS: dict[str, Integrator] = {
 # DEFAULT_RTOL, RTOL_RANGE and SIZE_MAX (|d| of a velocity jump) come from rsfcore.limits.
 PHI_STOP = 40.0
 MAX_STEPS = STEP_BUDGET
-#: Step budget when a closed form has already decided the outcome (~0.5 s).
+#: Step budget when a closed form has already decided the outcome and a trajectory is
+#: wanted (~0.5 s).
 DECIDED_BUDGET = 500_000
+#: The same when only the outcome is asked (classify): its times are reported where they
+#: come within this many steps (~7 ms at ~0.7 us per step), else None with complete False.
+#: Slow outward spirals at kappa < kappa_crit near b/a -> 1 need 1e5 .. 1e7 steps to blow
+#: up (bench/bench_stress.py: 5e5 steps, 0.33 s, still short of it).
+DECIDED_OUTCOME_BUDGET = 10_000
 EQ_TOL = 1e-6
 #: The ``converged_to_steady_state`` certificate needs the box |phi - ln v_o|, |L| < eq_tol
 #: to lie inside the basin of steady sliding.  The basin's narrowest extent, the load-point
@@ -448,8 +454,13 @@ def _run(
     sample_T: NDArray[np.float64] = _EMPTY,
     max_steps: int = MAX_STEPS,
     integrator: Integrator = Integrator.AUTO,
+    fast_leg: bool | None = None,
 ) -> tuple[EngineResult, NDArray[np.float64]]:
+    """One engine run; fast-slip legs in closed form (rsfcore.excursion) unless hybrid-time
+    samples are wanted (``fast_leg`` None) or ``fast_leg`` is False."""
     n_samp = sample_tau.shape[0] + sample_T.shape[0]
+    if fast_leg is None:
+        fast_leg = sample_tau.shape[0] == 0
     lth0 = (psi0 - phi0) / p.ba
     # without samples only (phi, ln theta, T) are carried
     y0 = np.array([phi0, lth0, 0.0, 0.0, 0.0]) if n_samp else np.array([phi0, lth0, 0.0])
@@ -475,6 +486,7 @@ def _run(
         sample_T,
         samples,
         integrator,
+        fast_leg,
     )
     return res, samples
 
@@ -511,7 +523,12 @@ def classify(
             wanted (bisection, point fallbacks): half the cost, outcome unchanged.
 
     Returns a TrajectoryResult with outcome, certificate, blow-up or return time and the
-    true peak.  Raises UndecidedError if no certificate is reached within the budget
+    true peak.  Where the outcome is certain before integrating (kappa < kappa_crit with
+    v_o > 0, a closed form, the separatrix side), the times are integrated for at most
+    DECIDED_OUTCOME_BUDGET steps; beyond, they are None and ``complete`` False (a
+    trajectory request, :func:`simulate` with ``n_points``, integrates further).  Fast-slip
+    legs above phi - ln v_o = 50 are taken in closed form (rsfcore.excursion).
+    Raises UndecidedError if no certificate is reached within the budget
     (1e7 steps, ~10 s), ParameterError on invalid input.
     """
     return simulate(
@@ -559,7 +576,10 @@ def simulate(
     earlier).  ``physical`` adds SI columns: t_s, V_m_s, tau_change_Pa, friction,
     theta_s, slip_m, load_point_m.
     ``method="integrate"`` ignores closed-form decisions (kappa = kappa_crit, v_o = 0)
-    and certifies by integration alone, to check the closed forms.  ``max_steps``
+    and certifies by integration alone, to check the closed forms; it also steps through
+    fast-slip legs that "auto" takes in closed form (rsfcore.excursion: above phi - ln v_o
+    = 50 only L moves the state, so a leg to phi ~ 1e11 near b/a -> 1 costs one formula
+    instead of ~1e5 steps, and is exact where the steps blur L = phi + ln theta).  ``max_steps``
     (<= 1e7) bounds the work: UndecidedError(reason="budget") when it runs out first.
 
     ``integrator``: "auto" (default) runs DOP853 and switches to RODAS4 (an L-stable
@@ -595,6 +615,7 @@ def simulate(
         max_steps=max_steps,
         integrator=integrator,
         log_size=log_size,
+        side_rtol=rtol,  # the separatrix side is asked once, at the caller's tolerance
     )
     res = run(rtol=rtol, n_points=n_points, times=times, sampling=sampling, physical=physical)
     if res.n_steps == 0 or not check_accuracy or not res.complete:
@@ -657,8 +678,10 @@ def _simulate(
     max_steps: int = MAX_STEPS,
     integrator: IntegratorName = "auto",
     log_size: float | None = None,
+    side_rtol: float | None = None,
 ) -> TrajectoryResult:
-    """:func:`simulate` without the second run (one integration)."""
+    """:func:`simulate` without the second run (one integration); ``side_rtol`` is the
+    tolerance of the separatrix side of a large load-point jump (default ``rtol``)."""
     rtol = lim.RTOL.check(rtol)
     if integrator not in _INTEGRATORS:
         raise ParameterError("integrator", integrator, "'auto', 'explicit' or 'rosenbrock'")
@@ -700,6 +723,7 @@ def _simulate(
     # v_o = 1e-6).  At kappa = kappa_crit both jumps use the closed forms' own residuals.
     # Near the separatrix's asymptote the integration of (phi, ln theta) cannot resolve
     # L - L* below ~rtol (|phi| + |ln theta|) per step: there the asymptote decides.
+    only_outcome = not n_points and (times is None or len(times) == 0) and t_end is None
     lth0 = (psi0 - phi0) / p_run.ba
     res_ = math.inf if beyond else 1e4 * rtol * (1.0 + abs(phi0) + abs(lth0))
     if start is not None or p_run.vo == 0.0:
@@ -715,12 +739,13 @@ def _simulate(
             # (in its own frame the start is steady sliding at the old v_o, L = 0 exactly,
             # which the v_o = 1 frame (-l, (b/a - 1) l) would blur)
             plan = _plan(p_run, phi0, psi0, res_)
-            only_outcome = not n_points and not times and t_end is None
             if plan.outcome is None and method == "auto" and only_outcome:
                 # the integration runs (for the times) and is overruled by the side of the
                 # traced separatrix if it ended on the other side; starts the integration
                 # cannot take are decided by the side alone (_load_jump_side)
-                sep_side = _load_jump_side(params, lg, rtol)
+                sep_side = _load_jump_side(
+                    params, lg, rtol if side_rtol is None else float(side_rtol)
+                )
                 if sep_side and beyond:
                     plan = _SEPARATRIX_PLANS[sep_side]
         kc = p_run.kappa_crit
@@ -769,7 +794,10 @@ def _simulate(
             or sep_side != 0
             or (p_run.kappa < p_run.kappa_crit and method == "auto")
         )
-        budget = min(DECIDED_BUDGET, max_steps) if decided else max_steps
+        # only the outcome asked (classify): the times are a by-product worth at most
+        # DECIDED_OUTCOME_BUDGET steps (~10 ms); a trajectory request gets DECIDED_BUDGET
+        cap = DECIDED_OUTCOME_BUDGET if only_outcome else DECIDED_BUDGET
+        budget = min(cap, max_steps) if decided else max_steps
         # A named perturbation is integrated in the v_o = 1 frame, where its start is exact
         # (from (phi0, psi0) it is blurred by the rounding of psi0 = (1 - b/a) ln v_o + ...:
         # 2e-9 relative for a load-point jump at b/a = 1e6, v_o = 1e-12); times are scaled
@@ -782,7 +810,16 @@ def _simulate(
                 phi_i, psi_i = lg_named, lg_named
             else:
                 phi_i, psi_i = -lg_named, (p_run.ba - 1.0) * lg_named
-        res, _ = _run(p_int, phi_i, psi_i, rtol, plan, max_steps=budget, integrator=integ)
+        res, _ = _run(
+            p_int,
+            phi_i,
+            psi_i,
+            rtol,
+            plan,
+            max_steps=budget,
+            integrator=integ,
+            fast_leg=None if method == "auto" else False,
+        )
     tsc = math.exp(-frame_shift)  # frame time -> T
     status: Status | None
     y_end: NDArray[np.float64] | None
@@ -800,6 +837,8 @@ def _simulate(
             res.T_return,
         )
         peak_phi, peak_T, err_sum = res.peak_phi + frame_shift, res.peak_T * tsc, res.err_sum
+        if res.n_legs:
+            tau_end = math.nan  # a closed-form leg adds no tau: hybrid-time samples re-run
         T_cert, T_ret = T_cert * tsc, T_ret * tsc
         n_steps, n_rhs = res.n_steps + res.n_rejected, res.n_rhs
 
@@ -943,9 +982,17 @@ def _sample(
             integrator=integrator,
         )
     else:
-        if t_end is not None or sampling == "time":
+        if t_end is not None or sampling == "time" or not math.isfinite(tau_end):
             res0, _ = _run(
-                p, phi0, psi0, rtol, plan, t_end=te, stop_on_return=sor, integrator=integrator
+                p,
+                phi0,
+                psi0,
+                rtol,
+                plan,
+                t_end=te,
+                stop_on_return=sor,
+                integrator=integrator,
+                fast_leg=sampling == "time",
             )
             tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         else:

@@ -1,0 +1,183 @@
+"""The fast-slip leg of an excursion in closed form (huge slip rates, b/a -> 1).
+
+Near b/a -> 1 with kappa ~ kappa_crit a perturbation that does not run away can still
+drive phi = ln(V/V_*) to 1e5 .. 1e12 before it returns (`eq:psi_T` / `eq:phi_T`; e.g. b/a =
+1 + 3.5e-12, kappa/kappa_crit = 3.9, d = 2.6: peak phi = 4.2e11).  An explicit integration
+of (phi, ln theta) then needs ~1e5 steps and cannot even represent L = phi + ln theta better
+than ~1e-16 |phi| (4e-5 at that peak), which decides where the excursion ends.
+
+Above phi - ln c = :data:`PHI_LEG` the hybrid-time equations of rsfcore.engine lose every
+term of the load point: a_phi = sigmoid(phi - ln c) = 1 - O(e^-50) rounds to 1, so
+
+    d phi/dtau      = -(kappa + (b/a) G(L)) / D,
+    d ln theta/dtau = G(L) / D,
+    dL/dtau         = -(kappa + kc G(L)) / D,         kc = b/a - 1 = kappa_crit,
+
+and L alone moves the state.  Below L* (where kappa + kc G > 0) L decreases monotonically,
+phi rises while kappa + (b/a) G(L) < 0 (L above L_peak, the root of kappa + (b/a) G), peaks
+at L_peak and falls again.  Along the leg phi is a function of L (divide the equations):
+
+    d phi/dL = 1 + G/(kappa + kc G),     ds/dL = -1/(kappa + kc G),
+
+so with r = kappa/kc and J(L) = integral dL/(r + G(L)), exactly,
+
+    kc (phi(L) - phi_in) = (b/a)(L - L_in) - r (J(L) - J(L_in))        (leg 1)
+    s(L) - s_in          = -(J(L) - J(L_in)) / kc                        (leg 2)
+
+and J has a closed form: with u = e^(-eps L), r + G = (q + u)/eps, q = eps r - 1, so
+dL/(r + G) = -du/(u (q + u)) integrates to ln(1 + q e^(eps L))/q.  Written without
+cancellation for every eps in [0, 1] (eps = 0 included) and every q:
+
+    J(L) - J(L_in) = l(z) E / (r + G(L_in)),   E = expm1(eps dL)/eps,  dL = L - L_in,
+    z = q E / (r + G(L_in)),                   l(z) = log1p(z)/z        (leg 3)
+
+(at eps = 0: -ln((r - L)/(r - L_in)), the slip law).  The leg ends where phi is back at
+phi_in, the root L_exit < L_peak of (leg 1) = 0; (leg 1) is a difference of O(|dL|) terms,
+so L_exit carries an absolute error of a few ulp of |dL| however high the peak.  The time
+spent on the leg is T-wise e^-(phi_in - ln c) (1/|rate_in| + 1/|rate_exit|)/c with
+rate = kappa + (b/a) G(L) (the integral of d(cT) = e^-(phi - ln c) d phi/rate over the
+two flanks), below 1e-21 of the time scale at PHI_LEG = 50.
+
+Derived here from the system `eq:psi_T` / `eq:phi_T` (the paper treats these excursions
+only through the separatrix asymptote, `eq: limiting trajectory2`).  Checked in
+tests/core/test_excursion.py against 50-digit quadrature of d phi/dL (leg 1, 3) and
+against the full explicit integration where that is accurate (peaks phi ~ 1e2 .. 1e6).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba as nb
+
+from .laws import EXP_CLIP, G, L_star
+
+__all__ = ["PHI_LEG", "LEG_MIN_RISE", "LegResult", "leg", "fast_leg", "leg_dJ", "leg_phi"]
+
+#: phi - ln c above which the leg is taken in closed form: a_phi = 1 - e^-50 = 1 - 2e-22
+#: rounds to 1, so the reduced equations are the engine's own to rounding.
+PHI_LEG = 50.0
+#: Legs whose peak rises less than this above the entry are left to the integrator (few
+#: steps there; the closed form is used where it saves work and resolves what steps cannot).
+LEG_MIN_RISE = 100.0
+
+_U = 2.220446049250313e-16
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _log1p_ratio(z: float) -> float:
+    """log1p(z)/z for z > -1, 1 at z = 0 (series below 1e-8: truncation < 1e-24)."""
+    if abs(z) < 1e-8:
+        return 1.0 - z * (0.5 - z / 3.0)
+    return math.log1p(z) / z
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def leg_dJ(L: float, L_in: float, r: float, eps: float, rg_in: float) -> float:
+    """J(L) - J(L_in) of (leg 3); ``rg_in`` = r + G(L_in) > 0.
+
+    Valid while r + G > 0 on [L, L_in] and eps L > -EXP_CLIP; relative accuracy a few ulp
+    plus the conditioning of rg_in (tests/core/test_excursion.py: <= 2e-15 against
+    50-digit quadrature).
+    """
+    dL = L - L_in
+    E = G(-dL, eps)  # expm1(eps dL)/eps, -> dL at eps = 0, series for small eps dL
+    q = eps * r - 1.0
+    z = q * E / rg_in
+    if z < -0.5:
+        # 1 + z = e^(eps dL) (r + G(L))/rg_in is small: log1p(z) would amplify the rounding
+        # of z by 1/(1 + z); its two factors are taken separately (no cancellation: the
+        # sum is log1p(z) < -0.69)
+        return (eps * dL + math.log((r + G(L, eps)) / rg_in)) / q
+    return _log1p_ratio(z) * E / rg_in
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def leg_phi(L: float, L_in: float, ba: float, r: float, eps: float, rg_in: float) -> float:
+    """kc (phi(L) - phi_in) of (leg 1): (b/a)(L - L_in) - r (J(L) - J(L_in))."""
+    return ba * (L - L_in) - r * leg_dJ(L, L_in, r, eps, rg_in)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def fast_leg(
+    phi_in: float, lth_in: float, ba: float, kappa: float, eps: float
+) -> tuple[bool, float, float, float, float, float]:
+    """The leg from (phi_in, ln theta_in) at phi_in - ln c >= PHI_LEG back to phi_in.
+
+    Returns (ok, L_exit, phi_peak, dJ_exit, rate_in, rate_exit).  ``ok`` is False (and the
+    integrator should go on stepping) where the closed form does not apply or gains
+    nothing: kappa or kappa_crit not positive, L_in at or above L* (the runaway side) or
+    within its own rounding of it, phi not rising (L_in <= L_peak), a rise below
+    LEG_MIN_RISE, or an exit in the clipped range of G (eps L < -EXP_CLIP).
+    """
+    kc = ba - 1.0
+    L_in = phi_in + lth_in
+    bad = (False, math.nan, math.nan, math.nan, math.nan, math.nan)
+    if not (kc > 0.0 and kappa > 0.0 and math.isfinite(L_in)):
+        return bad
+    if eps * L_in < -EXP_CLIP:
+        return bad
+    r = kappa / kc
+    g_in = G(L_in, eps)
+    rg_in = r + g_in
+    # L itself is known to ~ulp(|phi| + |ln theta|); r + G must be clear of that blur
+    # (dG/dL = -e^(-eps L)), else the side of L* (and the exit) is not resolved here
+    blur = 64.0 * _U * (abs(phi_in) + abs(lth_in) + abs(L_in)) * math.exp(-eps * L_in)
+    if not (rg_in > blur + 64.0 * _U * (r + abs(g_in))):
+        return bad
+    L_pk = L_star(kappa, ba, eps)  # root of kappa + (b/a) G(L): the peak of phi
+    if not (L_in > L_pk):
+        return bad
+    rise = leg_phi(L_pk, L_in, ba, r, eps, rg_in)  # kc (phi_peak - phi_in)
+    if not (rise > kc * LEG_MIN_RISE):
+        return bad
+    # bracket the exit below the peak: leg_phi increases with L there
+    step = max(L_in - L_pk, 1.0)
+    lo = L_pk - step
+    found = False
+    for _ in range(80):
+        if eps * lo < -EXP_CLIP:
+            return bad
+        if leg_phi(lo, L_in, ba, r, eps, rg_in) < 0.0:
+            found = True
+            break
+        step *= 2.0
+        lo = L_pk - step
+    if not found:
+        return bad
+    hi = L_pk
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if leg_phi(mid, L_in, ba, r, eps, rg_in) < 0.0:
+            lo = mid
+        else:
+            hi = mid
+    L_exit = hi  # phi(L_exit) >= phi_in by at most the resolution of L
+    dJ = leg_dJ(L_exit, L_in, r, eps, rg_in)
+    rate_in = -(kappa + ba * g_in)
+    rate_exit = kappa + ba * G(L_exit, eps)
+    return (True, L_exit, phi_in + rise / kc, dJ, rate_in, rate_exit)
+
+
+class LegResult(NamedTuple):
+    """:func:`fast_leg` named (for Python callers and tests).
+
+    Attributes: ok, L_exit, phi_peak, dJ_exit (J(L_exit) - J(L_in) of (leg 3)),
+    rate_in, rate_exit (|kappa + (b/a) G| at entry and exit).
+    """
+
+    ok: bool
+    L_exit: float
+    phi_peak: float
+    dJ_exit: float
+    rate_in: float
+    rate_exit: float
+
+
+def leg(phi_in: float, lth_in: float, ba: float, kappa: float, eps: float) -> LegResult:
+    """:func:`fast_leg` as a :class:`LegResult`."""
+    res = fast_leg(phi_in, lth_in, ba, kappa, eps)
+    return LegResult(bool(res[0]), *(float(v) for v in res[1:]))

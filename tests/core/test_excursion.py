@@ -1,0 +1,188 @@
+"""The fast-slip leg in closed form (rsfcore.excursion) against independent references.
+
+* (leg 3) J(L) - J(L_in) against 50-digit mpmath quadrature of dL/(r + G(L));
+* (leg 1) the peak of phi against 50-digit quadrature of d phi/dL = (kappa + (b/a) G) /
+  (kappa + kc G) itself (not through J);
+* the engine with legs against the engine stepping through them (method="integrate") where
+  stepping is accurate (peaks phi ~ 1e2 .. 1e6), each within the sum of the two claimed
+  accuracies;
+* the b/a -> 1 case of the stress benchmark that stepping could not resolve.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+import mpmath as mp
+import pytest
+
+import rsfcore
+from rsfcore import Params
+from rsfcore.excursion import LEG_MIN_RISE, leg, leg_dJ
+from rsfcore.laws import G, L_star
+from rsfcore.trajectory import DECIDED_OUTCOME_BUDGET
+
+U = 2.220446049250313e-16
+
+
+def _G_mp(L: mp.mpf, eps: float) -> mp.mpf:
+    e = mp.mpf(eps)
+    return -L if eps == 0.0 else mp.expm1(-e * L) / e
+
+
+def _Lstar_mp(r: float, eps: float) -> mp.mpf:
+    x = mp.mpf(eps) * mp.mpf(r)
+    if x >= 1:
+        return mp.inf
+    return mp.mpf(r) if eps == 0.0 else -mp.log1p(-x) / mp.mpf(eps)
+
+
+def _cases(seed: int, n: int) -> list[tuple[float, float, float, float]]:
+    """(r, eps, L_in, L) with L < L_in < L* and the exponent of G unclipped."""
+    rng = random.Random(seed)
+    out = []
+    while len(out) < n:
+        r = 10 ** rng.uniform(-2, 1.5)
+        eps = rng.choice([0.0, 1.0, rng.random(), 10 ** rng.uniform(-12, -1), 1.0 / r])
+        if eps > 1.0:
+            continue
+        ls = _Lstar_mp(r, eps)
+        L_in = (
+            float(min(ls - mp.mpf(10) ** rng.uniform(-3, 1), 20))
+            if ls != mp.inf
+            else rng.uniform(-5, 20)
+        )
+        L = L_in - 10 ** rng.uniform(-3, 1.5)
+        if eps * L < -600 or not r + G(L_in, eps) > 0:
+            continue
+        out.append((r, eps, L_in, L))
+    return out
+
+
+@pytest.mark.parametrize("case", _cases(3, 120))
+def test_leg_dJ_against_50_digit_quadrature(case: tuple[float, float, float, float]) -> None:
+    r, eps, L_in, L = case
+    mp.mp.dps = 50
+    rg_in = r + G(L_in, eps)
+    got = leg_dJ(L, L_in, r, eps, rg_in)
+    ref = mp.quad(lambda t: 1 / (mp.mpf(r) + _G_mp(t, eps)), [mp.mpf(L_in), mp.mpf(L)])
+    # the closed form is exact; its rounding is a few ulp times the conditioning of
+    # r + G(L_in) (r + G -> 0 at L*, and L_in itself rounded): measured <= 1.3 u cond over
+    # 300 random cases (eps = 0, 1, tiny, 1/r where q = 0, L_in up to 1e-3 from L*); 8x margin
+    cond = 1.0 + (r + abs(G(L_in, eps)) + abs(L_in) * math.exp(-eps * L_in)) / rg_in
+    assert abs((got - ref) / ref) <= 10.0 * U * cond
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_leg_peak_against_quadrature_of_dphi_dL(seed: int) -> None:
+    rng = random.Random(100 + seed)
+    kc = 10 ** rng.uniform(-12, -3)
+    r = 10 ** rng.uniform(0, 1.2)
+    eps = rng.choice([0.0, 1.0, rng.random()])
+    ba = 1.0 + kc
+    kc = ba - 1.0  # the kappa_crit the engine uses (1 + kc rounds kc to ~1e-16/kc)
+    kappa = r * kc
+    ls = float(L_star(kappa, kc, eps))
+    L_in = min(ls - 0.3, 3.0) if math.isfinite(ls) else 3.0
+    phi_in = 60.0
+    res = leg(phi_in, L_in - phi_in, ba, kappa, eps)
+    assert res.ok
+    mp.mp.dps = 50
+    L_pk = mp.findroot(lambda t: kappa + ba * _G_mp(t, eps), mp.mpf(float(L_star(kappa, ba, eps))))
+
+    def dphi(t: mp.mpf) -> mp.mpf:
+        g = _G_mp(t, eps)
+        return (kappa + ba * g) / (kappa + kc * g)
+
+    rise = mp.quad(dphi, [mp.mpf(L_in), L_pk])
+    # phi_peak - phi_in ~ 1/kc (1e3 .. 1e12): the closed form gives it to a few ulp of
+    # (b/a)|dL| / kc (the O(1) difference (leg 1) divided by kc); 64 ulp of margin
+    tol = 64.0 * U * (abs(L_in - float(L_pk)) + 1.0) / kc
+    assert abs(res.phi_peak - phi_in - float(rise)) <= tol
+    assert float(rise) > LEG_MIN_RISE
+    # the exit is where phi is back at phi_in: the quadrature from L_in to L_exit is ~0
+    back = mp.quad(dphi, [mp.mpf(L_in), L_pk, mp.mpf(res.L_exit)])
+    assert abs(float(back)) <= tol
+
+
+def _leg_cases() -> list[tuple[Params, str, float]]:
+    rng = random.Random(5)
+    out: list[tuple[Params, str, float]] = []
+    while len(out) < 10:
+        kc = 10 ** rng.uniform(-6, -3)
+        r = 10 ** rng.uniform(0.1, 1.0)
+        p = Params(1.0 + kc, r * kc, rng.choice([0.0, 1.0, rng.random()]), 10 ** rng.uniform(-2, 2))
+        kind = rng.choice(["velocity-jump", "load-point-jump"])
+        c = rsfcore.critical_perturbation(p, kind)
+        if c.kind != "finite" or not c.log_critical_size:
+            continue
+        out.append((p, kind, c.log_critical_size * rng.choice([0.5, 0.9, 0.99])))
+    return out
+
+
+@pytest.mark.parametrize("case", _leg_cases())
+def test_engine_legs_agree_with_stepping(case: tuple[Params, str, float]) -> None:
+    """Peaks phi 1e2 .. 1e6: stepping is accurate there (its L blur ~ u |phi| <= 1e-10)."""
+    p, kind, lg = case
+    a = rsfcore.classify(p, kind, log_size=lg, rtol=1e-11)
+    b = rsfcore.classify(p, kind, log_size=lg, rtol=1e-11, method="integrate")
+    assert a.outcome == b.outcome == "stable"
+    assert a.n_steps <= b.n_steps
+    for name in ("return_time", "peak_time", "peak_phi"):
+        x, y = getattr(a, name), getattr(b, name)
+        if x is None and y is None:
+            continue
+        assert x is not None and y is not None
+        # each run's rel_accuracy is a checked bound (second run at rtol/10): the two may
+        # differ by at most the sum
+        assert abs(x - y) <= (a.rel_accuracy + b.rel_accuracy) * max(abs(y), 1.0), name
+
+
+def test_leg_resolves_what_stepping_cannot() -> None:
+    """bench_stress: b/a = 1 + 3.5e-12, kappa/kappa_crit = 3.9, d = d_crit/2.  Stepping took
+    290,938 steps (1.2 s) and returned at T = 0.01377 after a peak phi = 4.18e11 with
+    rel_accuracy 1 (its two runs disagreed: at phi ~ 4e11 L = phi + ln theta is blurred by
+    ~1e-4).  With the leg: ~50 steps, and the answer is the same at every rtol."""
+    p = Params(1.0000000000034857, 1.3682027670983518e-11, 0.11733657384331686, 16.050232785451595)
+    res = [
+        rsfcore.classify(p, "velocity-jump", log_size=2.6302518027188104, rtol=rt)
+        for rt in (1e-8, 1e-10, 1e-13)
+    ]
+    ref = res[-1]
+    assert all(r.outcome == "stable" and r.certificate == "returned_to_steady_state" for r in res)
+    assert res[1].n_steps < 1000
+    for r in res[:2]:
+        for name in ("return_time", "peak_time", "peak_phi"):
+            x, y = getattr(r, name), getattr(ref, name)
+            assert abs(x - y) <= r.rel_accuracy * abs(y), name
+    assert res[1].rel_accuracy < 1e-6
+    assert 3e11 < ref.peak_phi < 5e11
+
+
+def test_trajectory_in_tau_steps_through_the_leg() -> None:
+    """Hybrid-time samples need tau, which a leg does not advance: the trajectory is
+    integrated by steps, and its peak is the classification's."""
+    p = Params(1.0 + 1e-5, 3e-5, 0.0, 1.0)
+    c = rsfcore.critical_perturbation(p, "velocity-jump")
+    d = 0.9 * c.critical_size
+    cl = rsfcore.classify(p, "velocity-jump", d, rtol=1e-11)
+    tr = rsfcore.simulate(p, "velocity-jump", d, rtol=1e-11, n_points=200)
+    assert cl.peak_phi > 1e4  # a leg was taken (peak ~ 1/kc)
+    assert tr.trajectory is not None and len(tr.trajectory.T) == 200
+    assert abs(tr.peak_phi - cl.peak_phi) <= 2 * (cl.rel_accuracy + tr.rel_accuracy) * cl.peak_phi
+    assert (
+        abs(tr.return_time - cl.return_time)
+        <= 2 * (cl.rel_accuracy + tr.rel_accuracy) * cl.return_time
+    )
+
+
+def test_slow_spiral_outcome_without_its_times() -> None:
+    """kappa < kappa_crit near b/a -> 1: the outcome is certain (every perturbation grows)
+    but blow-up is > 5e5 steps away; classify stops after DECIDED_OUTCOME_BUDGET steps
+    (was 5e5 steps, 0.33 s) and says the times are missing."""
+    p = Params(1.0000000000390448, 3.8653600331900095e-11, 0.38753867831264943, 45.27932586413081)
+    r = rsfcore.classify(p, "velocity-jump", -0.01495176963773283)
+    assert r.outcome == "unstable" and r.certificate == "linear_instability"
+    assert r.blowup_time is None and not r.complete
+    assert r.n_steps <= DECIDED_OUTCOME_BUDGET
