@@ -290,6 +290,26 @@ def _tree(pid: int) -> list[int]:
     return out
 
 
+def _wait_ready(pid: int, workers: int, limit_s: float = 60.0) -> list[int]:
+    """The process tree of ``rsf api --workers N`` once every API process is up and idle.
+
+    /health answers as soon as the first process is ready; a second one still importing
+    would accept no connection, and wrk opens all of its connections at once, so a phase
+    started then measures one process (seen: split 1.00, 0.99x).
+    """
+    want = workers + (1 if workers > 1 else 0)  # the supervisor and its API processes
+    t_end = time.monotonic() + limit_s
+    pids = _tree(pid)
+    while time.monotonic() < t_end:
+        pids = _tree(pid)
+        before = [_cpu_s([p]) for p in pids]
+        time.sleep(0.5)
+        busy = any(_cpu_s([p]) - b > 0.02 for p, b in zip(pids, before, strict=True))
+        if len(pids) >= want and not busy:
+            break
+    return pids
+
+
 def _machine_busy_s() -> float:
     """CPU time the whole machine spent busy so far (every CPU; /proc/stat) [s]."""
     try:
@@ -503,7 +523,7 @@ def api_scaling(
         srv_cpus = ",".join(str(c) for c in range(min(n, ncpu))) if pin else None
         gen_cpus = str(ncpu - 1) if pin else None
         proc, url = start_api(tmp, n, srv_cpus)
-        pids = _tree(proc.pid)
+        pids = _wait_ready(proc.pid, n)
         try:
             for b in bodies:  # warm the cache (shared database: only the first run computes)
                 _req(url, "POST", "/v1/classify", b)
