@@ -24,5 +24,5 @@ __all__ = ["NUMERICS_VERSION"]
 #: 4: fast-slip legs above phi - ln v_o = 50 are taken in closed form (rsfcore.excursion):
 #:    near b/a -> 1 excursions to phi ~ 1e5 .. 1e12 no longer blur L = phi + ln theta
 #:    (return times there moved by up to 2 %, e.g. 0.01377 -> 0.014030 at b/a = 1 + 3.5e-12);
-#:    classify integrates the times of an already decided outcome for at most 1e4 steps.
+#:    classify integrates the times of an already decided outcome for at most 5e3 steps.
 NUMERICS_VERSION = "4"

@@ -1001,7 +1001,8 @@ def integrate(
                 err_acc_prev = 1.0
 
         # ---- fast-slip leg in closed form (rsfcore.excursion) ---------------------
-        if fast_leg and not fixed_L and not runaway and i_tau >= n_tau and y[0] - lnc >= PHI_LEG:
+        # (v_o = 0 too: the load term is 0 there, and kappa = 0 has no leg: fast_leg checks)
+        if fast_leg and not runaway and i_tau >= n_tau and y[0] - lnc >= PHI_LEG:
             leg = _fast_leg(y[0], y[1], ba, kappa, eps)
             if leg[0]:
                 L_exit, phi_pk, dJ, rate_in, rate_exit = leg[1], leg[2], leg[3], leg[4], leg[5]

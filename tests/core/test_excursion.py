@@ -118,6 +118,9 @@ def _leg_cases() -> list[tuple[Params, str, float]]:
         if c.kind != "finite" or not c.log_critical_size:
             continue
         out.append((p, kind, c.log_critical_size * rng.choice([0.5, 0.9, 0.99])))
+    # v_o = 0 (the load term vanishes; L is monotone and the run stops past the peak)
+    out.append((Params(1.0 + 1e-5, 2e-5, 0.3, 0.0), "velocity-jump", 3.0))
+    out.append((Params(1.0 + 1e-4, 5e-4, 0.0, 0.0), "velocity-jump", 4.0))  # L* = 5
     return out
 
 
