@@ -20,9 +20,12 @@ __all__ = ["NUMERICS_VERSION"]
 #:    Separatrix: stiff runs switch to RODAS4 (no bisection at b/a = kappa = 1e6); changes <= 9.2e-11.
 #:    rel_accuracy of times and peaks is checked by a second run at rtol/10 (larger near the
 #:    separatrix and in ill-conditioned corners); load-point sizes beyond the separatrix's
-#:    reach come from a fitted asymptote (were "infinite").
+#:    reach come from an asymptote (were "infinite").
 #: 4: fast-slip legs above phi - ln v_o = 50 are taken in closed form (rsfcore.excursion):
 #:    near b/a -> 1 excursions to phi ~ 1e5 .. 1e12 no longer blur L = phi + ln theta
 #:    (return times there moved by up to 2 %, e.g. 0.01377 -> 0.014030 at b/a = 1 + 3.5e-12);
 #:    classify integrates the times of an already decided outcome for at most 5e3 steps.
+#:    Separatrix: a load-point run skips the frozen tail (phi < -60) and starts near L*
+#:    (values moved <= 0.12 of their claims), and its error carries a rounding floor of
+#:    2 sqrt(steps) ulp(l); the asymptote's 1/r^2 term is derived (errors 5 .. 1000x smaller).
 NUMERICS_VERSION = "4"

@@ -111,6 +111,7 @@ __all__ = [
     "DEFAULT_RTOL",
     "RTOL_RANGE",
     "ASYM_R_MIN",
+    "ASYM_B_MAX",
     "ASYM_LSTAR_MIN",
 ]
 
@@ -142,8 +143,8 @@ METHODS: tuple[str, ...] = (
     "zero: kappa = 0 with a stationary load point (L* = 0)",
     "separatrix: finite beyond the double range, ln(1 + dv) > 709 (dv > 8e307): reported by"
     " log_critical_size = ln(1 + dv)",
-    "asymptote: ln(1 + dv) = L* - ln(kappa_crit) - (1 - x)(1 - (pi^2/6 - 1) kappa_crit)/r"
-    " for r = kappa/kappa_crit >> 1 (fitted to the separatrix method, see docs/accuracy.md)",
+    "asymptote: ln(1 + dv) = L* - ln(kappa_crit) + ln((r - 1)/(r - x)) + O(kappa_crit/r) for"
+    " r = kappa/kappa_crit >> 1 (derived in docs/derivations/load_jump_asymptote.md)",
 )
 M_ASYMPTOTE = 9
 
@@ -452,34 +453,43 @@ def _make_result(
     )
 
 
-#: The load-point asymptote is used where kappa/kappa_crit >= this and L* >= ASYM_LSTAR_MIN:
-#: there ln(1 + dv_crit) >~ 1e4 is beyond both the separatrix integration's budget (it
-#: steps through u ~ L* at <= 0.1) and the starts classify integrates.
+#: The load-point asymptote is used where kappa/kappa_crit >= this and L* >= ASYM_LSTAR_MIN
+#: (ln(1 + dv_crit) >~ 1e4, beyond the starts classify integrates), as a fallback of the
+#: separatrix method or (ASYM_DIRECT_LSTAR) in its place.
 ASYM_R_MIN = 1.0e3
 ASYM_LSTAR_MIN = 1.0e4
-#: From this L* on the separatrix integration cannot finish (it failed at L* = 2e4 and
-#: took 1.44e6 right-hand sides at 1e4), so critical_perturbation goes to the asymptote
-#: at once.
+#: From this L* on critical_perturbation answers by the asymptote at once: its error there
+#: is ~8 ulp(l) (3 b (1/r + b)^2 < 1e-12 for r >= 2e4), ~1 us, where the separatrix
+#: method (which now reaches L* ~ 1e8) carries a rounding floor of 2 sqrt(steps) ulp(l).
 ASYM_DIRECT_LSTAR = 2.0e4
-_PI2_6_M1 = math.pi**2 / 6.0 - 1.0
+#: b = kappa_crit (1 - x)/r up to which the remainder bound of the asymptote is tested
+#: (its series in b has radius ~1)
+ASYM_B_MAX = 0.3
+_ZETA2_M1 = math.pi**2 / 6.0 - 1.0
+_ZETA3 = 1.2020569031595942  # zeta(3) (Apery's constant)
 
 
 def load_jump_asymptote(
     params: Params, lstar_min: float = ASYM_LSTAR_MIN
 ) -> tuple[float, float] | None:
     """(l, abs error of l) of the critical load-point jump, l = ln(1 + dv_crit), for
-    r = kappa/kappa_crit >> 1, or None outside its range (r < ASYM_R_MIN or L* <
-    ``lstar_min``, or L* infinite; a smaller ``lstar_min`` is for testing it where the
-    separatrix method runs too).
+    r = kappa/kappa_crit >> 1, or None outside its range (r < ASYM_R_MIN, b =
+    kappa_crit (1 - x)/r > ASYM_B_MAX, L* < ``lstar_min``, or L* infinite; a smaller
+    ``lstar_min`` is for testing it where the separatrix method runs too).
 
-    l = L* - ln(kappa_crit) - (1 - x)(1 - (pi^2/6 - 1) kappa_crit)/r + O((1 + kappa_crit^2)/r^2),
-    x = eps r.  Not derived: fitted to the separatrix method at r = 1e3 .. 1e4, kappa_crit =
-    1e-9 .. 30, x = 0 .. 0.99, where r (l - L* + ln kappa_crit) came out -(1 - x) A with
-    A = 1.000, 0.9994, 0.3551, -18.32 at kappa_crit = 1e-9, 1e-3, 1, 30 (1 - (pi^2/6 - 1)
-    kappa_crit: 1.000, 0.99936, 0.35507, -18.35).  The error bound 10 (1 + kappa_crit^2)/r^2
-    plus 8 ulp of l is 10x the largest second-order residual measured there, and is
-    tested against the separatrix method wherever both run
-    (tests/core/test_critical_agreement.py)."""
+    Derived in docs/derivations/load_jump_asymptote.md (inner variables of the
+    separatrix ODE (B) near u = L*; every step checked in
+    tests/core/test_asymptote_derivation.py), with x = eps r and b as above:
+
+        l = L* - ln(kappa_crit) + ln((r - 1)/(r - x)) + b (zeta(2) - 1)
+            + (b/r) [(zeta(3) - 1)(2 - x) + (zeta(3) - 3/2) kappa_crit (1 - x)] + R3,
+
+    |R3| <= 3 b (1/r + b)^2 (10x the largest remainder measured against the numerical
+    inner solution, b <= 0.3).  The first order is the formerly fitted
+    -(1 - x)(1 - (pi^2/6 - 1) kappa_crit)/r exactly.  The returned error is that bound
+    plus 8 ulp of l; tested against the separatrix method wherever both run
+    (tests/core/test_critical_agreement.py): e.g. 2.3e-10 at r = 1e3, kappa_crit = 1
+    (the fitted first-order form erred 3.9e-7 there)."""
     kc, kappa, eps = params.kappa_crit, params.kappa, params.eps
     r = kappa / kc
     if not r >= ASYM_R_MIN:
@@ -488,8 +498,14 @@ def load_jump_asymptote(
     if not (math.isfinite(ls) and ls >= lstar_min):
         return None
     x = eps * r
-    lg = ls - math.log(kc) - (1.0 - x) * (1.0 - _PI2_6_M1 * kc) / r
-    return lg, 10.0 * (1.0 + kc * kc) / (r * r) + 8.0 * math.ulp(lg)
+    b = kc * (1.0 - x) / r
+    if not b <= ASYM_B_MAX:
+        return None
+    delta = math.log1p(-(1.0 - x) / (r - x)) + b * (
+        _ZETA2_M1 + ((_ZETA3 - 1.0) * (2.0 - x) + (_ZETA3 - 1.5) * kc * (1.0 - x)) / r
+    )
+    lg = ls - math.log(kc) + delta
+    return lg, 3.0 * b * (1.0 / r + b) ** 2 + 8.0 * math.ulp(lg)
 
 
 def _asymptote_result(params: Params, perturbation: str, on_b: bool) -> CriticalResult | None:

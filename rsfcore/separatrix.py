@@ -102,6 +102,11 @@ _H_MAX = 0.5
 #: the same for phase (B), in u (measured: 15-step phase-B solutions 100x off at h <= 0.5)
 _H_MAX_B = 0.1
 _MAX_STEPS = 200_000
+#: phase (B) of a load-point jump stops where phi = u - s_theta < -_PHI_FROZEN: the rest
+#: of the way to u = 0 moves s_theta by < |G|/kappa e^-60 (added to the error estimate)
+_PHI_FROZEN = 60.0
+#: ulp(1): the rounding unit of s_theta relative to its size
+_ULP1 = 2.220446049250313e-16
 #: stiffness switch: DOP853 hands over to RODAS4 after _STIFF_RUN accepted steps with
 #: h |d(rhs)/dy| > _STIFF_HJ (not interrupted by 6 in a row below it) (DOP853's stability interval on the negative real
 #: axis ends near -6, so such steps are limited by stability, not accuracy; where kappa is
@@ -727,13 +732,16 @@ def _separatrix(kappa, kc, eps, pert, rtol, K):
     st, val, err, nr, _ = _separatrix_run(
         kappa, kc, eps, pert, rtol, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
     )
-    if st != S_OK or err <= rtol * abs(val):
-        return st, val, err, nr
+    fl = _rounding_floor(st, val, pert, nr)
+    # a retry tightens the integration, not the rounding: none once rounding takes half
+    if st != S_OK or err + fl <= rtol * abs(val) or fl > 0.5 * rtol * abs(val):
+        return st, val, err + fl, nr
     prof = np.empty((2, 2, 2, _PROF_LEN))
     pn = np.zeros((2, 2), dtype=np.int64)
     cur = 0
     na = 0
     nb_ = 0
+    nr_run = nr
     for i in range(len(_RETRIES)):
         pn[cur, 0] = 0
         pn[cur, 1] = 0
@@ -743,13 +751,28 @@ def _separatrix(kappa, kc, eps, pert, rtol, K):
         )  # fmt: skip
         nr += nr2
         if st2 == S_OK:
-            st, val, err = st2, val2, err2
-            if err <= rtol * abs(val):
+            st, val, err, nr_run = st2, val2, err2, nr2
+            if err + _rounding_floor(st, val, pert, nr_run) <= rtol * abs(val):
                 break
         na = max(pn[cur, 0], 0)
         nb_ = max(pn[cur, 1], 0)
         cur = 1 - cur
-    return st, val, err, nr
+    return st, val, err + _rounding_floor(st, val, pert, nr_run), nr
+
+
+@nb.njit(cache=True, nogil=True)
+def _rounding_floor(st, val, pert, nr_run):
+    """Rounding of s_theta ~ l = ln(1 + dv) accumulated over a load-point run's steps (not
+    in the integration's estimate, and no retry can reduce it; 0 for a velocity jump): in
+    (B) the right-hand side hardly depends on s_theta, so each step's rounding stays.
+    Measured up to 0.94 sqrt(steps) ulp(l) against the asymptote at l ~ 7e7 (2.6e5 steps);
+    the floor is 2 sqrt(n_rhs/12) ulp(l), in the units of the returned error (of dv for
+    S_OK, of l for S_OVERFLOW)."""
+    if pert == 0 or (st != S_OK and st != S_OVERFLOW):
+        return 0.0
+    lg = math.log1p(val) if st == S_OK else val
+    f = 2.0 * math.sqrt(nr_run / 12.0) * _ULP1 * abs(lg)
+    return f * math.exp(lg) if st == S_OK else f
 
 
 @nb.njit(cache=True, nogil=True)
@@ -770,7 +793,11 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
     # truncation ~1e-13 relative at c z0 = 1e-5, scaling as z0^3 (tests/core/test_critical.py)
     cz = max(abs(c1), math.sqrt(abs(c2)), 1e-300)
     zt = min(max(_Z_TARGET * (rtol / 1e-10) ** (1.0 / 3.0), 1e-7), 1e-4)
-    s0 = min(Ls + math.log(zt / cz), _S0_MAX)
+    s0 = Ls + math.log(zt / cz)
+    if pert == 0:
+        s0 = min(s0, _S0_MAX)  # a velocity jump ends at s_theta = 0: start before it
+    # (a load-point jump ends at u = 0, s_theta = l > L*: starting at s_theta ~ L* - 15
+    # instead of -5 skips ~2 L* steps along u = L* (2e4 at L* = 1e4))
     z0 = math.exp(s0 - Ls)
     u0 = Ls - z0 * (c1 + c2 * z0)
     rt = rtol * (_TOL_FACTOR_V if pert == 0 else _TOL_FACTOR_L)
@@ -831,8 +858,16 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
     # the phase-A error in u at the switch moves the path by (dt/du) du in t: it enters
     # phase B as its initial error and is propagated (damped) with it
     es_t = es * abs(_f_u(u, t, kappa, kc, eps))
+    # Below phi = u - s_theta = -_PHI_FROZEN the slider is stuck: (B) gives |ds_theta/du|
+    # <= |G(u)| / (kappa (e^(-phi) - 1)), so s_theta, which only grows as u falls, moves by
+    # at most |G(u_f)|/kappa e^(phi_f)/(1 - e^(phi_f)) on the rest of the way to u = 0
+    # (|G| grows with u > 0).  Phase (B) stops at u_f = s_theta(switch) - _PHI_FROZEN and
+    # adds that bound to its error: near b/a -> 1 the rest is ~L* / _H_MAX_B steps (1e5
+    # at L* = 1e4, 24 ms) of a frozen s_theta.
+    u_f = t - _PHI_FROZEN
+    u_stop = u_f if 0.0 < u_f < u else 0.0
     st2, u2, t2, es2, nr2, h2, stiff2 = _integrate(
-        1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K, _H_MAX_B, es_t,
+        1, u, t, u_stop, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K, _H_MAX_B, es_t,
         relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0,
     )  # fmt: skip
     nr += nr2
@@ -841,6 +876,10 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
         if st2 == S_NO_START:
             st2 = S_TURNING
         return st2, math.nan, math.nan, nr, stiff
+    if u_stop > 0.0:
+        ph = u2 - t2
+        es2 += abs(G(u2, eps)) / kappa * math.exp(ph) / -math.expm1(ph)
+
     dv = math.expm1(t2)
     if dv == math.inf:
         return S_OVERFLOW, t2, es2, nr, stiff

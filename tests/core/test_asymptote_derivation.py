@@ -284,17 +284,24 @@ def test_physical_delta2_form() -> None:
             assert delta2(1 - x, kc * (1 - x), x) == pytest.approx(want, rel=1e-14, abs=1e-14)
 
 
-def test_library_coefficient_is_delta1() -> None:
-    # the library's fitted 1/r coefficient -(1 - x)(1 - (pi^2/6 - 1) kappa_crit) is delta1:
-    # r (l_lib - L* + ln kappa_crit) = delta1 to the rounding of l (8 ulp(l) r <= 1e-9 here);
-    # r = 2e3 (the asymptote answers from r >= 1e3)
-    for kc, x in ((1e-9, 0.0), (1.0, 0.5), (30.0, 0.9)):
-        p = Params(1.0 + kc, kc * 2e3, x / 2e3, 1.0)
+def test_library_asymptote_against_inner_solution() -> None:
+    # rsfcore.critical.load_jump_asymptote implements the Result; against the numerical
+    # solution of (I) (independent of the closed forms) it must lie within its own returned
+    # bound (3 b (1/r + b)^2 + 8 ulp(l)) plus the integration floor of (I)
+    cases = (
+        (1e-9, 0.0, 2e3),
+        (1.0, 0.5, 2e3),
+        (30.0, 0.9, 2e3),
+        (1.0, 0.0, 1e5),
+        (100.0, 0.0, 1e4),
+    )
+    for kc, x, r in cases:
+        p = Params(1.0 + kc, kc * r, x / r, 1.0)
         kcp, xp, rp, ls = _physical(p)
         asym = load_jump_asymptote(p, lstar_min=0.0)
         assert asym is not None
-        got = (asym[0] - ls + math.log(kcp)) * rp
-        assert abs(got - delta1(1 - xp, kcp * (1 - xp))) <= 8 * math.ulp(asym[0]) * rp
+        ref = ls - math.log(kcp) + inner_delta(kcp, xp, rp)
+        assert abs(asym[0] - ref) <= asym[1] + INNER_FLOOR + 8.0 * math.ulp(ref), (kc, x, r)
 
 
 # --- step 6: the Result against the separatrix method and against (I) ---------------------

@@ -16,7 +16,13 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from rsfcore import Params, bisect_critical, classify, critical_perturbation
-from rsfcore.critical import load_jump_asymptote
+from rsfcore.critical import (
+    FLAG_FALLBACK,
+    FLAG_LOG_VALUE,
+    METHODS,
+    _first_decision,
+    load_jump_asymptote,
+)
 from rsfcore.laws import G, L_star
 
 VJ, LJ = "velocity-jump", "load-point-jump"
@@ -213,15 +219,48 @@ def test_load_point_size_beyond_reach_is_finite_not_infinite() -> None:
     # separatrix method still reaches it (ln(1 + dv_crit) = 10368.6)
     q = Params(1.001, 500 * 0.001, (1.0 - 1e-9) / 500)
     rq = critical_perturbation(q, LJ)
-    assert rq.kind == "finite" and rq.method.startswith("separatrix") and rq.accuracy_met
+    # (l ~ 1e4 rounds to ~2e-12 per step: its claim carries that floor, ~1.8e-10)
+    assert rq.kind == "finite" and rq.method.startswith("separatrix") and rq.rel_accuracy < 3e-10
     assert rq.log_critical_size is not None and rq.log_critical_size > 1e4
-    # at kappa/kappa_crit = 999, x = 1 - 1e-12 (L* = 2.8e4) neither the separatrix method,
-    # nor the asymptote (kappa/kappa_crit < 1e3), nor the bisection (ln(1 + dv) <= 690)
-    # reaches it: finite with null values and the reason, never "infinite"
+    # kappa/kappa_crit = 999, x = 1 - 1e-12 (L* = 2.8e4): below the asymptote's range; the
+    # separatrix method reaches it since its phase (B) stops where s_theta freezes
+    # (ln(1 + dv_crit) = 27726.9; it ran out of budget before), and an independent forward
+    # integration of t(u) puts 1 -/+ 1e-6 of it on the right sides
     z = Params(1.001, 999 * 0.001, (1.0 - 1e-12) / 999)
     rz = critical_perturbation(z, LJ)
-    assert rz.kind == "finite" and rz.critical_size is None and rz.log_critical_size is None
-    assert not rz.accuracy_met and "beyond what rsfcore computes" in rz.reason
+    assert rz.kind == "finite" and rz.method.startswith("separatrix")
+    assert rz.log_critical_size is not None and 2.7e4 < rz.log_critical_size < 2.8e4
+    for rel, outcome in ((-1e-6, "stable"), (1e-6, "unstable")):
+        assert _side_by_forward_t_of_u(z, rz.log_critical_size * (1.0 + rel)) == outcome
+    # the bisection alone (ln(1 + dv) <= 690) does not reach it: finite with null values
+    # and the reason, never "infinite"
+    bz = bisect_critical(z, LJ)
+    assert bz.kind == "finite" and bz.critical_size is None and bz.log_critical_size is None
+    assert not bz.accuracy_met and "beyond what rsfcore computes" in bz.reason
+
+
+@pytest.mark.parametrize(
+    "kc, lstar",
+    [
+        (kc, ls)
+        for kc in (1e-12, 1e-6, 1e-3, 1.0)
+        for ls in (1e4, 1e5, 1e6, 1e7, 1e8)
+        if kc * ls <= 1e6  # kappa within its range
+    ],
+)
+def test_separatrix_far_out_against_the_asymptote(kc: float, lstar: float) -> None:
+    # Where L* = kappa/kappa_crit >> 1 (eps = 0) both methods run: the asymptote's own
+    # error there is 10 (1 + kc^2)/r^2 + 8 ulp(l), so the separatrix's claim, which now
+    # carries its rounding floor 2 sqrt(steps) ulp(l), is tested as a bound up to l ~ 1e8
+    # (before the floor it claimed 1e-10 where l alone rounds to 1.5e-8)
+    p = Params(1.0 + kc, kc * lstar, 0.0)
+    _, kind, val, acc, meth, flags, nr, _ = _first_decision(p, LJ, 1e-10)
+    assert METHODS[meth].startswith("separatrix") and not flags & FLAG_FALLBACK
+    lg = float(val) if flags & FLAG_LOG_VALUE else math.log1p(float(val))
+    asym = load_jump_asymptote(p, lstar_min=0.0)
+    assert asym is not None
+    assert abs(lg - asym[0]) <= float(acc) + asym[1], (lg, asym, acc)
+    assert nr < 20_000  # the frozen tail is skipped (1e5 .. 1e9 right-hand sides before)
 
 
 ASYM_CASES = [
