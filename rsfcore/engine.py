@@ -202,6 +202,17 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _initial_h(y, f, tmp, ftmp, rtol, atol, ba, kappa, eps, vo, c, lnc):
+    """Starting step from y with slope f (Hairer, Norsett & Wanner II.4 heuristic, order 8),
+    normed over the error norm's components (phi, ln theta, T); one right-hand side."""
+    h0, d1 = rk.initial_step_trial(y, f, rtol, atol, 3)
+    for j in range(y.shape[0]):
+        tmp[j] = y[j] + h0 * f[j]
+    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    return rk.initial_step(h0, d1, y, f, ftmp, rtol, atol, 3)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
     """Stage s of the tableau: K[s] = f(y + h sum_m A[s, m] K[m]) (K (16, n), y (n,))."""
     n = y.shape[0]
@@ -553,16 +564,8 @@ def integrate(
     rhs = np.empty(n)
 
     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
-    n_rhs = 1
-
-    # Initial step (Hairer, Norsett & Wanner II.4 heuristic, order 8), normed over the
-    # same components as the error norm (phi, ln theta, T).
-    h0, d1 = rk.initial_step_trial(y, f, rtol, atol, 3)
-    for j in range(n):
-        tmp[j] = y[j] + h0 * f[j]
-    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-    n_rhs += 1
-    h = rk.initial_step(h0, d1, y, f, ftmp, rtol, atol, 3)
+    h = _initial_h(y, f, tmp, ftmp, rtol, atol, ba, kappa, eps, vo, c, lnc)
+    n_rhs = 2
 
     tau = 0.0
     tau_c = 0.0
@@ -1023,12 +1026,8 @@ def integrate(
                     n_rhs += 1
                     n_legs += 1
                     # restart the step size (the exit flank is not the entry's)
-                    h0, d1 = rk.initial_step_trial(y, f, rtol, atol, 3)
-                    for j in range(n):
-                        tmp[j] = y[j] + h0 * f[j]
-                    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+                    h = _initial_h(y, f, tmp, ftmp, rtol, atol, ba, kappa, eps, vo, c, lnc)
                     n_rhs += 1
-                    h = rk.initial_step(h0, d1, y, f, ftmp, rtol, atol, 3)
                     h_acc_prev = 0.0
                     err_acc_prev = 1.0
 

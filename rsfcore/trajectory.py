@@ -967,63 +967,24 @@ def _sample(
         raise ParameterError("sampling", sampling, "'tau' or 'time'")
     te = math.inf if t_end is None else t_end
     sor = None if t_end is None else False
+    run = functools.partial(_run, p, phi0, psi0, rtol, plan, integrator=integrator)
     if times is not None and len(times) > 0:
         sT = np.asarray(times, dtype=np.float64)
         if not np.all(np.isfinite(sT)) or np.any(sT < 0) or np.any(np.diff(sT) < 0):
             raise ParameterError("times", "...", "finite, non-negative and sorted ascending")
-        res, samples = _run(
-            p,
-            phi0,
-            psi0,
-            rtol,
-            plan,
-            t_end=min(te, float(sT[-1])),
-            stop_on_return=False,
-            sample_T=sT,
-            integrator=integrator,
-        )
+        res, samples = run(t_end=min(te, float(sT[-1])), stop_on_return=False, sample_T=sT)
     else:
         if t_end is not None or sampling == "time" or not math.isfinite(tau_end):
-            res0, _ = _run(
-                p,
-                phi0,
-                psi0,
-                rtol,
-                plan,
-                t_end=te,
-                stop_on_return=sor,
-                integrator=integrator,
-                fast_leg=sampling == "time",
-            )
+            res0, _ = run(t_end=te, stop_on_return=sor, fast_leg=sampling == "time")
             tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         else:
             T_end = math.nan
         if sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
-            res, samples = _run(
-                p,
-                phi0,
-                psi0,
-                rtol,
-                plan,
-                t_end=te,
-                stop_on_return=sor,
-                sample_T=sT,
-                integrator=integrator,
-            )
+            res, samples = run(t_end=te, stop_on_return=sor, sample_T=sT)
         else:
             sTau = np.linspace(0.0, tau_end, n_points)
-            res, samples = _run(
-                p,
-                phi0,
-                psi0,
-                rtol,
-                plan,
-                t_end=te,
-                stop_on_return=sor,
-                sample_tau=sTau,
-                integrator=integrator,
-            )
+            res, samples = run(t_end=te, stop_on_return=sor, sample_tau=sTau)
     n = res.n_filled
     s = samples[:n]
     phi, lth = s[:, 0], s[:, 1]
