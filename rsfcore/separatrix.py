@@ -878,7 +878,17 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
         return st2, math.nan, math.nan, nr, stiff
     if u_stop > 0.0:
         ph = u2 - t2
-        es2 += abs(G(u2, eps)) / kappa * math.exp(ph) / -math.expm1(ph)
+        if ph < -0.5 * _PHI_FROZEN:
+            es2 += abs(G(u2, eps)) / kappa * math.exp(ph) / -math.expm1(ph)
+        else:  # (not seen: s_theta fell on the way) the rest is integrated after all
+            st2, u2, t2, es2, nr3, h2, stiff3 = _integrate(
+                1, u2, t2, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, h2, K, _H_MAX_B, es2,
+                relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0,
+            )  # fmt: skip
+            nr += nr3
+            stiff = stiff or stiff3
+            if st2 != S_OK:
+                return S_TURNING if st2 == S_NO_START else st2, math.nan, math.nan, nr, stiff
 
     dv = math.expm1(t2)
     if dv == math.inf:
