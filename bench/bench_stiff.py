@@ -59,14 +59,14 @@ def _rsfcore_state(p: Params, dv: float, rtol: float, integrator: str) -> tuple[
     the scipy runs do not make)."""
     vo = p.vo * (1.0 + dv)
     phi0 = math.log(p.vo)
-    samples = np.empty((1, 5))
+    # (phi, ln theta, T) like the scipy runs; the run stops at T_END on its dense output
     res = engine.run(
-        np.array([phi0, -phi0, 0.0, 0.0, 0.0]), p.ba, p.kappa, p.eps, vo, rtol, rtol,
-        math.inf, False, False, T_END, 40.0, 10_000_000, 0.0, np.empty(0),
-        np.array([T_END]), samples, _INTEGRATORS[integrator],
+        np.array([phi0, -phi0, 0.0]), p.ba, p.kappa, p.eps, vo, rtol, rtol, math.inf, False,
+        False, T_END, 40.0, 10_000_000, 0.0, np.empty(0), np.empty(0), np.empty((0, 5)),
+        _INTEGRATORS[integrator],
     )  # fmt: skip
-    assert res.n_filled == 1
-    return np.array([samples[0, 0], samples[0, 1]]), res.n_steps
+    assert res.status == engine.Status.T_END
+    return np.array([res.y_end[0], res.y_end[1]]), res.n_steps
 
 
 def _scipy_state(p: Params, dv: float, rtol: float, method: str) -> tuple[np.ndarray, int]:
