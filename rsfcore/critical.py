@@ -350,10 +350,12 @@ def accuracy_verdict(kind: str, method: str, rel_accuracy: float, rtol: float) -
     why = {
         "closed form": "the closed form is ill-conditioned here: rounding in double precision"
         " limits it to",
-        "separatrix": "the separatrix integration's propagated error estimate is",
+        "separatrix": "the separatrix integration's propagated error estimate (with, for a"
+        " load-point jump, the rounding of l = ln(1 + dv) over its steps) is",
         "bisection on certified classify() outcomes": "the bisection bracket (classify could"
         " not decide closer to the separatrix) is",
-        "asymptote": "the asymptote's error bound (the next order in kappa_crit/kappa) is",
+        "asymptote": "the asymptote's error bound (its third order in 1/r and b, plus the"
+        " rounding of l = ln(1 + dv)) is",
     }.get(how, f"{how} reaches")
     return False, f"{why} {rel_accuracy:.2g} relative, above the requested rtol {rtol:.2g}"
 
