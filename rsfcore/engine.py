@@ -524,8 +524,9 @@ def integrate(
             Hairer's stiffness test fires 15 times in a row, and back when h |lambda| < 2
             for 20 steps); 2 = RODAS4 only.
         fast_leg: take the fast-slip leg of an excursion above phi - ln c = PHI_LEG in
-            closed form (rsfcore.excursion) instead of stepping through it; only while no
-            hybrid-time sample is pending (tau itself does not advance over the leg).
+            closed form (rsfcore.excursion) instead of stepping through it.  tau does not
+            advance over a leg, so no hybrid-time sample falls inside one (samples in T
+            do not either: a leg lasts < e^-50 of the time scale).
 
     Returns:
         (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, peak_psi, peak_psi_T,
@@ -1005,7 +1006,7 @@ def integrate(
 
         # ---- fast-slip leg in closed form (rsfcore.excursion) ---------------------
         # (v_o = 0 too: the load term is 0 there, and kappa = 0 has no leg: fast_leg checks)
-        if fast_leg and not runaway and i_tau >= n_tau and y[0] - lnc >= PHI_LEG:
+        if fast_leg and not runaway and y[0] - lnc >= PHI_LEG:
             leg = _fast_leg(y[0], y[1], ba, kappa, eps)
             if leg[0]:
                 L_exit, phi_pk, dJ, rate_in, rate_exit = leg[1], leg[2], leg[3], leg[4], leg[5]

@@ -455,13 +455,11 @@ def _run(
     sample_T: NDArray[np.float64] = _EMPTY,
     max_steps: int = MAX_STEPS,
     integrator: Integrator = Integrator.AUTO,
-    fast_leg: bool | None = None,
+    fast_leg: bool = True,
 ) -> tuple[EngineResult, NDArray[np.float64]]:
-    """One engine run; fast-slip legs in closed form (rsfcore.excursion) unless hybrid-time
-    samples are wanted (``fast_leg`` None) or ``fast_leg`` is False."""
+    """One engine run; fast-slip legs in closed form (rsfcore.excursion) unless ``fast_leg``
+    is False (method "integrate")."""
     n_samp = sample_tau.shape[0] + sample_T.shape[0]
-    if fast_leg is None:
-        fast_leg = sample_tau.shape[0] == 0
     lth0 = (psi0 - phi0) / p.ba
     # without samples only (phi, ln theta, T) are carried
     y0 = np.array([phi0, lth0, 0.0, 0.0, 0.0]) if n_samp else np.array([phi0, lth0, 0.0])
@@ -569,9 +567,13 @@ def simulate(
     The trajectory is returned when ``n_points > 0`` (evenly spaced in the engine's
     hybrid time when sampling="tau", which resolves both slow creep and the fast
     excursion, or evenly in T when sampling="time") or when ``times`` (dimensionless T,
-    sorted, >= 0) are given.  Samples come from the dense output (7th order for DOP853
-    steps; for RODAS4 steps a cubic Hermite interpolant whose error the step control
-    bounds like the step's own), so they carry the integrator's accuracy.  Without
+    sorted, >= 0) are given.  A fast-slip leg above phi - ln v_o = 50 taken in closed form
+    (rsfcore.excursion; near b/a -> 1 these climb to phi ~ 1e5 .. 1e12 and back in < e^-50
+    of the time) advances neither T nor the hybrid time, so no sample lies on it: the
+    samples step from its entry to its exit, at equal phi, and ``peak_phi`` gives its top.
+    Samples come from the dense output (7th order for DOP853 steps; for RODAS4 steps a
+    cubic Hermite interpolant whose error the step control bounds like the step's own),
+    so they carry the integrator's accuracy.  Without
     ``t_end`` the trajectory ends at the decision (return to steady state, blow-up, or the
     passed peak for v_o = 0); with ``t_end`` it runs to that T (or to blow-up if
     earlier).  ``physical`` adds SI columns: t_s, V_m_s, tau_change_Pa, friction,
@@ -819,7 +821,7 @@ def _simulate(
             plan,
             max_steps=budget,
             integrator=integ,
-            fast_leg=None if method == "auto" else False,
+            fast_leg=method == "auto",
         )
     tsc = math.exp(-frame_shift)  # frame time -> T
     status: Status | None
@@ -838,8 +840,6 @@ def _simulate(
             res.T_return,
         )
         peak_phi, peak_T, err_sum = res.peak_phi + frame_shift, res.peak_T * tsc, res.err_sum
-        if res.n_legs:
-            tau_end = math.nan  # a closed-form leg adds no tau: hybrid-time samples re-run
         T_cert, T_ret = T_cert * tsc, T_ret * tsc
         n_steps, n_rhs = res.n_steps + res.n_rejected, res.n_rhs
 
@@ -927,6 +927,7 @@ def _simulate(
             sampling,
             physical,
             integ,
+            fast_leg=method == "auto",
         )
 
     return TrajectoryResult(
@@ -962,20 +963,23 @@ def _sample(
     sampling: str,
     physical: PhysicalParams | None,
     integrator: Integrator = Integrator.AUTO,
+    fast_leg: bool = True,
 ) -> Trajectory:
     if sampling not in ("tau", "time"):
         raise ParameterError("sampling", sampling, "'tau' or 'time'")
     te = math.inf if t_end is None else t_end
     sor = None if t_end is None else False
-    run = functools.partial(_run, p, phi0, psi0, rtol, plan, integrator=integrator)
+    run = functools.partial(
+        _run, p, phi0, psi0, rtol, plan, integrator=integrator, fast_leg=fast_leg
+    )
     if times is not None and len(times) > 0:
         sT = np.asarray(times, dtype=np.float64)
         if not np.all(np.isfinite(sT)) or np.any(sT < 0) or np.any(np.diff(sT) < 0):
             raise ParameterError("times", "...", "finite, non-negative and sorted ascending")
         res, samples = run(t_end=min(te, float(sT[-1])), stop_on_return=False, sample_T=sT)
     else:
-        if t_end is not None or sampling == "time" or not math.isfinite(tau_end):
-            res0, _ = run(t_end=te, stop_on_return=sor, fast_leg=sampling == "time")
+        if t_end is not None or sampling == "time":
+            res0, _ = run(t_end=te, stop_on_return=sor)
             tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         else:
             T_end = math.nan

@@ -15,6 +15,7 @@ import math
 import random
 
 import mpmath as mp
+import numpy as np
 import pytest
 
 import rsfcore
@@ -163,21 +164,33 @@ def test_leg_resolves_what_stepping_cannot() -> None:
     assert 3e11 < ref.peak_phi < 5e11
 
 
-def test_trajectory_in_tau_steps_through_the_leg() -> None:
-    """Hybrid-time samples need tau, which a leg does not advance: the trajectory is
-    integrated by steps, and its peak is the classification's."""
+@pytest.mark.parametrize("sampling", ["tau", "time"])
+def test_trajectory_samples_skip_the_leg(sampling: str) -> None:
+    """A leg advances neither T nor tau: the samples step from its entry to its exit (equal
+    phi, ~ln v_o + 50), the run takes the leg's few steps, and the trajectory ends where
+    the classification says; samples on either side agree with stepping (method
+    "integrate") at the same T, where stepping is accurate (peak ~1e5)."""
     p = Params(1.0 + 1e-5, 3e-5, 0.0, 1.0)
     c = rsfcore.critical_perturbation(p, "velocity-jump")
     d = 0.9 * c.critical_size
     cl = rsfcore.classify(p, "velocity-jump", d, rtol=1e-11)
-    tr = rsfcore.simulate(p, "velocity-jump", d, rtol=1e-11, n_points=200)
-    assert cl.peak_phi > 1e4  # a leg was taken (peak ~ 1/kc)
-    assert tr.trajectory is not None and len(tr.trajectory.T) == 200
-    assert abs(tr.peak_phi - cl.peak_phi) <= 2 * (cl.rel_accuracy + tr.rel_accuracy) * cl.peak_phi
-    assert (
-        abs(tr.return_time - cl.return_time)
-        <= 2 * (cl.rel_accuracy + tr.rel_accuracy) * cl.return_time
-    )
+    tr = rsfcore.simulate(p, "velocity-jump", d, rtol=1e-11, n_points=400, sampling=sampling)
+    assert cl.peak_phi > 1e4 and tr.peak_phi == cl.peak_phi  # a leg was taken
+    assert tr.trajectory is not None and len(tr.trajectory.T) == 400
+    T, phi = tr.trajectory.T, tr.trajectory.phi
+    # T is non-decreasing up to the dense output's error, rtol |T| (T hardly moves at phi ~
+    # 36 .. 50, where samples 1e-17 apart in T came out up to 2.5e-14 |T| the wrong way)
+    assert np.all(np.diff(T) >= -1e-11 * T[1:])
+    assert phi.max() < 60.0  # nothing sampled on the leg (its entry is at phi = 50 + steps)
+    assert T[-1] == pytest.approx(cl.return_time, rel=10 * cl.rel_accuracy)
+    # where phi < 5 (d phi/dT <= e^5 |...|, so an error of rtol |T| in T moves phi by
+    # < 1e-9): samples against stepping at rtol 1e-12 (its blur of L ~1e-16 * 1e5) at the
+    # same T, before and after the leg
+    slow = np.where(phi < 5.0)[0][::3]
+    ref = rsfcore.simulate(p, "velocity-jump", d, rtol=1e-12, times=T[slow], method="integrate")
+    assert ref.trajectory is not None and len(slow) >= 8 and T[slow[-1]] > T[np.argmax(phi)]
+    dphi = np.abs(ref.trajectory.phi - phi[slow])
+    assert np.all(dphi <= 1e-8 * (1.0 + np.abs(phi[slow]))), dphi.max()
 
 
 def test_slow_spiral_outcome_without_its_times() -> None:
