@@ -829,16 +829,10 @@ def _simulate(
     peak_T: float | None
     cert: str | None
     if res is None:
-        status, y_end, tau_end, T_cert, T_ret = None, None, 0.0, math.nan, math.nan
+        status, y_end, T_cert, T_ret = None, None, math.nan, math.nan
         peak_phi, peak_T, n_steps, n_rhs, err_sum = phi0, 0.0, 0, 0, 0.0
     else:
-        status, y_end, tau_end, T_cert, T_ret = (
-            res.status,
-            res.y_end,
-            res.tau_end,
-            res.T_cert,
-            res.T_return,
-        )
+        status, y_end, T_cert, T_ret = res.status, res.y_end, res.T_cert, res.T_return
         peak_phi, peak_T, err_sum = res.peak_phi + frame_shift, res.peak_T * tsc, res.err_sum
         T_cert, T_ret = T_cert * tsc, T_ret * tsc
         n_steps, n_rhs = res.n_steps + res.n_rejected, res.n_rhs
@@ -920,7 +914,6 @@ def _simulate(
             psi0,
             rtol,
             plan,
-            tau_end,
             t_end,
             n_points,
             times,
@@ -956,7 +949,6 @@ def _sample(
     psi0: float,
     rtol: float,
     plan: _Plan,
-    tau_end: float,
     t_end: float | None,
     n_points: int,
     times: Sequence[float] | None,
@@ -977,19 +969,25 @@ def _sample(
         if not np.all(np.isfinite(sT)) or np.any(sT < 0) or np.any(np.diff(sT) < 0):
             raise ParameterError("times", "...", "finite, non-negative and sorted ascending")
         res, samples = run(t_end=min(te, float(sT[-1])), stop_on_return=False, sample_T=sT)
+    elif plan.certificate == "at_equilibrium" and t_end is None:
+        # decided at T = 0 and nothing moves: the trajectory is its start (a run without a
+        # stop would step to its budget, seconds)
+        lth0 = (psi0 - phi0) / p.ba
+        samples = np.tile(np.array([phi0, lth0, 0.0, 0.0, 0.0]), (n_points, 1))
+        res = None
     else:
-        if t_end is not None or sampling == "time":
-            res0, _ = run(t_end=te, stop_on_return=sor)
-            tau_end, T_end = res0.tau_end, float(res0.y_end[2])
-        else:
-            T_end = math.nan
+        # the extent of the samples from a run like theirs (same frame, steps and legs:
+        # where a leg is entered shifts tau by O(1) per unit of phi above the threshold, so
+        # the classification's tau_end, from its own frame, does not fit)
+        res0, _ = run(t_end=te, stop_on_return=sor)
+        tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         if sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
             res, samples = run(t_end=te, stop_on_return=sor, sample_T=sT)
         else:
             sTau = np.linspace(0.0, tau_end, n_points)
             res, samples = run(t_end=te, stop_on_return=sor, sample_tau=sTau)
-    n = res.n_filled
+    n = n_points if res is None else res.n_filled
     s = samples[:n]
     phi, lth = s[:, 0], s[:, 1]
     tr = Trajectory(

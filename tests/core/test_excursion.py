@@ -162,6 +162,15 @@ def test_leg_resolves_what_stepping_cannot() -> None:
             assert abs(x - y) <= r.rel_accuracy * abs(y), name
     assert res[1].rel_accuracy < 1e-6
     assert 3e11 < ref.peak_phi < 5e11
+    # its trajectory in tau ends at the return too: the sample grid comes from a run in
+    # the trajectory's own frame (the classification's tau_end, from the v_o = 1 frame,
+    # entered the leg elsewhere and cut the samples off at the peak, T = 0.00199)
+    for sampling in ("tau", "time"):
+        tr = rsfcore.simulate(
+            p, "velocity-jump", log_size=2.6302518027188104, n_points=200, sampling=sampling
+        )
+        assert tr.trajectory is not None and tr.return_time is not None
+        assert tr.trajectory.T[-1] == pytest.approx(tr.return_time, rel=1e-8)
 
 
 @pytest.mark.parametrize("sampling", ["tau", "time"])

@@ -216,3 +216,17 @@ def test_kcrit_closed_form_and_integration_agree_on_outcomes() -> None:
         a = classify(p, "velocity-jump", dc * f)
         b = classify(p, "velocity-jump", dc * f, method="integrate")
         assert a.outcome == b.outcome == ("stable" if f < 1 else "unstable")
+
+
+def test_trajectory_at_equilibrium_is_its_start() -> None:
+    # decided at T = 0 with nothing to integrate: n_points copies of the start at T = 0
+    # (a run without a stop used to step to its 1e7-step budget, ~5 s); with t_end it runs
+    # to t_end and stays there
+    p = Params(2.0, 3.0, 0.5, 1.0)
+    r = simulate(p, "velocity-jump", 0.0, n_points=7)
+    assert r.certificate == "at_equilibrium" and r.trajectory is not None
+    assert len(r.trajectory.T) == 7 and np.all(r.trajectory.T == 0.0)
+    assert np.all(r.trajectory.phi == 0.0) and np.all(r.trajectory.ln_theta == 0.0)
+    r = simulate(p, "velocity-jump", 0.0, n_points=5, t_end=3.0)
+    assert r.trajectory is not None and r.trajectory.T[-1] == pytest.approx(3.0)
+    assert np.allclose(r.trajectory.phi, 0.0, atol=1e-12)
