@@ -15,9 +15,10 @@ COPY rsfcli ./rsfcli
 COPY service ./service
 COPY worker ./worker
 COPY rsfclient ./rsfclient
-# the PostgreSQL driver (extra `postgres`), emcee for fit posteriors (extra `fit`), then
+# the service, CLI, figures and fits (extra `all`), the PostgreSQL driver (extra
+# `postgres`), then
 # the compiled kernels
-RUN pip install ".[postgres,fit]" \
+RUN pip install ".[all,postgres]" \
     && python -c "from rsfapp.warmup import warm_up; warm_up()" \
     && test -n "$(ls -A /app/.numba_cache)" \
     && useradd --create-home --uid 10001 rsf \

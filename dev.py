@@ -4,8 +4,8 @@
     python3 dev.py serve [rsf serve options]   # start API + embedded Celery worker
     python3 dev.py test  [pytest options]      # lint, types, then the whole test suite
 
-Both create ``.venv`` on first use, install the project (editable, with the test, dev and
-postgres extras) into it and compile rsfcore's kernels once (numba cache in
+Both create ``.venv`` on first use, install the project (editable, with the all, test, dev
+and postgres extras) into it and compile rsfcore's kernels once (numba cache in
 ``.numba_cache``); later runs reuse it and only reinstall when pyproject.toml changed.
 
 ``test`` runs, in order and stopping at the first failure: ``ruff check``,
@@ -57,7 +57,7 @@ def _ensure_env() -> None:
         print("[dev] installing the project and its test dependencies", flush=True)
         subprocess.check_call([str(PY), "-m", "pip", "install", "-q", "--upgrade", "pip"])
         subprocess.check_call(
-            [str(PY), "-m", "pip", "install", "-q", "-e", f"{ROOT}[test,dev,postgres]"]
+            [str(PY), "-m", "pip", "install", "-q", "-e", f"{ROOT}[all,test,dev,postgres]"]
         )
         STAMP.write_text(digest)
     _ensure_kernels()
