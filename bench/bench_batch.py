@@ -46,6 +46,7 @@ def main() -> None:
     from fastapi.testclient import TestClient
 
     from rsfapp import adapter
+    from rsfapp.adapter import batch as adapter_batch
     from rsfapp.requests import CriticalRequest
     from rsfcore.batch import critical_points
     from service.app import create_app
@@ -67,12 +68,12 @@ def main() -> None:
 
         # the parts of the batch route, each next to the obvious alternative
         t0 = time.perf_counter()
-        adapter._plain_critical_items(its)
+        adapter_batch._plain_critical_items(its)
         t_cols = time.perf_counter() - t0
         t0 = time.perf_counter()
         adapter.validate_items(CriticalRequest, its)
         t_val = time.perf_counter() - t0
-        cols = adapter._plain_critical_items(its)[1]
+        cols = adapter_batch._plain_critical_items(its)[1]
         t0 = time.perf_counter()
         critical_points(
             cols["ba"], cols["kappa"], cols["eps"], cols["vo"], perturbation="velocity-jump"

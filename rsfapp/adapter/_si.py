@@ -1,0 +1,136 @@
+"""SI inputs of a single query (``physical`` and the perturbation stated in SI) and the
+``si`` blocks of the answers; every conversion is rsfcore.units'."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from rsfcore.params import ParameterError, Params
+from rsfcore.units import (
+    PhysicalInputs,
+    load_point_jump_si,
+    load_point_jump_size,
+    velocity_jump_si,
+    velocity_jump_size,
+)
+
+from ..requests import SI_PERTURBATION_FIELDS, PhysicalSI
+from ._common import dim_params, guard
+
+__all__ = [
+    "critical_si",
+    "jump_si",
+    "outcome_si",
+    "resolve_params",
+    "resolve_size",
+    "scales_si",
+    "si_inputs",
+]
+
+
+# --- single queries: dimensionless or SI (conversions: rsfcore.units only) ---------------
+def si_inputs(req: Any) -> PhysicalInputs | None:
+    """The request's ``physical`` SI set as rsfcore.units.PhysicalInputs (None without);
+    its cross-field checks raise ParameterError naming ``physical.<field>``."""
+    phys = getattr(req, "physical", None)
+    if phys is None or not isinstance(phys, PhysicalSI):
+        return None
+    inputs: PhysicalInputs = guard(PhysicalInputs.from_dict, phys.model_dump(exclude_none=True))
+    return inputs
+
+
+def resolve_params(req: Any) -> tuple[Params, PhysicalInputs | None]:
+    """(Params, PhysicalInputs or None): from ``physical`` and ``eps`` when SI, else from
+    the dimensionless ba, kappa, eps, vo."""
+    phys = si_inputs(req)
+    if phys is None:
+        return dim_params(req), None
+    p: Params = guard(phys.to_params, req.eps)
+    return p, phys
+
+
+def resolve_size(req: Any, phys: PhysicalInputs | None) -> float:
+    """The dimensionless perturbation size: ``size``, or the SI statement (``factor``,
+    ``new_slip_rate_m_s``, ``new_load_point_velocity_m_s``) converted by rsfcore.units."""
+    given = {f: getattr(req, f, None) for f in SI_PERTURBATION_FIELDS}
+    given = {f: v for f, v in given.items() if v is not None}
+    if not given or phys is None:
+        return float(req.size)
+    try:
+        if req.perturbation == "velocity-jump":
+            if "new_load_point_velocity_m_s" in given:
+                raise ParameterError(
+                    "new_load_point_velocity_m_s",
+                    given["new_load_point_velocity_m_s"],
+                    "not used by a velocity jump (give factor or new_slip_rate_m_s)",
+                )
+            return float(velocity_jump_size(phys, **given))
+        if "new_slip_rate_m_s" in given:
+            raise ParameterError(
+                "new_slip_rate_m_s",
+                given["new_slip_rate_m_s"],
+                "not used by a load-point jump (give factor or new_load_point_velocity_m_s)",
+            )
+        return float(load_point_jump_size(phys, **given))
+    except ParameterError as exc:  # name the request's field, not units' dotted one
+        field = exc.field.removeprefix("perturbation.")
+        raise ParameterError(field, exc.value, exc.valid) from None
+
+
+def jump_si(phys: PhysicalInputs, perturbation: str, size: float | None) -> dict[str, Any]:
+    """A perturbation of dimensionless ``size`` in SI: the velocity jump (factor, new slip
+    rate [m/s], shear-stress jump a sigma d [Pa] at constant state) or the load-point jump
+    (new load-point velocity [m/s])."""
+    if size is None or not math.isfinite(size):
+        return {}
+    if perturbation == "velocity-jump":
+        d = guard(velocity_jump_si, phys, size).to_dict()
+        d["shear_stress_jump_Pa"] = phys.shear_stress_change_Pa(size)
+        d["friction_jump"] = phys.friction_change(size)
+        return {"velocity_jump": d}
+    return {"load_point_jump": guard(load_point_jump_si, phys, size).to_dict()}
+
+
+def scales_si(phys: PhysicalInputs) -> dict[str, Any]:
+    return {
+        "inputs": phys.to_dict(),
+        "kappa": phys.kappa,
+        "kappa_crit": phys.kappa_crit,
+        "k_crit_Pa_per_m": phys.k_crit_Pa_per_m,
+        "time_scale_s": phys.time_scale_s,
+        "stress_scale_Pa": phys.stress_scale_Pa,
+        "slip_rate_before_m_s": phys.slip_rate_before_m_s,
+    }
+
+
+def outcome_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
+    """The ``si`` block of a classify/trajectory answer: times [s], peak slip rate [m/s],
+    start shear-stress change [Pa] and friction change, the perturbation in SI."""
+
+    def ts(T: Any) -> float | None:
+        return None if T is None else phys.time_s(float(T))
+
+    peak = out.get("peak_phi")
+    start = out.get("start") or {}
+    si: dict[str, Any] = {
+        **scales_si(phys),
+        "blowup_time_s": ts(out.get("blowup_time")),
+        "return_time_s": ts(out.get("return_time")),
+        "peak_time_s": ts(out.get("peak_time")),
+        "peak_slip_rate_m_s": None if peak is None else phys.slip_rate_m_s(float(peak)),
+    }
+    if start.get("psi") is not None:
+        si["start_shear_stress_change_Pa"] = phys.shear_stress_change_Pa(float(start["psi"]))
+        si["start_friction_change"] = phys.friction_change(float(start["psi"]))
+        si["start_slip_rate_m_s"] = phys.slip_rate_m_s(float(start["phi"]))
+    if out.get("perturbation") is not None:
+        si.update(jump_si(phys, str(out["perturbation"]), out.get("size")))
+    return si
+
+
+def critical_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
+    return {
+        **scales_si(phys),
+        **jump_si(phys, str(out["perturbation"]), out.get("critical_size")),
+    }
