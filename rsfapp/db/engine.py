@@ -50,9 +50,31 @@ __all__ = [
 ]
 
 #: Version of the schema this code writes (bump with a migration in MIGRATIONS).
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+
+#: Sweep columns widened to BIGINT in schema version 2 (flat point indices and counts of
+#: sweeps beyond 2^31 points): {table: columns}.
+_BIGINT_COLUMNS: dict[str, tuple[str, ...]] = {
+    "sweeps": ("n_total", "n_chunks"),
+    "sweep_chunks": ("idx", "i0", "i1"),
+    "sweep_blocks": ("idx", "i0", "i1", "n_failed"),
+    "sweep_points": ("idx",),
+}
+
+
+def _v1_to_v2(conn: Connection) -> None:
+    """Schema 1 -> 2: sweep indices and counts as BIGINT.  PostgreSQL: ALTER COLUMN ...
+    TYPE BIGINT (a table rewrite, under the schema lock); SQLite's INTEGER already holds
+    64-bit values, nothing to do."""
+    if conn.dialect.name != "postgresql":
+        return
+    for table, cols in _BIGINT_COLUMNS.items():
+        alters = ", ".join(f"ALTER COLUMN {c} TYPE BIGINT" for c in cols)
+        conn.execute(text(f"ALTER TABLE {table} {alters}"))
+
+
 #: MIGRATIONS[v] upgrades a database at version v to v + 1 (inside one transaction).
-MIGRATIONS: dict[int, Callable[[Connection], None]] = {}
+MIGRATIONS: dict[int, Callable[[Connection], None]] = {1: _v1_to_v2}
 _LOCK_ID = 0x72_73_66  # advisory lock key of schema creation ('rsf')
 
 

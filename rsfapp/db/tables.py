@@ -14,11 +14,16 @@
   API process and host (:mod:`rsfapp.store.ratelimits`);
 * ``inflight_leases``: one row per computing request of an API key in flight, on any
   API process or host (its ``concurrent_requests`` quota; :mod:`rsfapp.store.inflight`).
+
+Flat point indices, point counts and chunk numbers of sweeps are BIGINT (64-bit): a sweep
+may hold more than 2^31 points (schema version 2; version 1 databases are migrated by
+:data:`rsfapp.db.engine.MIGRATIONS`).
 """
 
 from __future__ import annotations
 
 from sqlalchemy import (
+    BigInteger,
     Column,
     Float,
     ForeignKey,
@@ -75,8 +80,8 @@ sweeps = Table(
     Column("id", String(64), primary_key=True),
     Column("spec", Text, nullable=False),
     Column("status", String(16), nullable=False),  # queued|running|done|cancelled
-    Column("n_total", Integer, nullable=False),
-    Column("n_chunks", Integer, nullable=False),
+    Column("n_total", BigInteger, nullable=False),
+    Column("n_chunks", BigInteger, nullable=False),
     Column("numerics_version", String(32), nullable=False),
     Column("created_at", Float, nullable=False),
     Column("started_at", Float),
@@ -87,9 +92,9 @@ chunks = Table(
     "sweep_chunks",
     metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
-    Column("idx", Integer, primary_key=True),
-    Column("i0", Integer, nullable=False),
-    Column("i1", Integer, nullable=False),
+    Column("idx", BigInteger, primary_key=True),
+    Column("i0", BigInteger, nullable=False),
+    Column("i1", BigInteger, nullable=False),
     Column("status", String(16), nullable=False),  # queued|running|done|cancelled
     Column("owner", String(128)),
     Column("heartbeat", Float),
@@ -100,7 +105,7 @@ points = Table(
     "sweep_points",
     metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
-    Column("idx", Integer, primary_key=True),
+    Column("idx", BigInteger, primary_key=True),
     Column("i", Integer, nullable=False),
     Column("j", Integer, nullable=False),
     Column("x", Float, nullable=False),
@@ -149,10 +154,10 @@ sweep_blocks = Table(
     "sweep_blocks",
     metadata,
     Column("sweep_id", String(64), ForeignKey("sweeps.id"), primary_key=True),
-    Column("idx", Integer, primary_key=True),
-    Column("i0", Integer, nullable=False),
-    Column("i1", Integer, nullable=False),
-    Column("n_failed", Integer, nullable=False),
+    Column("idx", BigInteger, primary_key=True),
+    Column("i0", BigInteger, nullable=False),
+    Column("i1", BigInteger, nullable=False),
+    Column("n_failed", BigInteger, nullable=False),
     Column("data", LargeBinary, nullable=False),
     Column("errors", Text),
     Column("created_at", Float, nullable=False),

@@ -19,9 +19,15 @@ Guarantees:
   (:meth:`SweepStore.reap_expired`) and closes sweeps whose chunks are all done
   (:meth:`SweepStore.close_finished`); at worker start, chunks with no live owner are
   requeued as well;
-* completion is decided under a row lock on the sweep (``SELECT ... FOR UPDATE``; SQLite:
-  ``BEGIN IMMEDIATE``), so two chunks finishing together on PostgreSQL (READ COMMITTED)
-  cannot both see the other unfinished (write skew) and leave the sweep running;
+* one lock order for every operation (no deadlock between workers, cancels, purges and
+  reapers on PostgreSQL): a write transaction that touches a sweep's chunks or blocks
+  first locks the sweep's row (``SELECT ... FOR NO KEY UPDATE``, which still lets
+  foreign-key checks of other inserts through), several sweeps in id order, and only then
+  its chunk and block rows (SQLite: ``BEGIN IMMEDIATE`` write transactions are exclusive
+  anyway).  Completion is decided under that lock, so two chunks finishing together on
+  PostgreSQL (READ COMMITTED) cannot both see the other unfinished (write skew) and leave
+  the sweep running; a purge cannot interleave with a block being stored;
+* flat indices and counts are BIGINT (sweeps of more than 2^31 points);
 * lazy dispatch: chunk rows start ``pending``; only ``sweep_window`` of them are sent to
   the queue (``queued``), and each finished chunk sends the next pending one, so a sweep
   of 10^8 points costs a few thousand small rows and never floods the broker;
@@ -165,20 +171,25 @@ class SweepStore:
         now = time.time()
         n_total = spec.n_total
         with self.db.write() as conn:
-            row = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).first()
-            if row is None:
-                n_chunks = -(-n_total // chunk_points)
-                conn.execute(
-                    sweeps.insert().values(
-                        id=sweep_id,
-                        spec=json.dumps(spec.to_json(), sort_keys=True),
-                        status="queued",
-                        n_total=n_total,
-                        n_chunks=n_chunks,
-                        numerics_version=numerics_version,
-                        created_at=now,
-                    )
-                )
+            row = self._lock_sweep(conn, sweep_id)
+            n_chunks = -(-n_total // chunk_points)
+            if row is None and insert_ignore(
+                conn,
+                sweeps,
+                {
+                    "id": sweep_id,
+                    "spec": json.dumps(spec.to_json(), sort_keys=True),
+                    "status": "queued",
+                    "n_total": n_total,
+                    "n_chunks": n_chunks,
+                    "numerics_version": numerics_version,
+                    "created_at": now,
+                    "started_at": None,
+                    "finished_at": None,
+                },
+            ):
+                # new (a concurrent create of the same id inserted nothing: it waits on
+                # this row and then sees it)
                 if spec.points is not None:
                     conn.execute(
                         sweep_inputs.insert().values(
@@ -200,7 +211,9 @@ class SweepStore:
                     ],
                 )
                 return Created(True, False, self._dispatch(conn, sweep_id, window))
-            if row[0] != "cancelled":
+            if row is None:
+                row = self._lock_sweep(conn, sweep_id)
+            if row is None or row != "cancelled":
                 return Created(False, False, [])
             conn.execute(
                 update(sweeps)
@@ -256,8 +269,7 @@ class SweepStore:
         """Chunks to send now to keep ``window`` in flight (none unless the sweep is
         active)."""
         with self.db.write() as conn:
-            s = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).scalar()
-            if s not in ACTIVE:
+            if self._lock_sweep(conn, sweep_id) not in ACTIVE:
                 return []
             return self._dispatch(conn, sweep_id, window)
 
@@ -299,11 +311,11 @@ class SweepStore:
         me = owner_id()
         now = time.time()
         with self.db.write() as conn:
-            s = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).first()
+            s = self._lock_sweep(conn, sweep_id)  # sweep row first: the one lock order
             c = conn.execute(select(chunks).where(_chunk(sweep_id, idx))).first()
             if s is None or c is None or c.status in ("done", "cancelled"):
                 return None
-            if s.status == "cancelled":
+            if s == "cancelled":
                 conn.execute(update(chunks).where(_chunk(sweep_id, idx)).values(status="cancelled"))
                 return None
             if (
@@ -344,6 +356,7 @@ class SweepStore:
     def release_chunk(self, sweep_id: str, idx: int) -> None:
         """Put a running chunk back in the queue (its worker hit an infrastructure error)."""
         with self.db.write() as conn:
+            self._lock_sweep(conn, sweep_id)
             conn.execute(
                 update(chunks)
                 .where(and_(_chunk(sweep_id, idx), chunks.c.status == "running"))
@@ -377,6 +390,8 @@ class SweepStore:
             "created_at": time.time(),
         }
         with self.db.write() as conn:
+            if self._lock_sweep(conn, sweep_id) is None:  # purged meanwhile
+                return False
             return insert_ignore(conn, sweep_blocks, [row]) > 0
 
     def is_cancelled(self, sweep_id: str) -> bool:
@@ -412,7 +427,7 @@ class SweepStore:
         """Cancel a sweep: (its status, whether this call changed anything); None if
         unknown.  Done and already cancelled sweeps are left as they are."""
         with self.db.write() as conn:
-            s = conn.execute(select(sweeps.c.status).where(sweeps.c.id == sweep_id)).scalar()
+            s = self._lock_sweep(conn, sweep_id)
             if s is None:
                 return None
             if s not in ACTIVE:
@@ -434,6 +449,8 @@ class SweepStore:
     def delete(self, sweep_id: str) -> bool:
         """Delete a sweep with its chunks, inputs and results; False if unknown."""
         with self.db.write() as conn:
+            if self._lock_sweep(conn, sweep_id) is None:
+                return False
             for t in (sweep_blocks, sweep_inputs, chunks, points):
                 conn.execute(delete(t).where(t.c.sweep_id == sweep_id))
             n = conn.execute(delete(sweeps).where(sweeps.c.id == sweep_id)).rowcount
@@ -507,19 +524,13 @@ class SweepStore:
 
     def blocks(self, sweep_id: str, i0: int = 0, i1: int | None = None) -> Iterator[Block]:
         """Stored blocks overlapping [i0, i1), in index order (read a few at a time)."""
-        hi = i1 if i1 is not None else 2**62
+        cond = [sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.i1 > i0]
+        if i1 is not None:  # no sentinel bound: any bound parameter must fit the column
+            cond.append(sweep_blocks.c.i0 < i1)
         with self.db.read() as conn:
             keys = (
                 conn.execute(
-                    select(sweep_blocks.c.idx)
-                    .where(
-                        and_(
-                            sweep_blocks.c.sweep_id == sweep_id,
-                            sweep_blocks.c.i1 > i0,
-                            sweep_blocks.c.i0 < hi,
-                        )
-                    )
-                    .order_by(sweep_blocks.c.i0)
+                    select(sweep_blocks.c.idx).where(and_(*cond)).order_by(sweep_blocks.c.i0)
                 )
                 .scalars()
                 .all()
@@ -556,6 +567,7 @@ class SweepStore:
         filesystem broker deletes a message once delivered)."""
         out: list[tuple[str, int]] = []
         with self.db.write() as conn:
+            self._lock_active(conn)
             rows = conn.execute(
                 select(
                     chunks.c.sweep_id,
@@ -589,11 +601,29 @@ class SweepStore:
         return out
 
     @staticmethod
-    def _lock_sweep(conn: Connection, sweep_id: str) -> None:
-        """Row lock on the sweep until the transaction ends (PostgreSQL ``FOR UPDATE``;
-        SQLite write transactions are already exclusive): decisions about the sweep's
-        completion are serialised."""
-        conn.execute(select(sweeps.c.id).where(sweeps.c.id == sweep_id).with_for_update())
+    def _lock_sweep(conn: Connection, sweep_id: str) -> str | None:
+        """Row lock on the sweep until the transaction ends (PostgreSQL ``FOR NO KEY
+        UPDATE``; SQLite write transactions are already exclusive); its status, None if
+        there is no such sweep.  Taken first by every write that touches the sweep's
+        chunks or blocks: the one lock order (sweep, then its chunks and blocks)."""
+        s = conn.execute(
+            select(sweeps.c.status).where(sweeps.c.id == sweep_id).with_for_update(key_share=True)
+        ).scalar()
+        return None if s is None else str(s)
+
+    @staticmethod
+    def _lock_active(conn: Connection) -> list[str]:
+        """Lock every active sweep's row, in id order (the one lock order for writes
+        spanning several sweeps); returns their ids."""
+        return [
+            str(i)
+            for i in conn.execute(
+                select(sweeps.c.id)
+                .where(sweeps.c.status.in_(ACTIVE))
+                .order_by(sweeps.c.id)
+                .with_for_update(key_share=True)
+            ).scalars()
+        ]
 
     def reap_expired(self, lease_s: float) -> list[tuple[str, int]]:
         """Running chunks of active sweeps whose lease expired (no heartbeat for
@@ -604,6 +634,8 @@ class SweepStore:
         cutoff = now - lease_s
         out: list[tuple[str, int]] = []
         with self.db.write() as conn:
+            if not self._lock_active(conn):
+                return out
             rows = conn.execute(
                 select(chunks.c.sweep_id, chunks.c.idx)
                 .join(sweeps, sweeps.c.id == chunks.c.sweep_id)
@@ -637,8 +669,11 @@ class SweepStore:
         of the next chunks died), dispatch the next ones.  Returns (sweeps closed,
         chunks to send)."""
         now = time.time()
-        closed, send = 0, []
+        closed = 0
+        send: list[tuple[str, int]] = []
         with self.db.write() as conn:
+            if not self._lock_active(conn):
+                return closed, send
             rows = conn.execute(
                 select(
                     sweeps.c.id,
@@ -652,7 +687,6 @@ class SweepStore:
             ).all()
             for sid, n_chunks, n_done, n_busy in rows:
                 if n_done == n_chunks:
-                    self._lock_sweep(conn, sid)
                     closed += (
                         conn.execute(
                             update(sweeps)

@@ -1,0 +1,216 @@
+"""The sweep store on SQLite and on PostgreSQL: flat indices beyond 2^31, reads of every
+block without a sentinel bound, one lock order under racing workers, cancels, resumes,
+purges and reapers (no deadlock), and purge giving the disk back.
+
+The PostgreSQL variants start a real throw-away cluster (tests/conftest.py ``postgres``),
+so they are marked e2e; the SQLite variants run everywhere."""
+
+from __future__ import annotations
+
+import random
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rsfapp.db.engine import Database
+from rsfapp.grid import Axis, SweepSpec
+from rsfapp.store.sweeps import SweepStore, encode_block
+
+pytestmark = pytest.mark.timeout(300)
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgres", marks=pytest.mark.e2e)])
+def db(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Database]:
+    if request.param == "postgres":
+        url = request.getfixturevalue("postgres").url
+    else:
+        url = f"sqlite:///{tmp_path / 'store.sqlite3'}"
+    d = Database(url, pool_size=24, max_overflow=8, pool_timeout=60.0)
+    try:
+        yield d
+    finally:
+        d.dispose()
+
+
+def grid(n0: int, n1: int, stop: float = 0.9) -> SweepSpec:
+    """A 2-D (eps, vo) grid spec of n0 x n1 points (never computed here)."""
+    return SweepSpec(
+        "grid",
+        [Axis("eps", n0, None, 0.1, stop), Axis("vo", n1, None, 0.5, 2.0)],
+        None,
+        {"ba": 2.0, "kappa_ratio": 0.5},
+        "kappa_ratio",
+        "velocity-jump",
+        1e-10,
+        "critical",
+    )
+
+
+def block(n: int, seed: int = 0) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return {
+        "critical_size": rng.random(n),
+        "rel_accuracy": np.full(n, 1e-11),
+        "kind": np.ones(n, np.int8),
+        "method": np.zeros(n, np.int8),
+        "failed": np.zeros(n, np.bool_),
+        "on_boundary": np.zeros(n, np.bool_),
+    }
+
+
+def test_indices_beyond_2_31(db: Database) -> None:
+    """A sweep of 2.5e9 points (> 2^31): chunk rows, a stored block near its end, the
+    status counts and reads of every block (no bound) and of a range all hold the
+    64-bit indices exactly (on PostgreSQL an INTEGER column or a 2^62 sentinel bound
+    fails with 'integer out of range')."""
+    st = SweepStore(db)
+    spec = grid(50_000, 50_000)
+    assert spec.n_total == 2_500_000_000 > 2**31
+    cp = 1_000_000
+    cr = st.create("big", spec, cp, "t", window=2)
+    assert cr.created and cr.todo == [0, 1]
+    last = spec.n_total // cp - 1
+    i0, i1 = last * cp, spec.n_total
+    assert i0 > 2**31
+    arrays = block(16)  # only the first 16 points carry data: enough for the indices
+    assert st.store_block("big", last, i0, i1, encode_block(arrays), {3: "E: x"})
+    s = st.status("big")
+    assert s is not None
+    assert (s["n_total"], s["n_done"], s["n_failed"], s["n_chunks"]) == (
+        2_500_000_000,
+        cp,
+        1,
+        2500,
+    )
+    got = list(st.blocks("big"))
+    assert [(b.i0, b.i1) for b in got] == [(i0, i1)]
+    assert np.array_equal(got[0].arrays["critical_size"], arrays["critical_size"])
+    assert [(b.i0, b.i1) for b in st.blocks("big", i0 + 5, i0 + 6)] == [(i0, i1)]
+    assert list(st.blocks("big", 0, i0)) == []
+    assert st.failures("big") == [(i0 + 3, "E: x")]
+    assert st.delete("big")
+
+
+def _worker(st: SweepStore, ids: list[str], stop: float, errors: list[BaseException]) -> None:
+    rng = random.Random(threading.get_ident())
+    while time.monotonic() < stop:
+        sid = rng.choice(ids)
+        try:
+            spec = st.get_spec(sid)
+            if spec is None:
+                continue
+            for idx in st.next_chunks(sid, 4) or [rng.randrange(4)]:
+                rng_ = st.claim(sid, idx, lease_s=0.2)
+                if rng_ is None:
+                    continue
+                st.heartbeat(sid, idx)
+                n = rng_.i1 - rng_.i0
+                st.store_block(sid, idx, rng_.i0, rng_.i1, encode_block(block(n, idx)), {})
+                st.finish_chunk(sid, idx, complete=True)
+        except BaseException as exc:  # noqa: BLE001 - reported by the test
+            errors.append(exc)
+            return
+
+
+def _canceller(st: SweepStore, ids: list[str], stop: float, errors: list[BaseException]) -> None:
+    rng = random.Random(threading.get_ident())
+    while time.monotonic() < stop:
+        sid = rng.choice(ids)
+        try:
+            op = rng.random()
+            if op < 0.4:
+                st.cancel(sid)
+            elif op < 0.6:
+                st.cancel(sid)
+                st.delete(sid)
+            else:
+                st.create(sid, grid(4, 10), 10, "t", window=2)  # resumes or re-creates
+            st.status(sid)
+        except BaseException as exc:  # noqa: BLE001 - reported by the test
+            errors.append(exc)
+            return
+
+
+def _reaper(st: SweepStore, stop: float, errors: list[BaseException]) -> None:
+    while time.monotonic() < stop:
+        try:
+            st.reap_expired(0.05)
+            st.close_finished(4)
+            st.stale_chunks(0.05, 4)
+        except BaseException as exc:  # noqa: BLE001 - reported by the test
+            errors.append(exc)
+            return
+
+
+def test_racing_workers_cancels_purges_reapers(db: Database) -> None:
+    """Six workers claiming, storing and finishing chunks, two threads cancelling,
+    purging and resuming, one reaper, on three small sweeps for 6 s: no deadlock (on
+    PostgreSQL a deadlock is an error 'deadlock detected' raised in one of them), no
+    foreign-key violation, and afterwards every sweep is consistent: its blocks are
+    disjoint chunks, a done sweep has every block."""
+    st = SweepStore(db)
+    ids = [f"s{k}" for k in range(3)]
+    for sid in ids:
+        st.create(sid, grid(4, 10), 10, "t", window=2)
+    stop = time.monotonic() + 6.0
+    errors: list[BaseException] = []
+    threads = [threading.Thread(target=_worker, args=(st, ids, stop, errors)) for _ in range(6)]
+    threads += [threading.Thread(target=_canceller, args=(st, ids, stop, errors)) for _ in range(2)]
+    threads.append(threading.Thread(target=_reaper, args=(st, stop, errors)))
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(120)
+    assert not any(t.is_alive() for t in threads), "a thread hangs (lock wait)"
+    assert not errors, "".join(f"{type(e).__name__}: {e}\n" for e in errors)
+    for sid in ids:
+        s = st.status(sid)
+        if s is None:
+            continue
+        spans = sorted((b.i0, b.i1) for b in st.blocks(sid))
+        assert all(a[1] <= b[0] for a, b in zip(spans, spans[1:], strict=False))
+        if s["status"] == "done":
+            assert sum(b - a for a, b in spans) == s["n_total"] == 40
+
+
+def test_schema_1_database_is_upgraded(db: Database) -> None:
+    """A database written by schema version 1 (sweep indices INTEGER on PostgreSQL) is
+    migrated to version 2 at start: the columns become BIGINT and a 2.5e9-point sweep
+    fits."""
+    from sqlalchemy import text
+
+    from rsfapp.db.engine import _BIGINT_COLUMNS, SCHEMA_VERSION
+
+    assert db.ensure_schema() == 0
+    pg = db.dialect == "postgresql"
+    with db.writer.begin() as conn:
+        if pg:
+            for table, cols in _BIGINT_COLUMNS.items():
+                alters = ", ".join(f"ALTER COLUMN {c} TYPE INTEGER" for c in cols)
+                conn.execute(text(f"ALTER TABLE {table} {alters}"))
+        conn.execute(text("UPDATE rsf_schema SET version = 1"))
+    again = Database(db.url)
+    try:
+        assert again.ensure_schema() == 1
+        assert again.schema_version() == SCHEMA_VERSION == 2
+        if pg:
+            with again.reader.connect() as conn:
+                types = dict(
+                    conn.execute(
+                        text(
+                            "SELECT table_name || '.' || column_name, data_type "
+                            "FROM information_schema.columns WHERE table_name LIKE 'sweep%'"
+                        )
+                    ).all()
+                )
+            for table, cols in _BIGINT_COLUMNS.items():
+                for c in cols:
+                    assert types[f"{table}.{c}"] == "bigint", (table, c)
+        st = SweepStore(again)
+        assert st.create("big", grid(50_000, 50_000), 1_000_000, "t", window=1).created
+    finally:
+        again.dispose()
