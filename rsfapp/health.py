@@ -15,8 +15,8 @@ from typing import Any
 from sqlalchemy import delete, select, update
 
 from .config import Settings
-from .db import ops
-from .db.engine import SCHEMA_VERSION, Database, diagnose, insert_ignore
+from .db import migrate, ops
+from .db.engine import Database, diagnose, insert_ignore
 
 __all__ = [
     "check_broker",
@@ -35,14 +35,14 @@ _QC_TTL_S = 60.0
 def check_database(db: Database, settings: Settings) -> dict[str, Any]:
     """{'ok', 'dialect', 'schema_version'} plus 'reason' and 'hint' when not ok.
 
-    Reachable: one ``SELECT 1``.  Sound: the schema version is this code's, and (SQLite)
+    Reachable: one ``SELECT 1``.  Sound: the schema is at this code's Alembic revision, and (SQLite)
     ``PRAGMA quick_check`` finds nothing within the budget (re-run at most every 60 s).
     """
     out: dict[str, Any] = {"ok": False, "dialect": db.dialect}
     try:
         db.ping()
         out["schema_version"] = v = db.schema_version()
-        if v != SCHEMA_VERSION:
+        if v != migrate.head():
             db.ensure_schema()  # creates or migrates; raises SchemaTooNew
             out["schema_version"] = db.schema_version()
         with _qc_lock:

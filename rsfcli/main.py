@@ -429,6 +429,9 @@ app.command("fit")(fit_command)
 from .sweep import app as _sweep_app  # noqa: E402  (rsf sweep submit|status|download)
 
 app.add_typer(_sweep_app, name="sweep")
+from .db import app as _db_app  # noqa: E402  (rsf db upgrade|current|history|revision)
+
+app.add_typer(_db_app, name="db")
 
 
 def main() -> None:

@@ -16,9 +16,10 @@ one second, further attempts fail at once (callers answer 503 instead of queuein
 :func:`diagnose` turns any database exception into a :class:`DbProblem` (what is
 wrong, how to recover) for the API's 503 answers, /health and start-up messages.
 
-Schema: created at first use (``create_all`` under a PostgreSQL advisory lock, so
-processes starting together do not race), its version recorded in ``rsf_schema`` and
-migrated forward by :data:`MIGRATIONS`; a database newer than the code is refused.
+Schema: created and upgraded by the Alembic revisions of :mod:`rsfapp.db.migrate` at
+first use (under a PostgreSQL advisory lock, so processes starting together do not race;
+``rsf db upgrade`` does the same by hand); a database at a revision newer than the code
+is refused (:class:`SchemaTooNew`).
 """
 
 from __future__ import annotations
@@ -30,51 +31,23 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any, NamedTuple
 
-from sqlalchemy import Connection, Engine, Table, create_engine, event, select, text
+from sqlalchemy import Connection, Engine, Table, create_engine, event, text
 from sqlalchemy import exc as sa_exc
 from sqlalchemy.dialects import postgresql, sqlite
 
-from . import ops
-from .tables import metadata
+from . import migrate
+from .migrate import SchemaTooNew
 
 __all__ = [
     "Database",
     "DatabaseUnavailable",
     "DbProblem",
-    "MIGRATIONS",
-    "SCHEMA_VERSION",
     "SchemaTooNew",
     "database",
     "diagnose",
     "insert_ignore",
 ]
 
-#: Version of the schema this code writes (bump with a migration in MIGRATIONS).
-SCHEMA_VERSION = 2
-
-#: Sweep columns widened to BIGINT in schema version 2 (flat point indices and counts of
-#: sweeps beyond 2^31 points): {table: columns}.
-_BIGINT_COLUMNS: dict[str, tuple[str, ...]] = {
-    "sweeps": ("n_total", "n_chunks"),
-    "sweep_chunks": ("idx", "i0", "i1"),
-    "sweep_blocks": ("idx", "i0", "i1", "n_failed"),
-    "sweep_points": ("idx",),
-}
-
-
-def _v1_to_v2(conn: Connection) -> None:
-    """Schema 1 -> 2: sweep indices and counts as BIGINT.  PostgreSQL: ALTER COLUMN ...
-    TYPE BIGINT (a table rewrite, under the schema lock); SQLite's INTEGER already holds
-    64-bit values, nothing to do."""
-    if conn.dialect.name != "postgresql":
-        return
-    for table, cols in _BIGINT_COLUMNS.items():
-        alters = ", ".join(f"ALTER COLUMN {c} TYPE BIGINT" for c in cols)
-        conn.execute(text(f"ALTER TABLE {table} {alters}"))
-
-
-#: MIGRATIONS[v] upgrades a database at version v to v + 1 (inside one transaction).
-MIGRATIONS: dict[int, Callable[[Connection], None]] = {1: _v1_to_v2}
 _LOCK_ID = 0x72_73_66  # advisory lock key of schema creation ('rsf')
 
 
@@ -88,10 +61,6 @@ class DatabaseUnavailable(sa_exc.OperationalError):
 
     def __str__(self) -> str:
         return self.reason
-
-
-class SchemaTooNew(RuntimeError):
-    """The database was written by a newer version of this software."""
 
 
 class DbProblem(NamedTuple):
@@ -129,8 +98,9 @@ def diagnose(exc: BaseException, url: str = "") -> DbProblem | None:
         return DbProblem(
             "schema",
             f"{where}: {exc}",
-            "upgrade rsf on this machine to the version the other processes "
-            "run, or point RSF_CACHE_URL at another database",
+            "upgrade rsf on this machine to the version the other processes run "
+            "(pip install -U 'rsf-stability[service]'), or point RSF_CACHE_URL at "
+            "another database",
         )
     if isinstance(exc, DatabaseUnavailable):
         return DbProblem(
@@ -301,38 +271,15 @@ class Database:
         """'sqlite' or 'postgresql'."""
         return self.writer.dialect.name
 
-    def ensure_schema(self) -> int:
-        """Create missing tables and migrate to :data:`SCHEMA_VERSION`; returns the
-        version found before (0 = new database).  Raises :class:`SchemaTooNew`."""
+    def ensure_schema(self) -> str | None:
+        """Create or upgrade the schema to :func:`~rsfapp.db.migrate.head` with the
+        Alembic revisions; returns the revision found before (None = new database or
+        one made by release 0.1.0).  Raises :class:`SchemaTooNew`, changing nothing."""
         with self._ready_lock:
             with self.writer.begin() as conn:
                 if self.dialect == "postgresql":
                     conn.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _LOCK_ID})
-                metadata.create_all(conn)
-                found = conn.execute(
-                    select(ops.schema.c.version).where(ops.schema.c.id == 1)
-                ).scalar()
-                if found is None:
-                    conn.execute(
-                        ops.schema.insert().values(
-                            id=1, version=SCHEMA_VERSION, updated_at=time.time()
-                        )
-                    )
-                    before = 0
-                else:
-                    before = int(found)
-                    if before > SCHEMA_VERSION:
-                        raise SchemaTooNew(
-                            f"schema version {before} is newer than this code's ({SCHEMA_VERSION})"
-                        )
-                    for v in range(before, SCHEMA_VERSION):
-                        MIGRATIONS[v](conn)
-                    if before < SCHEMA_VERSION:
-                        conn.execute(
-                            ops.schema.update()
-                            .where(ops.schema.c.id == 1)
-                            .values(version=SCHEMA_VERSION, updated_at=time.time())
-                        )
+                before = migrate.upgrade(conn)
             self._ready = True
             return before
 
@@ -359,18 +306,10 @@ class Database:
         with self.reader.connect() as conn:
             conn.execute(text("SELECT 1"))
 
-    def schema_version(self) -> int | None:
-        """The recorded schema version (None if the database has none yet)."""
+    def schema_version(self) -> str | None:
+        """The Alembic revision of the database (None if it has none yet)."""
         with self.reader.connect() as conn:
-            try:
-                v = conn.execute(select(ops.schema.c.version).where(ops.schema.c.id == 1)).scalar()
-            except sa_exc.ProgrammingError:
-                return None
-            except sa_exc.OperationalError as exc:
-                if "no such table" in str(exc):
-                    return None
-                raise
-        return None if v is None else int(v)
+            return migrate.current(conn)
 
     def quick_check(self, budget_s: float) -> str | None:
         """SQLite only: ``PRAGMA quick_check`` within ``budget_s`` seconds.

@@ -1,7 +1,8 @@
 """Operational tables of the application database (on the shared ``metadata``).
 
-* ``rsf_schema``: one row, the schema version this database was created or migrated to
-  (:data:`rsfapp.db.engine.SCHEMA_VERSION`);
+* ``rsf_schema``: one row, the hand-migrated schema version of releases before Alembic
+  (1 or 2); :data:`rsfapp.db.migrate.LEGACY_MARK` once Alembic manages the database, so
+  those releases refuse it;
 * ``rsf_workers``: one row per running worker process (node, host, pid), its
   heartbeat renewed by the reaper thread; /health counts the live ones.
 """

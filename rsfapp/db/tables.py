@@ -16,8 +16,7 @@
   API process or host (its ``concurrent_requests`` quota; :mod:`rsfapp.store.inflight`).
 
 Flat point indices, point counts and chunk numbers of sweeps are BIGINT (64-bit): a sweep
-may hold more than 2^31 points (schema version 2; version 1 databases are migrated by
-:data:`rsfapp.db.engine.MIGRATIONS`).
+may hold more than 2^31 points (Alembic revision 0002, :mod:`rsfapp.db.migrate`).
 """
 
 from __future__ import annotations

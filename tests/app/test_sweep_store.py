@@ -178,25 +178,23 @@ def test_racing_workers_cancels_purges_reapers(db: Database) -> None:
 
 
 def test_schema_1_database_is_upgraded(db: Database) -> None:
-    """A database written by schema version 1 (sweep indices INTEGER on PostgreSQL) is
-    migrated to version 2 at start: the columns become BIGINT and a 2.5e9-point sweep
+    """A database at revision 0001 (schema version 1: sweep indices INTEGER on
+    PostgreSQL) is upgraded at start: the columns become BIGINT and a 2.5e9-point sweep
     fits."""
+    from alembic import command
     from sqlalchemy import text
 
-    from rsfapp.db.engine import _BIGINT_COLUMNS, SCHEMA_VERSION
+    from rsfapp.db import migrate
+    from rsfapp.db.migrations.versions.v0002_sweep_bigint import BIGINT_COLUMNS
 
-    assert db.ensure_schema() == 0
+    assert db.ensure_schema() is None
     pg = db.dialect == "postgresql"
     with db.writer.begin() as conn:
-        if pg:
-            for table, cols in _BIGINT_COLUMNS.items():
-                alters = ", ".join(f"ALTER COLUMN {c} TYPE INTEGER" for c in cols)
-                conn.execute(text(f"ALTER TABLE {table} {alters}"))
-        conn.execute(text("UPDATE rsf_schema SET version = 1"))
+        command.downgrade(migrate.config(conn), "0001")
     again = Database(db.url)
     try:
-        assert again.ensure_schema() == 1
-        assert again.schema_version() == SCHEMA_VERSION == 2
+        assert again.ensure_schema() == "0001"
+        assert again.schema_version() == migrate.head() == "0002"
         if pg:
             with again.reader.connect() as conn:
                 types = dict(
@@ -207,7 +205,7 @@ def test_schema_1_database_is_upgraded(db: Database) -> None:
                         )
                     ).all()
                 )
-            for table, cols in _BIGINT_COLUMNS.items():
+            for table, cols in BIGINT_COLUMNS.items():
                 for c in cols:
                     assert types[f"{table}.{c}"] == "bigint", (table, c)
         st = SweepStore(again)
