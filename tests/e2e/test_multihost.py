@@ -6,7 +6,10 @@ Cases: a sweep split across both workers with every point stored exactly once; R
 restarted mid-sweep; PostgreSQL restarted mid-sweep (the API answers 503 problem+json
 with Retry-After while it is down, never a 500 or a hang); a worker SIGKILLed mid-sweep
 (its chunk is requeued by the other worker's reaper within the lease, no restart).
-Plus SQLite damage: /health 503 with the reason, and ``rsf api`` refusing to start on a
+After each completed sweep (with and without a fault) every download is checked: NetCDF,
+CSV, JSON, the diagram and the paged points, against each other and, at sampled points,
+against rsfcore to 1e-12 (on PostgreSQL every format but /points was once a 503 "integer
+out of range").  Plus SQLite damage: /health 503 with the reason, and ``rsf api`` refusing to start on a
 damaged header with what is wrong and how to recover (no traceback).
 
 The lease is 3 s here (default 30 s) to keep the run short; every chunk is slowed by
@@ -15,6 +18,9 @@ The lease is 3 s here (default 30 s) to keep the run short; every chunk is slowe
 
 from __future__ import annotations
 
+import csv
+import io
+import math
 import sqlite3
 import subprocess
 import sys
@@ -25,9 +31,12 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
 from sqlalchemy import create_engine, text
 
+from rsfcore import critical
+from rsfcore.params import Params
 from tests.conftest import ROOT, Postgres, Proc, Redis, Worker, free_port, service_env
 
 pytestmark = pytest.mark.timeout(240)
@@ -160,6 +169,70 @@ def check_exactly_once(st: Stack, sid: str, n_total: int) -> None:
     assert left == 0
 
 
+def check_downloads(st: Stack, sid: str, n_kappa: int, n_eps: int, samples: int = 12) -> None:
+    """Every format of the finished sweep (``submit``'s grid): NetCDF, CSV, JSON, the
+    diagram (JSON) and /points agree with each other exactly and, at ``samples`` points
+    drawn at random plus both corners, with rsfcore's single-point critical size to
+    1e-12 relative (the same compiled kernel: identical in fact; 1e-12 leaves room for a
+    different summation order only)."""
+    import xarray as xr
+
+    n = n_kappa * n_eps
+    got: dict[str, np.ndarray] = {}
+    r = st.client.get(f"/v1/sweeps/{sid}/data", params={"format": "netcdf"}, timeout=60)
+    assert r.status_code == 200, r.text[:300]
+    with xr.open_dataset(io.BytesIO(r.content)) as ds:
+        got["netcdf"] = ds["critical_size"].values.reshape(-1).astype(np.float64)
+        kr, eps = ds["kappa_ratio"].values, ds["eps"].values
+    r = st.client.get(f"/v1/sweeps/{sid}/data", params={"format": "csv"}, timeout=60)
+    assert r.status_code == 200
+    rows = list(csv.DictReader(io.StringIO(r.text)))
+    assert len(rows) == n and [int(x["idx"]) for x in rows] == list(range(n))
+    got["csv"] = np.array([float(x["critical_size"] or "nan") for x in rows])
+    r = st.client.get(f"/v1/sweeps/{sid}/data", params={"format": "json"}, timeout=60)
+    assert r.status_code == 200
+    got["json"] = np.array(
+        [math.inf if v is None else v for v in r.json()["data"]["critical_size"]], np.float64
+    )
+    r = st.client.get(f"/v1/sweeps/{sid}/diagram", timeout=60)
+    assert r.status_code == 200, r.text[:300]
+    d = r.json()
+    assert (d["x_name"], d["y_name"]) == ("kappa_ratio", "eps")
+    got["diagram"] = np.array(
+        [math.inf if v is None else v for row in d["critical_size"] for v in row], np.float64
+    )
+    pts: list[float] = []
+    off: int | None = 0
+    while off is not None:
+        r = st.client.get(f"/v1/sweeps/{sid}/points", params={"offset": off, "limit": 1000})
+        assert r.status_code == 200
+        pts += [
+            math.inf if p["critical_size"] is None else p["critical_size"]
+            for p in r.json()["points"]
+        ]
+        off = r.json()["next_offset"]
+    got["points"] = np.array(pts)
+    # infinite critical sizes are null in JSON: inf everywhere in the comparison
+    base = np.where(np.isnan(got["netcdf"]), math.inf, got["netcdf"])
+    assert base.shape == (n,) and np.isfinite(base).any()
+    for fmt, a in got.items():
+        b = np.where(np.isnan(a), math.inf, a)
+        assert np.array_equal(b, base), fmt
+    rng = np.random.default_rng(int(sid[:8], 16))
+    for i in [0, n - 1, *rng.integers(0, n, samples).tolist()]:
+        ki, ei = divmod(int(i), n_eps)
+        ref = critical.critical_perturbation(
+            Params(2.0, float(kr[ki]) * (2.0 - 1.0), float(eps[ei]), 1.0),
+            "velocity-jump",
+            rtol=1e-10,
+        )
+        want = math.inf if ref.critical_size is None else ref.critical_size
+        if math.isinf(want):
+            assert base[i] == want, i
+        else:
+            assert base[i] == pytest.approx(want, rel=1e-12), i
+
+
 def nodes_of(st: Stack, sid: str) -> set[str]:
     """Nodes (hosts) that computed the sweep's chunks (owner = node:pid)."""
     rows = st.sql("SELECT owner FROM sweep_chunks WHERE sweep_id = :s", s=sid)
@@ -171,10 +244,31 @@ def test_sweep_split_across_two_hosts_every_point_once(stack: Stack) -> None:
     s = wait_done(stack, sid, 60)
     assert s["n_done"] == s["n_total"] == 2000 and s["n_failed"] == 0
     check_exactly_once(stack, sid, 2000)
+    check_downloads(stack, sid, 40, 50)
     assert nodes_of(stack, sid) == {"host-a", "host-b"}
     h = stack.client.get("/health").json()
     assert h["status"] == "ok" and h["workers"]["hosts"] == ["host-a", "host-b"], h
     assert h["broker"]["ok"] and h["database"]["ok"] and h["database"]["dialect"] == "postgresql"
+
+
+def test_cancel_resume_purge_while_both_hosts_claim(stack: Stack) -> None:
+    """Cancel while both hosts claim chunks (once a 503 'deadlock detected': the cancel
+    and a claim locked sweeps and chunks in opposite order), resume by submitting again,
+    finish, download, purge."""
+    sid = submit(stack, 40, 55, chunk=55)  # 2200 points, 40 chunks
+    wait_for(lambda: status(stack, sid)["n_done"] > 0, 30, "progress")
+    r = stack.client.delete(f"/v1/sweeps/{sid}")
+    assert r.status_code == 200, r.text
+    assert r.json()["status"] == "cancelled"
+    sid2 = submit(stack, 40, 55, chunk=55)
+    assert sid2 == sid
+    s = wait_done(stack, sid, 90)
+    assert s["n_done"] == 2200
+    check_exactly_once(stack, sid, 2200)
+    check_downloads(stack, sid, 40, 55, samples=4)
+    assert stack.client.delete(f"/v1/sweeps/{sid}", params={"purge": "true"}).status_code == 204
+    assert stack.client.get(f"/v1/sweeps/{sid}").status_code == 404
+    assert stack.sql("SELECT count(*) FROM sweep_blocks WHERE sweep_id = :s", s=sid)[0][0] == 0
 
 
 def test_redis_restart_mid_sweep(stack: Stack) -> None:
@@ -219,6 +313,7 @@ def test_postgres_restart_mid_sweep_503_then_resumes(stack: Stack) -> None:
     s = wait_done(stack, sid, 90)
     assert s["n_done"] == 2440
     check_exactly_once(stack, sid, 2440)
+    check_downloads(stack, sid, 40, 61)
     assert stack.client.get("/health").status_code == 200
 
 
@@ -258,6 +353,7 @@ def test_sigkill_one_host_mid_sweep_completes_on_the_other(stack: Stack) -> None
     elapsed = time.monotonic() - t_kill
     assert s["n_done"] == 3200
     check_exactly_once(stack, sid, 3200)
+    check_downloads(stack, sid, 40, 80)
     owner, attempts = stack.sql(
         "SELECT owner, attempts FROM sweep_chunks WHERE sweep_id = :s AND idx = :i", s=sid, i=idx
     )[0]
