@@ -450,10 +450,14 @@ class VelocityJumpSI:
     """A velocity jump of size d in SI.
 
     Attributes:
-        d: size ln(V_new/V_before) (-).
+        d: size ln(V_new/V_before) (-), any finite value (a critical size may exceed
+            the double range of e^d: d is then the answer's logarithm).
         factor: V_new/V_before = e^d (None if not representable, d > 709).
         slip_rate_before_m_s: steady slip rate before the jump [m/s].
         new_slip_rate_m_s: V_before e^d [m/s] (None if not representable).
+
+    ``to_dict`` adds log10_factor = d/ln 10 and log10_new_slip_rate_m_s =
+    log10(V_before) + d/ln 10, finite whenever d is.
     """
 
     d: float
@@ -468,6 +472,8 @@ class VelocityJumpSI:
             "log10_factor": self.d / math.log(10.0),
             "slip_rate_before_m_s": self.slip_rate_before_m_s,
             "new_slip_rate_m_s": self.new_slip_rate_m_s,
+            "log10_new_slip_rate_m_s": math.log10(self.slip_rate_before_m_s)
+            + self.d / math.log(10.0),
         }
 
 
@@ -476,13 +482,19 @@ class LoadPointJumpSI:
     """A load-point jump of size dv in SI.
 
     Attributes:
-        dv: relative jump (V_new - V_load)/V_load (-).
-        factor: V_new/V_load = 1 + dv.
+        dv: relative jump (V_new - V_load)/V_load (-); None when beyond the double range
+            (a critical size known only by its logarithm).
+        log_factor: ln(V_new/V_load) = ln(1 + dv) (-), always finite.
+        factor: V_new/V_load = 1 + dv (None if not representable).
         load_point_velocity_before_m_s: V_load [m/s].
         new_load_point_velocity_m_s: V_load (1 + dv) [m/s] (None if not representable).
+
+    ``to_dict`` adds log10_factor = log_factor/ln 10 and
+    log10_new_load_point_velocity_m_s = log10(V_load) + log_factor/ln 10.
     """
 
-    dv: float
+    dv: float | None
+    log_factor: float
     factor: float | None
     load_point_velocity_before_m_s: float
     new_load_point_velocity_m_s: float | None
@@ -491,27 +503,55 @@ class LoadPointJumpSI:
         return {
             "dv": _finite_or_none(self.dv),
             "factor": self.factor,
+            "log_factor": self.log_factor,
+            "log10_factor": self.log_factor / math.log(10.0),
             "load_point_velocity_before_m_s": self.load_point_velocity_before_m_s,
             "new_load_point_velocity_m_s": self.new_load_point_velocity_m_s,
+            "log10_new_load_point_velocity_m_s": math.log10(self.load_point_velocity_before_m_s)
+            + self.log_factor / math.log(10.0),
         }
 
 
 def velocity_jump_si(phys: PhysicalInputs, d: float) -> VelocityJumpSI:
-    """Velocity jump of size d (ln units) in SI: factor e^d and new slip rate V_before e^d [m/s]."""
-    d = check_range("d", d, -_D_MAX, _D_MAX)
+    """Velocity jump of size d (ln units, any finite value) in SI: factor e^d and new slip
+    rate V_before e^d [m/s] (None where not representable; d itself is the logarithm)."""
+    d = check_range("d", d)
     f = _exp_or_none(d)
     Vb = phys.slip_rate_before_m_s
     Vn = None if f is None else _finite_or_none(Vb * f)
     return VelocityJumpSI(d=d, factor=f, slip_rate_before_m_s=Vb, new_slip_rate_m_s=Vn)
 
 
-def load_point_jump_si(phys: PhysicalInputs, dv: float) -> LoadPointJumpSI:
-    """Load-point jump of size dv in SI: new load-point velocity V_load (1 + dv) [m/s]."""
-    dv = check_range("dv", dv, -1.0, None, lo_open=True)
-    f = _finite_or_none(1.0 + dv)
+def load_point_jump_si(
+    phys: PhysicalInputs, dv: float | None = None, *, log_factor: float | None = None
+) -> LoadPointJumpSI:
+    """Load-point jump in SI: new load-point velocity V_load (1 + dv) [m/s].
+
+    Give ``dv`` > -1 (finite), or ``log_factor`` = ln(1 + dv) (any finite value) for a
+    size beyond the double range (a critical size's ``log_critical_size``); with both,
+    ``log_factor`` is the one used for the logarithms."""
+    if dv is None and log_factor is None:
+        raise ParameterError("dv", None, "dv > -1 or log_factor = ln(1 + dv) finite")
+    if dv is not None and log_factor is not None and not math.isfinite(dv):
+        dv = None  # beyond the double range: the logarithm states it
+    if dv is not None:
+        dv = check_range("dv", dv, -1.0, None, lo_open=True)
+    if log_factor is not None:
+        lf = check_range("log_factor", log_factor)
+    else:
+        assert dv is not None
+        lf = math.log1p(dv)
+    if dv is None:
+        e = _exp_or_none(lf)
+        dv = None if e is None else e - 1.0
+    f = None if dv is None else _finite_or_none(1.0 + dv)
     Vn = None if f is None else _finite_or_none(phys.V_load * f)
     return LoadPointJumpSI(
-        dv=dv, factor=f, load_point_velocity_before_m_s=phys.V_load, new_load_point_velocity_m_s=Vn
+        dv=dv,
+        log_factor=lf,
+        factor=f,
+        load_point_velocity_before_m_s=phys.V_load,
+        new_load_point_velocity_m_s=Vn,
     )
 
 
@@ -576,11 +616,11 @@ def critical_si(
     r = critical_perturbation(p, perturbation, rtol=rtol)
     vj: VelocityJumpSI | None = None
     lj: LoadPointJumpSI | None = None
-    if r.critical_size is not None:
-        if perturbation == "velocity-jump":
+    if perturbation == "velocity-jump":
+        if r.critical_size is not None:
             vj = velocity_jump_si(phys, r.critical_size)
-        else:
-            lj = load_point_jump_si(phys, r.critical_size)
+    elif r.log_critical_size is not None and math.isfinite(r.log_critical_size):
+        lj = load_point_jump_si(phys, r.critical_size, log_factor=r.log_critical_size)
     return CriticalSI(
         perturbation=r.perturbation,
         kind=r.kind,

@@ -78,18 +78,29 @@ def resolve_size(req: Any, phys: PhysicalInputs | None) -> float:
         raise ParameterError(field, exc.value, exc.valid) from None
 
 
-def jump_si(phys: PhysicalInputs, perturbation: str, size: float | None) -> dict[str, Any]:
+def jump_si(
+    phys: PhysicalInputs, perturbation: str, size: float | None, log_size: float | None = None
+) -> dict[str, Any]:
     """A perturbation of dimensionless ``size`` in SI: the velocity jump (factor, new slip
     rate [m/s], shear-stress jump a sigma d [Pa] at constant state) or the load-point jump
-    (new load-point velocity [m/s])."""
-    if size is None or not math.isfinite(size):
-        return {}
+    (new load-point velocity [m/s]).  A size beyond the double range (a critical size
+    known by its logarithm ``log_size``) is answered by its logarithms (log10 of the
+    factor and of the new velocity), the values it overflows as null."""
     if perturbation == "velocity-jump":
-        d = guard(velocity_jump_si, phys, size).to_dict()
-        d["shear_stress_jump_Pa"] = phys.shear_stress_change_Pa(size)
-        d["friction_jump"] = phys.friction_change(size)
-        return {"velocity_jump": d}
-    return {"load_point_jump": guard(load_point_jump_si, phys, size).to_dict()}
+        d = size if size is not None and math.isfinite(size) else log_size
+        if d is None or not math.isfinite(d):
+            return {}
+        out = guard(velocity_jump_si, phys, d).to_dict()
+        out["shear_stress_jump_Pa"] = phys.shear_stress_change_Pa(d)
+        out["friction_jump"] = phys.friction_change(d)
+        return {"velocity_jump": out}
+    if log_size is not None and math.isfinite(log_size):
+        lp = guard(load_point_jump_si, phys, size, log_factor=log_size)
+    elif size is not None and math.isfinite(size):
+        lp = guard(load_point_jump_si, phys, size)
+    else:
+        return {}
+    return {"load_point_jump": lp.to_dict()}
 
 
 def scales_si(phys: PhysicalInputs) -> dict[str, Any]:
@@ -104,7 +115,9 @@ def scales_si(phys: PhysicalInputs) -> dict[str, Any]:
     }
 
 
-def outcome_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
+def outcome_si(
+    phys: PhysicalInputs, out: dict[str, Any], log_size: float | None = None
+) -> dict[str, Any]:
     """The ``si`` block of a classify/trajectory answer: times [s], peak slip rate [m/s],
     start shear-stress change [Pa] and friction change, the perturbation in SI."""
 
@@ -125,12 +138,17 @@ def outcome_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
         si["start_friction_change"] = phys.friction_change(float(start["psi"]))
         si["start_slip_rate_m_s"] = phys.slip_rate_m_s(float(start["phi"]))
     if out.get("perturbation") is not None:
-        si.update(jump_si(phys, str(out["perturbation"]), out.get("size")))
+        si.update(jump_si(phys, str(out["perturbation"]), out.get("size"), log_size))
     return si
 
 
 def critical_si(phys: PhysicalInputs, out: dict[str, Any]) -> dict[str, Any]:
     return {
         **scales_si(phys),
-        **jump_si(phys, str(out["perturbation"]), out.get("critical_size")),
+        **jump_si(
+            phys,
+            str(out["perturbation"]),
+            out.get("critical_size"),
+            out.get("log_critical_size"),
+        ),
     }

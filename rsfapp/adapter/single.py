@@ -57,7 +57,7 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
     res = guard(_traj.classify, p, req.perturbation, size, start=start, rtol=req.rtol, **kw)
     out = json_dict(res.to_dict())
     if phys is not None:
-        out["si"] = jsonsafe(outcome_si(phys, out))
+        out["si"] = jsonsafe(outcome_si(phys, out, req.log_size))
     return out
 
 
@@ -117,7 +117,7 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
         "description": SAMPLING_NOTE[req.sampling],
     }
     if phys is not None:
-        out["si"] = jsonsafe(outcome_si(phys, out))
+        out["si"] = jsonsafe(outcome_si(phys, out, req.log_size))
     return out
 
 

@@ -224,3 +224,39 @@ def test_boundaries_si_equals_dimensionless(c: TestClient) -> None:
     )
     bad = c.post("/v1/boundaries", json={"physical": PHYS, "kappa": 1.0})
     assert bad.status_code == 422 and bad.json()["field"] == "kappa"
+
+
+@pytest.mark.parametrize("pert", ["velocity-jump", "load-point-jump"])
+def test_critical_si_beyond_double_range_is_answered(c: TestClient, pert: str) -> None:
+    """b/a = 1.4, eps = 0, kappa = 4100 through ``physical``: the critical jump is about
+    e^10250, beyond the double range.  It is answered 200 with its kind and logarithm,
+    exactly the dimensionless answer's, and the SI logarithms follow from their
+    definitions (log10 factor = l/ln 10, log10 V_new = log10 V_before + l/ln 10); the values
+    that overflow are null.  Before, this was 422 on a field 'd' the request never had."""
+    a, sigma, dc, vs = 0.01, 1e7, 1e-5, 1e-6
+    phys = {
+        "a": a,
+        "b": 1.4 * a,
+        "Dc_m": dc,
+        "sigma_Pa": sigma,
+        "k_Pa_per_m": 4100 * a * sigma / dc,
+        "V_star_m_s": vs,
+    }
+    r = c.post("/v1/critical", json={"physical": phys, "eps": 0.0, "perturbation": pert})
+    assert r.status_code == 200, r.text
+    d = r.json()
+    p = d["params"]
+    dim = c.post(
+        "/v1/critical",
+        json={"ba": p["ba"], "kappa": p["kappa"], "eps": 0.0, "vo": 1.0, "perturbation": pert},
+    ).json()
+    assert d["kind"] == dim["kind"] == "finite"
+    assert d["log_critical_size"] == dim["log_critical_size"]
+    lg = d["log_critical_size"]
+    assert lg > 1e4
+    key = "velocity_jump" if pert == "velocity-jump" else "load_point_jump"
+    j = d["si"][key]
+    new = "new_slip_rate_m_s" if pert == "velocity-jump" else "new_load_point_velocity_m_s"
+    assert j["factor"] is None and j[new] is None
+    assert math.isclose(j["log10_factor"], lg / math.log(10.0), rel_tol=1e-15)
+    assert math.isclose(j[f"log10_{new}"], math.log10(vs) + lg / math.log(10.0), rel_tol=1e-15)

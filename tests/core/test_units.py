@@ -360,3 +360,25 @@ def test_physical_params_interop() -> None:
     ph = PhysicalInputs.from_physical_params(pp)
     assert ph.to_params(0.3) == pp.to_dimensionless()
     assert ph.to_physical_params(0.3) == pp
+
+
+def test_answers_beyond_double_range_by_their_logarithm() -> None:
+    """A critical size beyond the double range (d or l = ln(1 + dv) > 709) converts to SI
+    by its logarithm: the factor and the new velocity are None, their log10 follow from
+    the definitions (independent arithmetic here); no error names a field 'd'."""
+    ph = PhysicalInputs(**LAB)
+    vj = velocity_jump_si(ph, 2.0e4).to_dict()
+    assert vj["factor"] is None and vj["new_slip_rate_m_s"] is None
+    assert vj["log10_new_slip_rate_m_s"] == pytest.approx(
+        math.log10(ph.slip_rate_before_m_s) + 2.0e4 / math.log(10.0), rel=1e-15
+    )
+    lj = load_point_jump_si(ph, None, log_factor=3.0e4).to_dict()
+    assert lj["dv"] is None and lj["factor"] is None and lj["new_load_point_velocity_m_s"] is None
+    assert lj["log_factor"] == 3.0e4
+    assert lj["log10_new_load_point_velocity_m_s"] == pytest.approx(
+        math.log10(ph.V_load) + 3.0e4 / math.log(10.0), rel=1e-15
+    )
+    # a representable size given both ways: the same numbers as from dv alone
+    both = load_point_jump_si(ph, 2.0, log_factor=math.log1p(2.0)).to_dict()
+    assert both == load_point_jump_si(ph, 2.0).to_dict()
+    json.dumps([vj, lj], allow_nan=False)
