@@ -100,7 +100,7 @@ def status(
 
     with _client(url, api_key) as c:
         try:
-            st = c.get_sweep(sweep_id).last
+            st = c.get_sweep(sweep_id).last.to_dict()
         except RsfError as exc:
             _fail(exc)
     if as_json:

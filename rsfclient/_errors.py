@@ -2,15 +2,17 @@
 
 RsfError
  +-- ProblemError      the server answered an error (problem+json kept in ``problem``)
- +-- ConnectionFailed  no answer after every retry (connection refused, timeouts, 503s)
+ +-- ConnectionFailed  no answer: connection refused (at once), a timeout, or still 503 /
+ |                     429 / reset after every retry
  +-- SweepCancelled    :meth:`rsfclient.Sweep.wait` on a sweep that was cancelled
+ +-- NotReady          :meth:`rsfclient.Fit.result` of a fit still queued or running
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["ConnectionFailed", "ProblemError", "RsfError", "SweepCancelled"]
+__all__ = ["ConnectionFailed", "NotReady", "ProblemError", "RsfError", "SweepCancelled"]
 
 
 class RsfError(Exception):
@@ -39,8 +41,18 @@ class ProblemError(RsfError):
 
 
 class ConnectionFailed(RsfError):
-    """The API could not be reached (or stayed unavailable) after every retry."""
+    """The API could not be reached: refused (raised at once, no retry), timed out, or
+    still unavailable (503, 429, connection reset) after every retry."""
 
 
 class SweepCancelled(RsfError):
     """The sweep waited for was cancelled (re-submit it to resume)."""
+
+
+class NotReady(RsfError):
+    """The fit (or other queued work) is still queued or running; ``state`` says which
+    and ``progress`` the stage a worker is at."""
+
+    def __init__(self, message: str, state: str, progress: str | None = None) -> None:
+        super().__init__(message)
+        self.state, self.progress = state, progress
