@@ -5,8 +5,9 @@
     python3 dev.py test  [pytest options]      # lint, types, then the whole test suite
 
 Both create ``.venv`` on first use, install the project (editable, with the all, test, dev
-and postgres extras) into it and compile rsfcore's kernels once (numba cache in
-``.numba_cache``); later runs reuse it and only reinstall when pyproject.toml changed.
+and postgres extras) into it and compile rsfcore's kernels once (into rsfcore's per-user
+kernel cache, ``~/.cache/rsf-stability/numba/<digest>``, or ``$RSF_CACHE_DIR/numba/<digest>``,
+the one every ``rsf`` command uses); later runs reuse it and only reinstall when pyproject.toml changed.
 
 ``test`` runs, in order and stopping at the first failure: ``ruff check``,
 ``ruff format --check``, ``mypy``, ``pytest -m "not e2e"`` (numerics, application core,
@@ -31,21 +32,8 @@ PY = BIN / "python"
 STAMP = VENV / ".rsf-installed"
 
 
-def _core_digest() -> str:
-    """Hash of rsfcore's sources: numba's cache does not notice edits to kernels that
-    other kernels inline (rsfcore/ode/rk.py), so each version of the sources gets its own
-    cache directory and a stale compiled kernel is never loaded."""
-    h = hashlib.sha256()
-    for f in sorted((ROOT / "rsfcore").rglob("*.py")):
-        h.update(f.relative_to(ROOT).as_posix().encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()[:12]
-
-
 def _env() -> dict[str, str]:
-    env = dict(os.environ)
-    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache" / _core_digest()))
-    return env
+    return dict(os.environ)
 
 
 def _ensure_env() -> None:
@@ -64,20 +52,26 @@ def _ensure_env() -> None:
 
 
 def _ensure_kernels() -> None:
-    """Compile rsfcore's kernels once per version of its sources, saying so."""
-    env = _env()
-    cache = Path(env["NUMBA_CACHE_DIR"])
-    if cache.is_dir() and any(cache.iterdir()):
+    """Compile rsfcore's kernels once per version of its sources, saying so.  The cache
+    is rsfcore's own (rsfcore/_cache.py: per user, keyed by the sources' digest; the same
+    one ``rsf``, the API and the workers use), never inside the source tree."""
+    probe = (
+        "from rsfcore._cache import cache_dir, _is_warm; d = cache_dir(); "
+        "print(int(_is_warm(d)), d)"
+    )
+    warm, _, cache = (
+        subprocess.check_output([str(PY), "-c", probe], text=True).strip().partition(" ")
+    )
+    if warm == "1":
         return
     print(
-        f"[dev] compiling rsfcore's kernels into {cache.relative_to(ROOT) if cache.is_relative_to(ROOT) else cache} "
-        "(once per version of the core, about a minute; later starts load them in about "
-        "a second)",
+        f"[dev] compiling rsfcore's kernels into {cache} (once per version of the core, "
+        "about a minute; later starts load them in about a second)",
         flush=True,
     )
     t0 = time.monotonic()
     subprocess.check_call(
-        [str(PY), "-c", "from rsfapp.warmup import warm_up; warm_up()"], env=env, cwd=ROOT
+        [str(PY), "-c", "from rsfapp.warmup import warm_up; warm_up()"], env=_env(), cwd=ROOT
     )
     print(f"[dev] kernels ready in {time.monotonic() - t0:.0f} s", flush=True)
 

@@ -17,7 +17,12 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from ._version import NUMERICS_VERSION
+from ._cache import configure as _configure_kernel_cache
+
+# before any kernel module imports numba: one per-user cache of compiled kernels
+_configure_kernel_cache()
+
+from ._version import NUMERICS_VERSION  # noqa: E402
 
 if TYPE_CHECKING:  # the names below are imported on first use (fast CLI start-up)
     from . import (

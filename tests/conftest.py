@@ -22,6 +22,8 @@ from pathlib import Path
 import httpx
 import pytest
 
+from rsfcore._cache import cache_dir as kernel_cache_dir
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -38,7 +40,9 @@ def service_env(data_dir: Path, broker_url: str = "", **extra: str) -> dict[str,
     env.update(
         RSF_DATA_DIR=str(data_dir),
         RSF_BROKER_URL=broker_url,
-        NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache")),
+        NUMBA_CACHE_DIR=str(
+            kernel_cache_dir()
+        ),  # rsfcore/_cache.py: the one every entry point uses
         PYTHONPATH=str(ROOT),
     )
     env.update(extra)
