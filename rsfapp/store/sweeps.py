@@ -446,8 +446,11 @@ class SweepStore:
             )
             return "cancelled", True
 
-    def delete(self, sweep_id: str) -> bool:
-        """Delete a sweep with its chunks, inputs and results; False if unknown."""
+    def delete(self, sweep_id: str, reclaim: bool = True) -> bool:
+        """Delete a sweep with its chunks, inputs and results; False if unknown.  With
+        ``reclaim`` the disk space is given back (:meth:`rsfapp.db.engine.Database.reclaim`:
+        SQLite incremental vacuum and WAL truncation, PostgreSQL VACUUM of the sweep
+        tables)."""
         with self.db.write() as conn:
             if self._lock_sweep(conn, sweep_id) is None:
                 return False
@@ -455,6 +458,8 @@ class SweepStore:
                 conn.execute(delete(t).where(t.c.sweep_id == sweep_id))
             n = conn.execute(delete(sweeps).where(sweeps.c.id == sweep_id)).rowcount
         self._specs.pop(sweep_id, None)
+        if n and reclaim:
+            self.db.reclaim([t.name for t in (sweep_blocks, sweep_inputs, chunks, points)])
         return bool(n)
 
     @staticmethod
