@@ -80,6 +80,12 @@ class Settings(BaseSettings):
             quotas of every key
             (:class:`rsfapp.store.keys.Quotas`); ``rsf keys create --quota`` overrides them
             per key.
+        metrics_port: a port where `rsf api`, `rsf serve` and `rsf worker` also serve
+            Prometheus ``/metrics`` without a key (0 = off, the default; the API's
+            ``/metrics`` needs a key with scope ``read`` whenever keys are on);
+            docs/operations.md.
+        metrics_host: interface of that port (default 127.0.0.1; 0.0.0.0 inside a
+            container network that is not published).
     """
 
     model_config = SettingsConfigDict(env_prefix="RSF_", extra="ignore")
@@ -117,6 +123,8 @@ class Settings(BaseSettings):
     quota_concurrent_requests: int = Field(default=8, ge=1)
     quota_trajectory_points: int = Field(default=100_000, ge=2)
     quota_step_budget: int = Field(default=10_000_000, ge=10)
+    metrics_port: int = Field(default=0, ge=0, le=65535)
+    metrics_host: str = "127.0.0.1"
 
     @property
     def heartbeat_s(self) -> float:

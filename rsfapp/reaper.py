@@ -32,6 +32,7 @@ from sqlalchemy import select
 from .config import Settings
 from .db.tables import chunks, sweeps
 from .health import check_broker, register_worker, unregister_worker
+from .metrics import LEASE_EXPIRIES, REQUEUES, Requeue
 from .store import stores_for
 
 __all__ = ["Lease", "Reaper", "TickResult", "scan_interval"]
@@ -125,6 +126,8 @@ class Reaper(threading.Thread):
         expired = st.sweeps.reap_expired(s.lease_s)
         for sweep_id, idx in expired:
             self.send(sweep_id, idx)
+        LEASE_EXPIRIES.inc(len(expired))
+        REQUEUES.labels(Requeue.lease_expired).inc(len(expired))
         if expired:
             log.warning(
                 "requeued %d chunk(s) whose lease expired: %s",
@@ -134,6 +137,7 @@ class Reaper(threading.Thread):
         closed, nxt = st.sweeps.close_finished(s.sweep_window)
         for sweep_id, idx in nxt:
             self.send(sweep_id, idx)
+        REQUEUES.labels(Requeue.repair).inc(len(nxt))
         if closed or nxt:
             log.warning(
                 "self-repair: closed %d finished sweep(s), dispatched %d chunk(s)", closed, len(nxt)
@@ -141,6 +145,7 @@ class Reaper(threading.Thread):
         lost = self._lost_messages()
         for sweep_id, idx in lost:
             self.send(sweep_id, idx)
+        REQUEUES.labels(Requeue.lost_message).inc(len(lost))
         if lost:
             log.warning(
                 "broker queue empty but %d chunk(s) queued for a lease: sent again", len(lost)

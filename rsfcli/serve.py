@@ -15,14 +15,23 @@ and how to recover, without a traceback: a damaged or too-new database stops it 
 In ``rsf serve`` the worker is restarted if it dies; on exit (Ctrl-C / SIGTERM)
 uvicorn stops first, then the worker gets a warm shutdown (finishes its current chunk;
 a chunk left unfinished is requeued by a reaper when its lease expires).
+
+Metrics (docs/operations.md): each command points ``PROMETHEUS_MULTIPROC_DIR`` at a
+private empty directory (unless set) before any of its processes starts, so the counters
+of all of them add up at a scrape (``rsf serve``: the API's ``/metrics`` includes the
+embedded worker's); with ``RSF_METRICS_PORT`` each also serves ``/metrics`` on that port
+without a key (``rsf serve``: the API's only).
 """
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -34,6 +43,35 @@ __all__ = ["StartupError", "api", "check_database", "serve", "worker", "worker_c
 
 class StartupError(SystemExit):
     """Start-up refused: the message says what is wrong and how to recover."""
+
+
+def _metrics_dir(who: str, remove_at_exit: bool = True) -> None:
+    """Point PROMETHEUS_MULTIPROC_DIR at a new empty directory unless it is set (before
+    prometheus-client is imported here or in any child)."""
+    if os.environ.get("PROMETHEUS_MULTIPROC_DIR"):
+        return
+    d = tempfile.mkdtemp(prefix=f"rsf-metrics-{who}-")
+    os.environ["PROMETHEUS_MULTIPROC_DIR"] = d
+    if remove_at_exit:
+        atexit.register(shutil.rmtree, d, True)
+
+
+def _metrics_port() -> None:
+    """With RSF_METRICS_PORT: serve /metrics (every process of this command, and the
+    deployment's state) on that port from this process, no key."""
+    from rsfapp.config import get_settings
+
+    s = get_settings()
+    if not s.metrics_port:
+        return
+    from prometheus_client import start_http_server
+
+    from rsfapp import metrics
+    from rsfapp.metrics_state import StateCollector
+
+    reg = metrics.registry(StateCollector(s))
+    start_http_server(s.metrics_port, s.metrics_host, registry=reg)
+    print(f"[rsf] metrics on http://{s.metrics_host}:{s.metrics_port}/metrics", file=sys.stderr)
 
 
 def check_database(wait_s: float = 60.0, who: str = "rsf") -> None:
@@ -194,9 +232,12 @@ def serve(
     data = Path(data_dir).expanduser().resolve()
     data.mkdir(parents=True, exist_ok=True)
     os.environ["RSF_DATA_DIR"] = str(data)
+    _metrics_dir("serve")
     check_database(who="rsf serve")
     check_bind(host, "rsf serve")  # no key on a non-loopback host: refuse, say why
+    _metrics_port()
     env = dict(os.environ)
+    env.pop("RSF_METRICS_PORT", None)  # the API's port covers the embedded worker
     sup = _Supervisor(worker_command(concurrency), env, data / "worker.log")
     sup.start()
     print(f"[rsf serve] data in {data}; worker log {data / 'worker.log'}", file=sys.stderr)
@@ -227,8 +268,10 @@ def api(
 
     if workers < 1:
         raise StartupError(f"[rsf api] --workers must be >= 1 (got {workers})")
+    _metrics_dir("api")
     check_database(wait_db_s, who="rsf api")
     check_bind(host, "rsf api")
+    _metrics_port()
     uvicorn.run(
         "service.app:app",
         host=host,
@@ -247,6 +290,7 @@ def worker(concurrency: int | None = None, loglevel: str = "INFO", wait_db_s: fl
     machine (same ``RSF_DATA_DIR``); with Redis and PostgreSQL it may run anywhere."""
     if concurrency is not None and concurrency < 1:
         raise StartupError(f"[rsf worker] --concurrency must be >= 1 (got {concurrency})")
+    _metrics_dir("worker", remove_at_exit=False)  # this process becomes Celery (exec)
     check_database(wait_db_s, who="rsf worker")
     cmd = worker_command(concurrency, name="rsf", loglevel=loglevel)
     sys.stdout.flush()

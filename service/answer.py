@@ -43,6 +43,7 @@ from starlette.types import Scope as AsgiScope
 from rsfapp.adapter import ComputeError, NeedsQueue, numerics_version
 from rsfapp.config import Settings, get_settings
 from rsfapp.keys import cache_key, canonical
+from rsfapp.metrics import CACHE_LOOKUPS
 from rsfapp.queue import Queue
 from rsfapp.store import JobState, Stores, stores_for
 from rsfapp.store.keys import Scope
@@ -82,6 +83,7 @@ class HotResults:
         if text is not None:
             self._d.move_to_end(key)
             self.hits += 1
+            CACHE_LOOKUPS.labels("hit").inc()
         return text
 
     def holds(self, key: str) -> bool:

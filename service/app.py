@@ -14,6 +14,7 @@ from rsfapp.store import stores_for
 from rsfapp.warmup import warm_up
 
 from . import auth, contract, limits
+from . import metrics as metrics_api
 from .deps import Inflight
 from .errors import install_handlers
 from .routes import batch as batch_routes
@@ -60,6 +61,7 @@ def create_app() -> FastAPI:
     a.include_router(figures.router)
     a.include_router(ui.router)
     a.include_router(docs.router)
+    metrics_api.install(a)  # /metrics and request counts (outermost middleware)
     return a
 
 

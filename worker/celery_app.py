@@ -15,6 +15,7 @@ import logging
 
 from celery.signals import worker_init, worker_ready, worker_shutdown
 
+from rsfapp import metrics
 from rsfapp.config import get_settings
 from rsfapp.queue import Queue, make_app
 from rsfapp.reaper import Reaper
@@ -44,6 +45,7 @@ def _requeue_unfinished(**_kw: object) -> None:
     except Exception:  # noqa: BLE001 - a worker must start even if this fails
         log.exception("requeue of unfinished chunks failed")
         return
+    metrics.REQUEUES.labels(metrics.Requeue.worker_start).inc(n)
     if n:
         log.warning("requeued %d unfinished sweep chunk(s)", n)
 
@@ -61,6 +63,18 @@ def _start_reaper(sender: object = None, **_kw: object) -> None:
     r = Reaper(s, name, conc, Queue(s, app).send_chunk)
     r.start()
     _reaper.append(r)
+
+
+@worker_ready.connect  # type: ignore[untyped-decorator]
+def _serve_metrics(**_kw: object) -> None:
+    """With RSF_METRICS_PORT: serve /metrics of this worker (its pool processes added up
+    through PROMETHEUS_MULTIPROC_DIR, which `rsf worker` sets) on that port, no key."""
+    s = get_settings()
+    if s.metrics_port:
+        from prometheus_client import start_http_server
+
+        start_http_server(s.metrics_port, s.metrics_host, registry=metrics.registry())
+        log.info("metrics on http://%s:%d/metrics", s.metrics_host, s.metrics_port)
 
 
 @worker_shutdown.connect  # type: ignore[untyped-decorator]

@@ -13,6 +13,7 @@ dispatch, :meth:`rsfapp.store.SweepStore.next_chunks`).  Task names are stable s
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -20,7 +21,7 @@ from celery import Task
 from kombu.exceptions import OperationalError as KombuOperationalError
 from pydantic import BaseModel
 
-from rsfapp import adapter, requests
+from rsfapp import adapter, metrics, requests
 from rsfapp.config import get_settings
 from rsfapp.db.engine import diagnose
 from rsfapp.queue import COMPUTE_SINGLE, FIT_RECORD, RUN_CHUNK, Queue
@@ -46,19 +47,28 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
     sweeps = stores_for(s).sweeps
     rng = sweeps.claim(sweep_id, idx, s.lease_s)
     if rng is None:
+        metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
         return {"skipped": True}
     i0, i1 = rng
     stored = False
+    result = metrics.ChunkResult.stored
     if not sweeps.has_block(sweep_id, idx):
         spec = sweeps.get_spec(sweep_id)
         if spec is None:  # deleted meanwhile, or stored in the pre-array layout
             sweeps.finish_chunk(sweep_id, idx, complete=False)
+            metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
             return {"skipped": True}
         # the lease is renewed while the chunk computes (rsfapp.reaper)
+        t0 = time.perf_counter()
         with Lease(lambda: sweeps.heartbeat(sweep_id, idx), s.heartbeat_s):
             arrays, errors = compute_chunk(spec, i0, i1)
+        metrics.CHUNK_SECONDS.observe(time.perf_counter() - t0)
+        metrics.POINTS.labels("ok").inc(i1 - i0 - len(errors))
+        metrics.POINTS.labels("failed").inc(len(errors))
+        result = metrics.ChunkResult.computed
         stored = sweeps.store_block(sweep_id, idx, i0, i1, encode_block(arrays), errors)
     sweeps.finish_chunk(sweep_id, idx, complete=True)
+    metrics.CHUNKS.labels(result).inc()
     nxt = sweeps.next_chunks(sweep_id, s.sweep_window)
     if nxt:
         q = Queue(s, app)
@@ -73,6 +83,7 @@ def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
     try:
         return run_chunk_body(sweep_id, idx)
     except Exception as exc:  # noqa: BLE001
+        metrics.CHUNKS.labels(metrics.ChunkResult.error).inc()
         # backoff 2, 4, 8, 16, 30, 30, ... s.  The database or broker being down is an
         # outage, not a defect of the chunk: one log line, and retried until it is back
         # (the message is never dropped); any other error: a traceback, 5 retries.

@@ -9,6 +9,7 @@ from typing import Any
 from rsfcore.jsonsafe import jsonsafe
 from rsfcore.params import ParameterError
 
+from ..metrics import timed_fit
 from ..requests.fits import FIT_LAWS, FitRequest
 from ._common import ComputeError, guard, json_dict
 
@@ -37,7 +38,13 @@ def fit(req: FitRequest, progress: Callable[[str], None] | None = None) -> dict[
     """Fit the record (rsfcore.fit): the reported law's FitResult.to_dict() (params,
     stderr, residuals and series, misfit, stability answer in SI with uncertainty), plus
     ``law_comparison`` (misfit and information criteria per law) when ``compare`` and
-    ``posterior`` (emcee) when asked.  ``progress`` is told each stage as it starts."""
+    ``posterior`` (emcee) when asked.  ``progress`` is told each stage as it starts.
+    Counted and timed in ``rsf_fits_total`` / ``rsf_fit_duration_seconds``."""
+    with timed_fit():
+        return _fit(req, progress)
+
+
+def _fit(req: FitRequest, progress: Callable[[str], None] | None) -> dict[str, Any]:
     from rsfcore import fit as _fit
 
     def stage(text: str) -> None:

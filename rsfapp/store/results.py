@@ -18,6 +18,7 @@ from sqlalchemy import func, select
 from ..db.engine import Database, insert_ignore
 from ..db.tables import results
 from ..keys import canonical
+from ..metrics import CACHE_LOOKUPS
 
 __all__ = ["ResultStore"]
 
@@ -40,6 +41,7 @@ class ResultStore:
                 self._misses += 1
             else:
                 self._hits += 1
+        CACHE_LOOKUPS.labels("miss" if row is None else "hit").inc()
         return None if row is None else str(row[0])
 
     def get(self, key: str) -> dict[str, Any] | None:
