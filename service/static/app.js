@@ -2,17 +2,13 @@
 "use strict";
 
 const $ = (sel, root = document) => root.querySelector(sel);
-const POLL_MS = 1000;          // sweep list refresh
-const DIAGRAM_MS = 2000;       // partial diagram refresh while a sweep runs
 
 const state = {
-  selected: null,              // id of the sweep shown in the diagram panel
-  diagramKey: null,            // "<id>:<status>:<n_done>" of the image shown
-  diagramBusy: false,
-  diagramAt: 0,
+  selected: null,              // id of the sweep shown in the view panel (sweeps.js)
+  view: null,                  // what the view panel shows (sweeps.js)
   listHtml: "",
   sweeps: new Map(),
-  polls: 0,
+  polls: 0,                    // answers of the sweep list so far
 };
 window.rsfUi = state;          // for debugging (and the browser test)
 
@@ -57,12 +53,11 @@ function fmt(v, digits = 4) {
   if (typeof v !== "number") return String(v);
   if (v === 0) return "0";
   const a = Math.abs(v);
-  return a >= 1e4 || a < 1e-3 ? v.toExponential(digits - 1) : String(+v.toPrecision(digits));
+  return a >= 1e4 || a < 1e-3 ? v.toExponential(digits - 1).replace(/\.?0+e/, "e") : String(+v.toPrecision(digits));
 }
 function esc(s) {
   return String(s).replace(/[&<>"']/g, c => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c]));
 }
-const NAMES = { kappa_ratio: "\u03ba/\u03ba_crit", eps: "\u03b5", ba: "b/a", size: "size" };
 function duration(s) {
   if (s === null || s === undefined) return "\u2014";
   if (s < 1) return "<1 s";
@@ -221,165 +216,7 @@ async function criticalSize(params) {
   }
 }
 
-/* ------------------------------------------------------------------ sweeps */
-function sweepBody() {
-  const f = $("#sweep-form");
-  const axis = w => ({ name: f.elements[w + "_name"].value, start: num(f, w + "_start"),
-                       stop: num(f, w + "_stop"), n: num(f, w + "_n") });
-  const x = axis("x"), y = axis("y");
-  const fixed = {};
-  for (const k of ["ba", "kappa_ratio", "eps", "vo", "size"]) {
-    if (k === x.name || k === y.name) continue;
-    const v = num(f, "f_" + k);
-    if (v !== null) fixed[k] = v;
-  }
-  return { x, y, fixed, perturbation: f.elements.perturbation.value };
-}
-
-function syncFixed() {
-  const f = $("#sweep-form");
-  const swept = [f.elements.x_name.value, f.elements.y_name.value];
-  for (const k of ["ba", "kappa_ratio", "eps", "vo", "size"]) {
-    const el = f.elements["f_" + k];
-    el.disabled = swept.includes(k);
-    el.title = el.disabled ? "swept" : (k === "size" ? "empty: critical size per point; a value: stable/unstable" : "");
-  }
-  const nx = num(f, "x_n") || 0, ny = num(f, "y_n") || 0;
-  $("#sweep-npoints").textContent = `${nx} \u00d7 ${ny} = ${nx * ny} points`;
-}
-
-async function submitSweep(ev) {
-  ev.preventDefault();
-  const form = $("#sweep-form"), status = $("#sweep-status"), errBox = $("#sweep-error");
-  const btn = $("#sweep-submit");
-  clearProblem(errBox, form);
-  btn.disabled = true;
-  busy(status, "submitting\u2026");
-  try {
-    const res = await postJSON("/v1/sweeps", sweepBody());
-    const id = res.body.id;
-    busy(status, "");
-    status.textContent = res.headers.get("x-cache") === "hit"
-      ? `already known: ${id.slice(0, 8)}` : `submitted ${id.slice(0, 8)}`;
-    select(id);
-    await refreshSweeps();
-  } catch (e) {
-    busy(status, "");
-    showProblem(errBox, form, e);
-  } finally {
-    btn.disabled = false;
-  }
-}
-
-function describe(s) {
-  // status polls carry dims (names and lengths), fixed, output, perturbation
-  const dims = s.dims || [];
-  const fx = s.fixed || {};
-  const scattered = dims.length === 1 && dims[0].name === "point";
-  const mode = s.output === "outcome"
-    ? (fx.size !== null && fx.size !== undefined ? `outcome @ size ${fmt(fx.size)}` : "outcome")
-    : "critical size";
-  return { grid: scattered ? "scattered points" : dims.map(d => NAMES[d.name] || d.name).join(" \u00d7 "),
-           dims: dims.map(d => d.n).join("\u00d7"),
-           mode: `${mode}, ${(s.perturbation || "").replace("-", " ")}` };
-}
-
-function row(s) {
-  const d = describe(s);
-  const pct = s.n_total ? Math.floor(100 * s.n_done / s.n_total) : 0;
-  const active = s.status === "queued" || s.status === "running";
-  return `<tr class="sweep${s.id === state.selected ? " selected" : ""}" data-id="${esc(s.id)}" data-status="${esc(s.status)}">
-    <td class="mono" title="${esc(s.id)}">${esc(s.id.slice(0, 8))}</td>
-    <td><div>${esc(d.grid)} <span class="hint">${esc(d.dims)}</span></div><div class="hint">${esc(d.mode)}</div></td>
-    <td><span class="badge ${esc(s.status)}">${esc(s.status)}</span></td>
-    <td class="wide"><div class="progress ${esc(s.status)}" data-done="${s.n_done}" data-total="${s.n_total}">
-      <span class="bar" style="width:${pct}%"></span>
-      <span class="label">${s.n_done} / ${s.n_total} (${pct}%)</span></div>
-      ${s.n_failed ? `<span class="failed">${s.n_failed} failed</span>` : ""}</td>
-    <td>${active ? esc(duration(s.eta_s)) : ""}</td>
-    <td>${active ? `<button type="button" class="link" data-cancel="${esc(s.id)}">cancel</button>` : ""}</td>
-  </tr>`;
-}
-
-async function refreshSweeps() {
-  let list;
-  try {
-    list = (await getJSON("/v1/sweeps?limit=25")).body.sweeps;
-  } catch (e) {
-    return;
-  }
-  state.polls += 1;
-  state.sweeps = new Map(list.map(s => [s.id, s]));
-  const html = list.length ? list.map(row).join("") : `<tr class="empty"><td colspan="6">no sweeps yet</td></tr>`;
-  if (html !== state.listHtml) {
-    $("#sweeps-table tbody").innerHTML = html;
-    state.listHtml = html;
-  }
-  if (state.selected === null && list.length) select(list[0].id);
-  else updateDiagram();
-}
-
-async function cancelSweep(id) {
-  try {
-    await getJSON(`/v1/sweeps/${id}`, { method: "DELETE" });
-  } catch (e) { /* shown by the next refresh */ }
-  refreshSweeps();
-}
-
-function select(id) {
-  if (state.selected !== id) {
-    state.selected = id;
-    state.diagramKey = null;
-    state.listHtml = "";  // re-render the selection highlight
-    document.querySelectorAll("#sweeps-table tr.sweep").forEach(tr =>
-      tr.classList.toggle("selected", tr.dataset.id === id));
-  }
-  updateDiagram(true);
-}
-
-/* ------------------------------------------------------------------ diagram */
-async function updateDiagram(force = false) {
-  const id = state.selected;
-  if (!id || state.diagramBusy) return;
-  let s = state.sweeps.get(id);
-  if (!s) {
-    try { s = (await getJSON(`/v1/sweeps/${id}`)).body; } catch (e) { return; }
-  }
-  const key = `${id}:${s.status}:${s.n_done}`;
-  const final = s.status === "done" || s.status === "cancelled";
-  const now = Date.now();
-  if (key === state.diagramKey) return;
-  if (!final && !force && now - state.diagramAt < DIAGRAM_MS) return;
-  state.diagramBusy = true;
-  state.diagramAt = now;
-  try {
-    const img = await blobURL(`/v1/sweeps/${id}/diagram?format=png`);
-    const el = $("#diagram-img");
-    const old = el.src;
-    el.src = img.url;
-    if (old.startsWith("blob:")) URL.revokeObjectURL(old);
-    const st = img.headers.get("x-sweep-status") || s.status;
-    const prog = img.headers.get("x-sweep-progress") || `${s.n_done}/${s.n_total}`;
-    el.dataset.sweep = id;
-    el.dataset.status = st;
-    el.dataset.progress = prog;
-    el.hidden = false;
-    $("#diagram-empty").hidden = true;
-    state.diagramKey = `${id}:${st}:${prog.split("/")[0]}`;
-    const d = describe(s);
-    $("#diagram-title").textContent = `${d.grid} \u00b7 ${id.slice(0, 8)}`;
-    $("#diagram-caption").innerHTML =
-      `${esc(d.mode)} \u00b7 ${esc(prog)} points \u00b7 <span class="badge ${esc(st)}">${esc(st)}</span> ` +
-      `${st === "done" || st === "cancelled" ? "" : "(blank cells: not computed yet) "}\u00b7 ` +
-      `<a href="/v1/sweeps/${esc(id)}/diagram?format=png" target="_blank">PNG</a> \u00b7 ` +
-      `<a href="/v1/sweeps/${esc(id)}/diagram" target="_blank">JSON</a> \u00b7 ` +
-      `<a href="/v1/sweeps/${esc(id)}/points" target="_blank">points</a>`;
-  } catch (e) {
-    $("#diagram-caption").textContent = "diagram unavailable: " + (e.message || e);
-  } finally {
-    state.diagramBusy = false;
-  }
-}
+/* sweeps: see sweeps.js (form, list, view of the selected sweep) */
 
 /* ------------------------------------------------------------------ paper figures */
 async function loadFigures() {
@@ -420,24 +257,12 @@ async function openSvg(ev) {  // through fetch, so that the API key is sent
 document.addEventListener("DOMContentLoaded", () => {
   $("#query-form").addEventListener("submit", runQuery);
   $("#query-form").addEventListener("input", kappaHint);
-  $("#sweep-form").addEventListener("submit", submitSweep);
-  $("#sweep-form").addEventListener("input", syncFixed);
-  $("#sweep-form").addEventListener("change", syncFixed);
-  $("#sweeps-table").addEventListener("click", ev => {
-    const cancel = ev.target.closest("[data-cancel]");
-    if (cancel) { ev.stopPropagation(); cancelSweep(cancel.dataset.cancel); return; }
-    const tr = ev.target.closest("tr.sweep");
-    if (tr) select(tr.dataset.id);
-  });
   $("#figure-select").addEventListener("change", () => { figureCaption(); showFigure(); });
   $("#figure-show").addEventListener("click", showFigure);
   $("#figure-svg").addEventListener("click", openSvg);
   $("#key-form").addEventListener("submit", useKey);
   kappaHint();
-  syncFixed();
   health();
   loadFigures();
-  refreshSweeps();
-  setInterval(refreshSweeps, POLL_MS);
   setInterval(health, 15000);
 });

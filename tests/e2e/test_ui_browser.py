@@ -1,18 +1,28 @@
 """The dashboard page driven in a real headless browser (Debian's chromium).
 
-A real uvicorn and a real Celery worker serve the page; chromium is started by the test
-with a fresh profile and driven over the Chrome DevTools Protocol (a websocket, with the
-``websockets`` package that uvicorn already depends on).  The test loads the page, runs a
-single query (outcome + phase-plane PNG), submits a 3 x 3 sweep from the form, watches
-the sweep list show its progress, then waits for the finished stability diagram image,
-and saves a screenshot of the page.
+A real uvicorn and a real Celery worker serve the page (one of each for the module);
+chromium is started with a fresh profile and driven over the Chrome DevTools Protocol (a
+websocket, with the ``websockets`` package that uvicorn already depends on).
 
-The worker is slowed down (0.5 s a point, via tests/e2e/test_worker_faultplugin.py) so the
+* the page as a new user meets it: "loading" until the sweep list answers, a single query
+  (outcome + phase-plane PNG), a 3 x 3 sweep submitted from the form whose progress, ETA
+  ("estimating" until the page saw two progress samples) and cancel button stay in view
+  at 1280 px, then the finished diagram with the form's symbols and the download links;
+* a 3-D sweep opened by a deep link (``/ui?sweep=ID&slice=ba:1.4``) shows that slice,
+  drawn from the server's answer; another slice changes the image and the address;
+  another pair of axes; clicking another sweep never shows the previous image;
+* a refused request (422 slice, 404 sweep) is shown once and never asked again;
+* an SI sweep submitted from the form carries the API's SI names; its view is labelled in
+  SI, and the page's SI scale agrees with the server's SI values;
+* scattered points: a scatter plot over two chosen parameters.
+
+The worker is slowed down (0.5 s a point, via tests/e2e/test_worker_faultplugin.py) so a
 sweep runs for a few seconds and the 1 s polling of the page can show it in progress.
 
 chromium is required under CI=true (.ci/run installs it): missing, the test fails;
-locally it is skipped with the reason.  ``RSF_UI_SCREENSHOT=<path>`` also copies the
-screenshot there (docs/ui-screenshot.png is made that way).
+locally it is skipped with the reason.  ``RSF_UI_SCREENSHOTS=<dir>`` writes a screenshot
+of each state there (docs/ui-*.png are made that way); ``RSF_UI_SCREENSHOT=<path>`` the
+whole page of the first test.
 """
 
 from __future__ import annotations
@@ -229,12 +239,85 @@ def png_size(data: bytes) -> tuple[int, int]:
     return struct.unpack(">II", data[16:24])
 
 
+def shoot(browser: Browser, tmp_path: Path, name: str, width: int = 1400) -> bytes:
+    """A screenshot of the whole page, kept in ``tmp_path`` and, when
+    ``RSF_UI_SCREENSHOTS=<dir>`` is set, also in that directory (docs/ui-*.png are made so)."""
+    shot = browser.screenshot(width=width)
+    w, _ = png_size(shot)
+    assert w == width and len(shot) > 30_000, (w, len(shot))
+    (tmp_path / f"ui-{name}.png").write_bytes(shot)
+    out = os.environ.get("RSF_UI_SCREENSHOTS")
+    if out:
+        Path(out, f"ui-{name}.png").write_bytes(shot)
+    browser.call(  # back to a normal window after the full-page shot
+        "Emulation.setDeviceMetricsOverride",
+        width=width,
+        height=1000,
+        deviceScaleFactor=1,
+        mobile=False,
+    )
+    return shot
+
+
+class UI:
+    """The page's server, worker and browser, shared by the tests of this module."""
+
+    def __init__(self, srv: Server, browser: Browser, tmp_path: Path) -> None:
+        self.srv, self.b, self.tmp = srv, browser, tmp_path
+        self.b.call("Network.enable")
+
+    def submit(self, body: dict[str, Any]) -> str:
+        r = httpx.post(self.srv.url + "/v1/sweeps", json=body, timeout=60)
+        assert r.status_code in (200, 202), r.text
+        return str(r.json()["id"])
+
+    def done(self, sid: str, timeout: float = 120) -> dict[str, Any]:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            st = httpx.get(f"{self.srv.url}/v1/sweeps/{sid}", timeout=30).json()
+            if st["status"] == "done":
+                return dict(st)
+            time.sleep(0.2)
+        raise AssertionError(f"sweep {sid} did not finish: {st}")
+
+    def open(self, query: str) -> None:
+        self.b.navigate(f"{self.srv.url}/ui?{query}")
+
+    def view(self, sid: str, what: str, extra: str = "true", timeout: float = 60) -> Any:
+        """Wait for the figure of sweep ``sid`` (``extra``: a further JS condition on c,
+        the canvas) and return its state."""
+        return self.b.wait(
+            f"(() => {{ const c = document.querySelector('#diagram-canvas');"
+            f" return !c.hidden && c.dataset.sweep === '{sid}' && ({extra}) ? {VIEW_STATE} : null; }})()",
+            timeout,
+            what,
+        )
+
+    def requests(self, part: str) -> list[str]:
+        """URLs of the page's requests so far (since the last navigation) containing ``part``."""
+        return [
+            e["params"]["request"]["url"]
+            for e in self.b.events
+            if e["method"] == "Network.requestWillBeSent" and part in e["params"]["request"]["url"]
+        ]
+
+
+VIEW_STATE = """{sweep: c.dataset.sweep, status: c.dataset.status, progress: c.dataset.progress,
+  slice: c.dataset.slice, axes: c.dataset.axes, key: c.dataset.key, image: c.toDataURL(),
+  title: document.querySelector('#diagram-title').textContent,
+  labels: document.querySelector('#diagram-axes').textContent,
+  caption: document.querySelector('#diagram-caption').textContent,
+  links: document.querySelector('#diagram-links').innerHTML,
+  error: document.querySelector('#diagram-error').hidden ? '' :
+    document.querySelector('#diagram-error').textContent,
+  href: location.href}"""
+
 SET_SWEEP_FORM = """(() => {
   const f = document.querySelector('#sweep-form');
   const set = (n, v) => { f.elements[n].value = v;
     f.elements[n].dispatchEvent(new Event('change', {bubbles: true})); };
-  set('x_name', 'kappa_ratio'); set('x_start', '1.1'); set('x_stop', '3'); set('x_n', '3');
-  set('y_name', 'eps'); set('y_start', '0'); set('y_stop', '0.8'); set('y_n', '3');
+  set('ax0_name', 'kappa_ratio'); set('ax0_start', '1.1'); set('ax0_stop', '3'); set('ax0_n', '3');
+  set('ax1_name', 'eps'); set('ax1_start', '0'); set('ax1_stop', '0.8'); set('ax1_n', '3');
   set('f_ba', '2'); set('f_vo', '1'); set('f_size', '');
   document.querySelector('#sweep-submit').click();
   return true;
@@ -243,129 +326,369 @@ SET_SWEEP_FORM = """(() => {
 ROW_STATE = """(() => {
   const tr = document.querySelector('#sweeps-table tr.sweep');
   if (!tr) return null;
-  const p = tr.querySelector('.progress');
+  const p = tr.querySelector('.progress'), eta = tr.querySelector('td.eta');
+  const cancel = tr.querySelector('[data-cancel]');
+  const inView = el => { if (!el) return null; const r = el.getBoundingClientRect();
+    return r.width > 0 && r.left >= 0 && r.right <= innerWidth && r.top >= 0 && r.bottom <= innerHeight; };
   return {id: tr.dataset.id, status: tr.dataset.status, done: +p.dataset.done,
           total: +p.dataset.total, label: p.querySelector('.label').textContent,
-          badge: tr.querySelector('.badge').textContent};
+          badge: tr.querySelector('.badge').textContent,
+          eta: eta.querySelector('.eta-text').textContent, cancel: !!cancel,
+          visible: inView(p) && inView(eta.querySelector('.eta-text')) && (!cancel || inView(cancel)),
+          hscroll: document.scrollingElement.scrollWidth > innerWidth};
 })()"""
 
-DIAGRAM_STATE = """(() => {
-  const img = document.querySelector('#diagram-img');
-  return {sweep: img.dataset.sweep || null, status: img.dataset.status || null,
-          progress: img.dataset.progress || null, hidden: img.hidden,
-          complete: img.complete, width: img.naturalWidth, height: img.naturalHeight,
-          caption: document.querySelector('#diagram-caption').textContent};
-})()"""
+GRID_3D = {
+    "axes": [
+        {"name": "kappa_ratio", "start": 1.1, "stop": 3.0, "n": 3},
+        {"name": "eps", "start": 0.0, "stop": 0.8, "n": 3},
+        {"name": "ba", "values": [1.4, 2.0]},
+    ],
+    "fixed": {"vo": 1.0},
+}
+MACHINE = {
+    "a": 0.01,
+    "b": 0.015,
+    "Dc_m": 1e-5,
+    "sigma_Pa": 1e8,
+    "k_Pa_per_m": 2e11,
+    "V_star_m_s": 1e-6,
+    "V_load_m_s": 1e-5,
+}
 
 
-def test_dashboard_in_headless_chromium(chromium_exe: str, tmp_path: Path, procs: list) -> None:
-    t0 = time.monotonic()
-    procs.append(srv := Server(tmp_path, RSF_INLINE_BUDGET_S="120"))
-    procs.append(Worker(tmp_path, plugin=True, RSF_TEST_POINT_DELAY_S="0.5"))
-    browser = Browser(chromium_exe, tmp_path)
+@pytest.fixture(scope="module")
+def ui(chromium_exe: str, tmp_path_factory: pytest.TempPathFactory) -> Any:
+    tmp_path = tmp_path_factory.mktemp("ui")
+    started: list[Proc] = []
+    browser = None
     try:
-        # -- the page loads, talks to the API, lists the paper figures
-        browser.navigate(srv.url + "/")
-        browser.wait(
-            "document.readyState === 'complete' && "
-            "document.querySelector('#health').classList.contains('ok')",
-            30,
-            "the page to load and reach /health",
-        )
-        assert browser.js("document.title").startswith("rsf-stability")
-        browser.wait(
-            "document.querySelectorAll('#figure-select option').length >= 10",
-            30,
-            "the list of paper figures",
-        )
-        assert browser.js(
-            "document.querySelector('#sweeps-table tbody').innerText.includes('no sweeps yet')"
-        )
-
-        # -- a single query: outcome and the phase-plane PNG
-        browser.js("document.querySelector('#query-submit').click(), true")
-        browser.wait(
-            "document.querySelector('#phase-img').naturalWidth > 0 && "
-            "!document.querySelector('#phase-figure').hidden",
-            60,
-            "the phase-plane plot",
-        )
-        outcome = browser.js("document.querySelector('#outcome-badge').textContent")
-        ref = httpx.post(
-            srv.url + "/v1/classify",
-            json={"ba": 2, "kappa": 2, "eps": 0.25, "vo": 1, "size": 2.7},
-            timeout=60,
-        )
-        assert outcome == ref.json()["outcome"], (outcome, ref.text)
-        browser.wait(
-            "!/\\u2026/.test(document.querySelector('#critical-size').textContent)",
-            60,
-            "the critical size",
-        )
-
-        # -- submit a 3 x 3 sweep from the form; the list shows its progress
-        browser.js(SET_SWEEP_FORM)
-        seen: list[dict[str, Any]] = []
-
-        def record(v: Any) -> None:
-            row = browser.js(ROW_STATE)
-            if row and (not seen or row != seen[-1]):
-                seen.append(row)
-
-        browser.wait(
-            "(() => { const tr = document.querySelector('#sweeps-table tr.sweep');"
-            " return !!tr && tr.dataset.status === 'done'; })()",
-            120,
-            "the sweep to finish in the list",
-            each=record,
-        )
-        sid = seen[-1]["id"]
-        assert len(sid) == 32 and seen[-1]["total"] == 9 and seen[-1]["done"] == 9
-        assert seen[-1]["label"].startswith("9 / 9"), seen[-1]
-        assert any(s["status"] in ("queued", "running") for s in seen), seen
-        assert any(0 < s["done"] < 9 for s in seen), f"no partial progress shown: {seen}"
-        st = httpx.get(f"{srv.url}/v1/sweeps/{sid}", timeout=30).json()
-        assert st["status"] == "done" and st["n_done"] == 9
-        data = httpx.get(
-            f"{srv.url}/v1/sweeps/{sid}/data", params={"format": "json"}, timeout=30
-        ).json()
-        assert data["coords"][st["dims"][0]["name"]] == [1.1, 2.05, 3.0]
-
-        # -- then the finished stability diagram
-        diagram = browser.wait(
-            f"(() => {{ const d = {DIAGRAM_STATE}; return d.sweep === '{sid}' && "
-            "d.status === 'done' && d.complete && d.width > 0 && !d.hidden ? d : null; })()",
-            60,
-            "the finished diagram image",
-        )
-        assert diagram["width"] >= 400 and diagram["height"] >= 300, diagram
-        assert diagram["progress"] == "9/9" and "done" in diagram["caption"], diagram
-        png = httpx.get(f"{srv.url}/v1/sweeps/{sid}/diagram?format=png", timeout=30)
-        assert png.status_code == 200 and png_size(png.content) == (
-            diagram["width"],
-            diagram["height"],
-        )
-
-        # -- a paper figure, then a screenshot of the whole page
-        browser.js(
-            "(() => { const s = document.querySelector('#figure-select');"
-            " s.value = 'stability-diagram-velocity';"
-            " s.dispatchEvent(new Event('change')); return true; })()"
-        )
-        browser.wait(
-            "document.querySelector('#figure-img').naturalWidth > 0", 90, "the paper figure"
-        )
-        shot = browser.screenshot()
-        (tmp_path / "ui.png").write_bytes(shot)
-        w, h = png_size(shot)
-        assert w == 1400 and h >= 900 and len(shot) > 50_000, (w, h, len(shot))
-        from matplotlib.image import imread
-
-        px = imread(io.BytesIO(shot), format="png")
-        assert px.std() > 0.05, "screenshot looks blank"
-        if os.environ.get("RSF_UI_SCREENSHOT"):
-            Path(os.environ["RSF_UI_SCREENSHOT"]).write_bytes(shot)
-        assert browser.exceptions() == []
+        started.append(srv := Server(tmp_path, RSF_INLINE_BUDGET_S="120"))
+        started.append(Worker(tmp_path, plugin=True, RSF_TEST_POINT_DELAY_S="0.5"))
+        browser = Browser(chromium_exe, tmp_path)
+        yield UI(srv, browser, tmp_path)
     finally:
-        browser.close()
-    print(f"browser test took {time.monotonic() - t0:.1f} s; screenshot {tmp_path / 'ui.png'}")
+        if browser is not None:
+            browser.close()
+        for p in reversed(started):
+            p.stop()
+
+
+def test_dashboard_in_headless_chromium(ui: UI) -> None:
+    t0 = time.monotonic()
+    srv, browser, tmp_path = ui.srv, ui.b, ui.tmp
+    # -- before its first answer the list says "loading", never "no sweeps yet"
+    page = httpx.get(srv.url + "/ui", timeout=30).text
+    assert "loading&hellip;" in page and "no sweeps yet" not in page
+    # -- the page loads, talks to the API, lists the paper figures
+    browser.call(
+        "Emulation.setDeviceMetricsOverride",
+        width=1280,
+        height=800,
+        deviceScaleFactor=1,
+        mobile=False,
+    )
+    browser.navigate(srv.url + "/")
+    browser.wait(
+        "document.readyState === 'complete' && "
+        "document.querySelector('#health').classList.contains('ok')",
+        30,
+        "the page to load and reach /health",
+    )
+    assert browser.js("document.title").startswith("rsf-stability")
+    browser.wait(
+        "document.querySelectorAll('#figure-select option').length >= 10",
+        30,
+        "the list of paper figures",
+    )
+    browser.wait(
+        "document.querySelector('#sweeps-table tbody').innerText.includes('no sweeps yet')",
+        30,
+        "the empty sweep list",
+    )
+
+    # -- a single query: outcome and the phase-plane PNG
+    browser.js("document.querySelector('#query-submit').click(), true")
+    browser.wait(
+        "document.querySelector('#phase-img').naturalWidth > 0 && "
+        "!document.querySelector('#phase-figure').hidden",
+        60,
+        "the phase-plane plot",
+    )
+    outcome = browser.js("document.querySelector('#outcome-badge').textContent")
+    ref = httpx.post(
+        srv.url + "/v1/classify",
+        json={"ba": 2, "kappa": 2, "eps": 0.25, "vo": 1, "size": 2.7},
+        timeout=60,
+    )
+    assert outcome == ref.json()["outcome"], (outcome, ref.text)
+    browser.wait(
+        "!/\\u2026/.test(document.querySelector('#critical-size').textContent)",
+        60,
+        "the critical size",
+    )
+
+    # -- submit a 3 x 3 sweep from the form; at 1280 px the list shows its progress, ETA
+    #    and cancel without scrolling; the ETA says "estimating" until two samples
+    browser.js(SET_SWEEP_FORM)
+    seen: list[dict[str, Any]] = []
+
+    def record(v: Any) -> None:
+        row = browser.js(ROW_STATE)
+        if row and (not seen or row != seen[-1]):
+            seen.append(row)
+        if row and row["status"] == "running" and not (tmp_path / "ui-running.png").exists():
+            shoot(browser, tmp_path, "running", width=1280)
+            browser.call(
+                "Emulation.setDeviceMetricsOverride",
+                width=1280,
+                height=800,
+                deviceScaleFactor=1,
+                mobile=False,
+            )
+
+    browser.wait(
+        "(() => { const tr = document.querySelector('#sweeps-table tr.sweep');"
+        " return !!tr && tr.dataset.status === 'done'; })()",
+        120,
+        "the sweep to finish in the list",
+        each=record,
+    )
+    sid = seen[-1]["id"]
+    assert len(sid) == 32 and seen[-1]["total"] == 9 and seen[-1]["done"] == 9
+    assert seen[-1]["label"].startswith("9 / 9"), seen[-1]
+    active = [s for s in seen if s["status"] in ("queued", "running")]
+    assert active, seen
+    assert any(0 < s["done"] < 9 for s in seen), f"no partial progress shown: {seen}"
+    assert all(s["visible"] and s["cancel"] and not s["hscroll"] for s in active), active
+    # the first sample of the page cannot give a rate: "estimating" until progress moved
+    assert active[0]["eta"].startswith("estimating"), active
+    first_move = next(k for k, s in enumerate(seen) if s["done"] != seen[0]["done"])
+    assert all(s["eta"].startswith("estimating") for s in seen[:first_move]), seen
+    assert any(s["eta"][:1].isdigit() or s["eta"].startswith("<") for s in active), active
+    st = httpx.get(f"{srv.url}/v1/sweeps/{sid}", timeout=30).json()
+    assert st["status"] == "done" and st["n_done"] == 9
+    data = httpx.get(
+        f"{srv.url}/v1/sweeps/{sid}/data", params={"format": "json"}, timeout=30
+    ).json()
+    assert data["coords"][st["dims"][0]["name"]] == [1.1, 2.05, 3.0]
+
+    # -- then the finished stability diagram, labelled with the form's symbols
+    v = ui.view(sid, "the finished diagram", "c.dataset.status === 'done'")
+    assert v["progress"] == "9/9" and "done" in v["caption"], v
+    assert sid[:8] in v["title"] and "\u03ba/\u03ba_crit \u00d7 \u03b5" in v["title"], v
+    assert v["labels"].startswith("x: \u03ba/\u03ba_crit \u00b7 y: \u03b5"), v
+    assert "colour: critical velocity jump d = ln(V_new/V)" in v["labels"], v
+    for fmt_ in ("netcdf", "csv", "json"):
+        assert f"/v1/sweeps/{sid}/data?format={fmt_}" in v["links"], v["links"]
+    # the address names the submitted sweep: the view can be shared
+    assert f"sweep={sid}" in v["href"], v["href"]
+
+    # -- a paper figure, then a screenshot of the whole page
+    browser.js(
+        "(() => { const s = document.querySelector('#figure-select');"
+        " s.value = 'stability-diagram-velocity';"
+        " s.dispatchEvent(new Event('change')); return true; })()"
+    )
+    browser.wait("document.querySelector('#figure-img').naturalWidth > 0", 90, "the paper figure")
+    shot = shoot(browser, tmp_path, "screenshot")
+    from matplotlib.image import imread
+
+    px = imread(io.BytesIO(shot), format="png")
+    assert px.std() > 0.05, "screenshot looks blank"
+    if os.environ.get("RSF_UI_SCREENSHOT"):
+        Path(os.environ["RSF_UI_SCREENSHOT"]).write_bytes(shot)
+    # offline: every request of the page went to its own server (no CDN, no fonts)
+    foreign = [u for u in ui.requests("") if not u.startswith((srv.url, "blob:", "data:"))]
+    assert foreign == [], foreign
+    assert browser.exceptions() == []
+    print(f"browser test took {time.monotonic() - t0:.1f} s; screenshot {tmp_path}")
+
+
+def test_3d_sweep_deep_link_and_slices(ui: UI) -> None:
+    """A 3-D sweep opened by a deep link shows its own slice; another slice changes the
+    image and the address; selecting a sweep never shows another sweep's image."""
+    sid = ui.submit(GRID_3D)
+    other = ui.submit(
+        {
+            "axes": [
+                {"name": "kappa_ratio", "start": 1.1, "stop": 3.0, "n": 2},
+                {"name": "eps", "start": 0.0, "stop": 0.5, "n": 2},
+            ],
+            "fixed": {"ba": 2.0},
+        }
+    )
+    ui.done(sid)
+    ui.done(other)
+    srv = ui.srv.url
+    d14 = httpx.get(f"{srv}/v1/sweeps/{sid}/diagram", params={"slice": "ba:1.4"}).json()
+    d2 = httpx.get(f"{srv}/v1/sweeps/{sid}/diagram", params={"slice": "ba:2"}).json()
+    assert d14["critical_size"] != d2["critical_size"]  # else the slices could not be told apart
+
+    ui.open(f"sweep={sid}&slice=ba:1.4")
+    v1 = ui.view(sid, "the deep-linked slice", "c.dataset.slice === 'ba:1.4'")
+    assert sid[:8] in v1["title"] and "b/a" in v1["title"], v1
+    assert "slice: b/a = 1.4" in v1["caption"], v1
+    assert "slice=ba:1.4" in v1["href"] and "axes=kappa_ratio,eps" in v1["href"], v1
+    asked = ui.requests(f"/v1/sweeps/{sid}/diagram")
+    assert asked and all("slice=ba%3A1.4" in u for u in asked), asked
+    # the page drew the server's slice: its answer is the server's, cell for cell
+    shown = ui.b.js("window.rsfUi.view.answer")
+    assert shown["critical_size"] == d14["critical_size"] and shown["slice"] == {"ba": 1.4}
+    ctl = ui.b.js(
+        "[...document.querySelectorAll('#view-controls [data-slice]')].map(e => e.dataset.slice)"
+    )
+    assert ctl == ["ba"], ctl
+    shoot(ui.b, ui.tmp, "slice")
+
+    # -- the other slice: new image, new address
+    ui.b.js(
+        "(() => { const s = document.querySelector('#view-controls [data-slice=ba]');"
+        " s.value = '1'; s.dispatchEvent(new Event('change', {bubbles: true})); return true; })()"
+    )
+    v2 = ui.view(sid, "the second slice", "c.dataset.slice === 'ba:2'")
+    assert v2["image"] != v1["image"], "the image did not change with the slice"
+    assert "slice=ba:2" in v2["href"] and "slice: b/a = 2" in v2["caption"], v2
+    assert ui.b.js("window.rsfUi.view.answer")["critical_size"] == d2["critical_size"]
+
+    # -- other axes shown: eps x ba at a kappa_ratio slice (the server's kappa_ratio:1.1)
+    ui.b.js(
+        "(() => { const s = document.querySelector('#view-x');"
+        " s.value = 'ba'; s.dispatchEvent(new Event('change', {bubbles: true})); return true; })()"
+    )
+    v3 = ui.view(sid, "the view over (b/a, eps)", "c.dataset.axes === 'ba,eps'")
+    assert v3["labels"].startswith("x: b/a \u00b7 y: \u03b5"), v3
+    assert "axes=ba,eps" in v3["href"] and "slice=kappa_ratio:" in v3["href"], v3
+
+    # -- clicking another sweep: its title at once, never the previous image
+    now = ui.b.js(
+        f"(() => {{ document.querySelector('#sweeps-table tr.sweep[data-id=\"{other}\"]').click();"
+        " const c = document.querySelector('#diagram-canvas');"
+        " return {hidden: c.hidden, sweep: c.dataset.sweep,"
+        " title: document.querySelector('#diagram-title').textContent}; })()"
+    )
+    assert now["hidden"] and now["sweep"] != sid and other[:8] in now["title"], now
+    v4 = ui.view(other, "the other sweep's diagram")
+    assert other[:8] in v4["title"] and f"sweep={other}" in v4["href"], v4
+    assert ui.b.exceptions() == []
+
+
+def test_no_request_repeats_after_a_4xx(ui: UI) -> None:
+    """A refused slice (422) and an unknown sweep (404) are shown once and never asked
+    again; the page keeps its 1 s list refresh going meanwhile."""
+    sid = ui.submit(GRID_3D)
+    ui.done(sid)
+    ui.open(f"sweep={sid}&slice=bogus:1")
+    ui.b.wait(
+        "document.querySelector('#diagram-empty').textContent.includes('is not <axis>:<value>')",
+        30,
+        "the 422 of the slice",
+    )
+    lists0 = len(ui.requests("/v1/sweeps?limit"))
+    # watch the page for five more list refreshes (1 s apart): the diagram is not asked again
+    polls = ui.b.js("window.rsfUi.polls")
+    ui.b.wait(f"window.rsfUi.polls >= {polls + 5}", 30, "five more refreshes of the sweep list")
+    assert len(ui.requests("/v1/sweeps?limit")) > lists0
+    bad = ui.requests(f"/v1/sweeps/{sid}/diagram")
+    assert len(bad) == 1 and "slice=bogus%3A1" in bad[0], bad
+    text = ui.b.js("document.querySelector('#diagram-card').innerText")
+    assert text.count("is not <axis>:<value>") == 1, text
+    assert "slice=bogus:1" in ui.b.js("location.href")
+    shoot(ui.b, ui.tmp, "error")
+
+    missing = "0" * 28 + "abcd"
+    ui.open(f"sweep={missing}")
+    ui.b.wait(
+        "document.querySelector('#diagram-empty').textContent.includes('no sweep with id')",
+        30,
+        "the 404 of an unknown sweep",
+    )
+    ui.b.wait("window.rsfUi.polls >= 6", 30, "six refreshes of the sweep list")
+    # a 404 status is not asked again (the list's 1 s refresh goes on)
+    assert len(ui.requests(f"/v1/sweeps/{missing}")) == 1, ui.requests(missing)
+    assert ui.b.exceptions() == []
+
+
+def test_si_sweep_shows_si_labels(ui: UI) -> None:
+    """An SI sweep submitted from the form carries the API's SI names; its view says SI
+    units, and the page's SI scale agrees with the server's SI values (rsfcore.units)."""
+    ui.open("")
+    ui.b.wait("window.rsfUi.polls >= 1", 30, "the sweep list")
+    form = {"sp_" + k: v for k, v in MACHINE.items()}
+    ui.b.js(
+        "(() => { const f = document.querySelector('#sweep-form');"
+        " f.querySelector('[name=sweep_units][value=si]').click();"
+        " while (f.querySelectorAll('[data-remove-axis]').length > 1)"
+        "   f.querySelector('[data-remove-axis]').click();"
+        " const set = (n, v) => { f.elements[n].value = v;"
+        "   f.elements[n].dispatchEvent(new Event('change', {bubbles: true})); };"
+        f" const m = {json.dumps(form)}; for (const k in m) set(k, String(m[k]));"
+        " set('ax0_name', 'eps'); set('ax0_start', '0'); set('ax0_stop', '0.6'); set('ax0_n', '4');"
+        " document.querySelector('#sweep-submit').click(); return true; })()"
+    )
+    sid = ui.b.wait(
+        "(() => { const t = document.querySelector('#sweep-status').textContent;"
+        " return /submitted|already/.test(t) && window.rsfUi.selected; })()",
+        30,
+        "the SI sweep to be submitted",
+    )
+    st = ui.done(sid)
+    assert st["physical"] == MACHINE, st  # the form sent the API's names and values
+    assert [d["name"] for d in st["dims"]] == ["eps"] and st["output"] == "critical"
+    v = ui.view(sid, "the SI sweep's curve", "c.dataset.status === 'done'")
+    assert "y: critical V_new [m/s]" in v["labels"], v
+    assert "machine (SI)" in v["caption"] and "\u03c3 = 1e+8 Pa" in v["caption"], v
+    assert "k = 2e+11 Pa/m" in v["caption"] and "V_load = 1e-5 m/s" in v["caption"], v
+    # the page's SI scale: the server's SI value of every computed point (rsfcore.units)
+    pts = httpx.get(f"{ui.srv.url}/v1/sweeps/{sid}/points", timeout=30).json()["points"]
+    finite = [p for p in pts if p["kind"] == "finite"]
+    assert finite, pts
+    for p in finite:
+        mine = ui.b.js(
+            "window.rsfUi.colourLabels({perturbation: 'velocity-jump', physical: "
+            f"{json.dumps(MACHINE)}}}).si.of({p['critical_size']!r})"
+        )
+        # exp() of the browser and of numpy differ by at most a few ulp
+        assert mine == pytest.approx(p["critical_slip_rate_m_s"], rel=1e-13), (mine, p)
+    shoot(ui.b, ui.tmp, "si")
+
+    # -- an SI outcome map: eps x factor, axes and caption in the form's SI terms
+    sid2 = ui.submit(
+        {
+            "axes": [
+                {"name": "eps", "start": 0.0, "stop": 0.8, "n": 3},
+                {"name": "factor", "start": 2.0, "stop": 100.0, "n": 3, "log": True},
+            ],
+            "fixed": {"physical": MACHINE},
+        }
+    )
+    ui.done(sid2)
+    ui.open(f"sweep={sid2}")
+    v2 = ui.view(sid2, "the SI outcome map")
+    assert v2["labels"] == (
+        "x: \u03b5 \u00b7 y: V_new/V_before \u00b7 colour: outcome (stable / unstable)"
+    ), v2
+    assert "machine (SI)" in v2["caption"], v2
+    assert ui.b.exceptions() == []
+
+
+def test_scattered_sweep_scatter_plot(ui: UI) -> None:
+    """Scattered points: a scatter plot over two chosen parameters."""
+    sid = ui.submit(
+        {
+            "points": {"ba": [1.5, 2.0, 3.0, 2.5], "eps": [0.1, 0.5, 0.2, 0.3], "vo": [1, 2, 1, 3]},
+            "fixed": {"kappa_ratio": 2.0},
+        }
+    )
+    ui.done(sid)
+    ui.open(f"sweep={sid}&axes=eps,vo")
+    v = ui.view(sid, "the scatter plot")
+    assert v["axes"] == "eps,vo" and v["labels"].startswith("x: \u03b5 \u00b7 y: v"), v
+    ui.b.js(
+        "(() => { const s = document.querySelector('#view-py');"
+        " s.value = 'ba'; s.dispatchEvent(new Event('change', {bubbles: true})); return true; })()"
+    )
+    v2 = ui.view(sid, "the scatter over (eps, b/a)", "c.dataset.axes === 'eps,ba'")
+    assert v2["image"] != v["image"] and "axes=eps,ba" in v2["href"], v2
+    shoot(ui.b, ui.tmp, "scatter")
+    assert ui.b.exceptions() == []
