@@ -6,16 +6,20 @@ environment describes one deployment.
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import socket
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "get_settings"]
+__all__ = ["IPNetwork", "Settings", "get_settings"]
+
+#: An IPv4 or IPv6 network (a single address is a /32 or /128 network).
+IPNetwork = ipaddress.IPv4Network | ipaddress.IPv6Network
 
 
 class Settings(BaseSettings):
@@ -69,6 +73,12 @@ class Settings(BaseSettings):
         max_body_bytes_batch: largest body of the batch, fit and sweep endpoints [bytes].
         max_header_bytes: largest total size of the request headers [bytes], else 431.
         cors_origins: comma-separated origins allowed by CORS (empty: CORS off).
+        trusted_proxies: comma-separated addresses or networks (``127.0.0.1``,
+            ``10.0.0.0/8``, ``::1``) of the reverse proxies in front of the API; empty
+            (default) = none.  A request carrying forwarding headers (``Forwarded``,
+            ``X-Forwarded-For``, ``X-Real-IP``) counts as a loopback request (``auth =
+            auto`` without keys) only if it comes from one of these and the original
+            client those headers name is loopback (docs/security.md).
         request_lease_s: lease of a computing request of an API key in flight [s],
             (0, 3600], default 30 (the ``concurrent_requests`` quota, counted in the
             database: :mod:`rsfapp.store.inflight`).  The API process renews it every
@@ -116,6 +126,7 @@ class Settings(BaseSettings):
     max_body_bytes_batch: int = Field(default=64 * 2**20, ge=1024)
     max_header_bytes: int = Field(default=16 * 2**10, ge=1024)
     cors_origins: str = ""
+    trusted_proxies: str = ""
     request_lease_s: float = Field(default=30.0, gt=0, le=3600)
     quota_concurrent_sweeps: int = Field(default=4, ge=0)
     quota_points_per_day: int = Field(default=1_000_000, ge=0)
@@ -143,7 +154,25 @@ class Settings(BaseSettings):
     @property
     def cors_origin_list(self) -> list[str]:
         """The CORS origins as a list (empty: CORS off)."""
-        return [o.strip() for o in self.cors_origins.split(",") if o.strip()]
+        return _split(self.cors_origins)
+
+    @field_validator("trusted_proxies")
+    @classmethod
+    def _check_proxies(cls, v: str) -> str:
+        for item in _split(v):
+            try:
+                ipaddress.ip_network(item, strict=False)
+            except ValueError:
+                raise ValueError(
+                    f"RSF_TRUSTED_PROXIES: {item!r} is not an IP address or network "
+                    "(e.g. 127.0.0.1, ::1, 10.0.0.0/8)"
+                ) from None
+        return v
+
+    @property
+    def trusted_proxy_networks(self) -> tuple[IPNetwork, ...]:
+        """:attr:`trusted_proxies` as networks (empty: no proxy is trusted)."""
+        return tuple(ipaddress.ip_network(i, strict=False) for i in _split(self.trusted_proxies))
 
     @property
     def data_path(self) -> Path:
@@ -186,6 +215,11 @@ class Settings(BaseSettings):
             "store_processed": False,
             "polling_interval": 0.1,
         }
+
+
+def _split(v: str) -> list[str]:
+    """The non-empty items of a comma-separated list."""
+    return [o.strip() for o in v.split(",") if o.strip()]
 
 
 @lru_cache(maxsize=1)

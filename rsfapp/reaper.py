@@ -107,7 +107,8 @@ class Reaper(threading.Thread):
             concurrency,
             send,
         )
-        self._stop = threading.Event()
+        #: set by :meth:`stop` (not ``_stop``: Thread.join calls a method of that name)
+        self._halt = threading.Event()
         self._failing = False
         self._queued_since: dict[tuple[str, int], float] = {}
 
@@ -191,12 +192,13 @@ class Reaper(threading.Thread):
                         str(exc).splitlines()[0] if str(exc) else type(exc).__name__,
                     )
                 self._failing = True
-            if self._stop.wait(dt):
+            if self._halt.wait(dt):
                 return
 
     def stop(self) -> None:
-        """End the thread and remove this worker from the registry."""
-        self._stop.set()
+        """End the thread (joined within 5 s: a scan blocked on the database may hold it
+        longer; it is a daemon thread) and remove this worker from the registry."""
+        self._halt.set()
         self.join(timeout=5)
         with contextlib.suppress(Exception):  # the row expires anyway
             unregister_worker(stores_for(self.settings).db, self.worker_name)

@@ -12,9 +12,10 @@ running computation instead of starting another.
 No state another API process needs lives here: a deferred computation is recorded in
 the job store (``queued``, then ``failed`` with its message, or its result in the result
 store), so ``rsf api --workers N`` and several API hosts answer the same.  A request of
-an API key that will compute (not cached) first takes a token from the key's
-fresh-computation bucket in the database (:class:`service.limits.FreshGate`), or is
-answered 429; cached answers never touch it.
+an API key that will compute (not cached) first takes a lease and a token from the key's
+in-flight quota and fresh-computation bucket in the database, through the admission the
+route passes in (:class:`service.admission.Admission`), or is answered 429; cached
+answers never touch them.
 
 Cached lookups are served from memory where possible: :class:`HotResults` holds recent
 results (immutable per key), and :class:`FastHits` lets the rate-limit middleware answer
@@ -50,9 +51,9 @@ from rsfapp.store.keys import Scope
 from rsfcore.params import ParameterError
 
 from . import auth
+from .admission import Admission
 from .deps import Inflight, get_settings_dep, get_stores
 from .errors import ProblemError
-from .limits import request_state
 
 __all__ = ["FastHits", "HotResults", "answer", "body", "deferred", "hot_for"]
 log = logging.getLogger("rsf.service")
@@ -131,7 +132,7 @@ class FastHits:
     from :class:`HotResults` after the same authorisation as the guard
     (:func:`service.auth.authorize`: key, scope, trajectory quota), and returns None
     (the app answers) for anything else: an unknown body, a result not in memory, any
-    refusal, or an app whose settings, stores or key store dependencies are overridden.
+    refusal, or an app whose settings or stores dependencies are overridden.
     The answer is byte for byte the one :func:`answer` gives for a hit.
 
     Args:
@@ -158,9 +159,7 @@ class FastHits:
     def usable(self, scope: AsgiScope) -> bool:
         """False when the app overrides a dependency this path resolves itself."""
         overrides = getattr(scope.get("app"), "dependency_overrides", None)
-        return not overrides or not any(
-            d in overrides for d in (get_settings_dep, get_stores, auth.key_store_dep)
-        )
+        return not overrides or not any(d in overrides for d in (get_settings_dep, get_stores))
 
     def remember(self, scope: AsgiScope, data: bytes, key: str, need: str) -> None:
         """Record that this request validated to cache key ``key`` and needs ``need``."""
@@ -196,7 +195,7 @@ class FastHits:
         request = Request(scope, receive)
         try:
             creds = await auth.bearer(request)
-            await auth.authorize(request, creds, settings, auth.get_key_store(stores), need)
+            await auth.authorize(request, creds, settings, stores.keys, need)
         except Exception:  # noqa: BLE001 - refusals and database errors: the app answers
             return None
         text = hot.get(key)
@@ -277,19 +276,20 @@ async def answer(
     queue: Queue,
     inflight: Inflight,
     settings: Settings,
+    admission: Admission,
     queue_refusal: str | None = None,
 ) -> Response:
     """Cached answer to ``req`` of ``kind``, computing ``fn(req)`` on a miss.
 
+    ``admission``: the request's admission; told the cache key, and asked for a lease
+    and a token of the key before a fresh computation (429 if refused).
     ``queue_refusal``: when set, a query that outgrows the in-process step budget is not
     sent to the queue but answered 403 with that reason (keys without scope 'submit', or
     whose step budget quota is spent by the in-process attempt)."""
     request = req.model_dump(mode="json")
     version = numerics_version()
     key = cache_key(kind, request, version)
-    state = request_state()
-    if state is not None:
-        state.cache_key = key
+    admission.validated(key)
     hot = hot_for(stores)
     hit = hot.get(key)
     if hit is None:
@@ -305,8 +305,7 @@ async def answer(
         if queued.state is JobState.failed:
             raise ProblemError(422, "Could not be computed", queued.message)
         return deferred(key)
-    if state is not None and state.gate is not None:
-        await state.gate.admit()  # a fresh computation (or joining one): one token, or 429
+    await admission.admit()  # a fresh computation (or joining one): one token, or 429
     task = inflight.pending.get(key)
     if task is None:
         task = asyncio.ensure_future(

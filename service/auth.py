@@ -11,7 +11,9 @@ so a browser can load the page and then enter a key.  Every other route needs:
 
 Modes (``RSF_AUTH``): ``on`` always needs a key; ``off`` never does (every request is
 an anonymous admin); ``auto`` needs one once any key exists and, until then, serves
-anonymous requests only when they arrive on a loopback interface.
+anonymous requests only when they come from this host: on a loopback interface, and
+not forwarded by a reverse proxy for someone else (:mod:`service.proxies`,
+``RSF_TRUSTED_PROXIES``).
 
 Answers: 401 (no key, malformed, unknown or revoked key: one message for all, with
 ``WWW-Authenticate: Bearer``), 403 (scope too small, or another key's sweep), both
@@ -21,7 +23,6 @@ Answers: 401 (no key, malformed, unknown or revoked key: one message for all, wi
 
 from __future__ import annotations
 
-import ipaddress
 import logging
 import math
 import time
@@ -34,37 +35,26 @@ from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
 from rsfapp.config import Settings
-from rsfapp.db.engine import Database
 from rsfapp.store import Stores
 from rsfapp.store.keys import KeyStore, Quotas, Scope, WouldBlock, hash_key, utc_day
 
+from .admission import AdmissionDep, QuotaError
 from .deps import SettingsDep, StoresDep
 from .errors import ProblemError, problem
-from .limits import (
-    SELF_ADMITTED,
-    FreshGate,
-    QuotaError,
-    inflight_store_for,
-    is_computing,
-    rate_store_for,
-    request_state,
-)
+from .proxies import from_this_host
 
 __all__ = [
     "AuthError",
     "Principal",
     "PrincipalDep",
-    "QuotaError",
     "RESPONSES",
     "admit_sweep",
     "authorize",
     "bearer",
     "check_owner",
     "current",
-    "get_key_store",
     "guard",
     "install",
-    "key_store_dep",
     "needed_scope",
     "quotas_of",
     "scope_for",
@@ -136,24 +126,6 @@ _NO_KEYS_REMOTE = (
     "and send it as 'Authorization: Bearer <key>'"
 )
 
-_key_stores: dict[int, KeyStore] = {}
-
-
-def get_key_store(stores: Stores) -> KeyStore:
-    """The key store of the configured database (one per database and process)."""
-    db: Database = stores.db
-    ks = _key_stores.get(id(db))
-    if ks is None or ks.db is not db:
-        ks = _key_stores[id(db)] = KeyStore(db)
-    return ks
-
-
-async def key_store_dep(stores: StoresDep) -> KeyStore:  # async: no thread hop
-    return get_key_store(stores)
-
-
-KeyStoreDep = Annotated[KeyStore, Depends(key_store_dep)]
-
 
 _defaults_of: list[tuple[Settings, Quotas]] = []
 
@@ -173,17 +145,6 @@ def quotas_of(settings: Settings, overrides: dict[str, Any] | None = None) -> Qu
     )
     _defaults_of[:] = [(settings, q)]  # settings objects change when RSF_* change
     return q.with_overrides(overrides) if overrides else q
-
-
-def _local(request: Request) -> bool:
-    """True if the request reached us on a loopback interface (or not over IP)."""
-    server = request.scope.get("server")
-    if not server:
-        return True  # unix socket
-    try:
-        return ipaddress.ip_address(str(server[0]).split("%")[0]).is_loopback
-    except ValueError:
-        return True  # not an IP address: an in-process test transport
 
 
 def scope_for(path: str, method: str) -> Scope:
@@ -237,7 +198,7 @@ async def _authenticate(
         if given:  # another scheme, or an empty token
             raise AuthError(401, _UNAUTHORIZED)
         if settings.auth == "auto" and not await _any_active(keys):
-            if _local(request):
+            if from_this_host(request.scope, settings.trusted_proxy_networks):
                 return Principal(None, Scope.admin, quotas_of(settings))
             raise AuthError(401, _NO_KEYS_REMOTE)
         raise AuthError(401, _UNAUTHORIZED)
@@ -281,42 +242,35 @@ async def authorize(
 async def guard(
     request: Request,
     settings: SettingsDep,
-    keys: KeyStoreDep,
+    stores: StoresDep,
+    admission: AdmissionDep,
     creds: Annotated[HTTPAuthorizationCredentials | None, Security(bearer)],
 ) -> Principal:
     """App-level dependency: authenticate, check the scope, bound the work of a request.
 
     Routes outside the OpenAPI schema are open.  The principal is left in
-    ``request.scope["rsf.principal"]`` for the rate limiter (:mod:`service.limits`) and
-    for handlers (:func:`current`).  On a computing endpoint, a key's shared
-    fresh-computation bucket and in-flight leases are attached to the request
-    (:class:`service.limits.FreshGate`) and, on the endpoints that cannot take a token
-    themselves before computing (all but the single queries), the request is refused 429
-    while that bucket is empty, or else takes a lease on one of the key's
-    ``concurrent_requests`` for its whole duration (429 if they are all taken; the
-    single queries take theirs only when they compute).
+    ``request.scope["rsf.principal"]`` for handlers (:func:`current`).  The request's
+    admission learns who it is (:meth:`service.admission.Admission.authorized`): on a
+    computing endpoint the key's shared fresh-computation bucket and in-flight leases
+    are attached and, on the endpoints that cannot take a token themselves before
+    computing (all but the single queries), the request is refused 429 while that
+    bucket is empty, or else takes a lease on one of the key's ``concurrent_requests``
+    for its whole duration (429 if they are all taken; the single queries take theirs
+    only when they compute).
     """
     route = request.scope.get("route")
     if route is not None and not getattr(route, "include_in_schema", True):
         return Principal(None, Scope.read)
     need = needed_scope(request)
-    p = await authorize(request, creds, settings, keys, need)
-    state = request_state()
-    if state is not None:
-        state.need = need.value
-        if p.key_id is not None and p.key_id == state.key_id:
-            gate = state.gate = FreshGate(
-                rate_store_for(keys.db),
-                p.key_id,
-                p.quotas.fresh_per_s,
-                inflight_store_for(keys.db),
-                p.quotas.concurrent_requests,
-                settings.request_lease_s,
-            )
-            path = request.url.path
-            if is_computing(path) and path not in SELF_ADMITTED:
-                await gate.check()
-                await gate.hold()
+    p = await authorize(request, creds, settings, stores.keys, need)
+    await admission.authorized(
+        need.value,
+        p.key_id,
+        p.quotas,
+        stores,
+        settings.request_lease_s,
+        str(request.scope.get("path", "")),
+    )
     return p
 
 
@@ -346,10 +300,6 @@ async def current(request: Request) -> Principal:  # async: no thread hop
 PrincipalDep = Annotated[Principal, Depends(current)]
 
 
-def _keys_of(stores: Stores) -> KeyStore:
-    return get_key_store(stores)
-
-
 async def admit_sweep(who: Principal, stores: Stores, sweep_id: str, n_points: int) -> int:
     """Check the sweep quotas of ``who`` before a submission and reserve ``n_points`` of
     today's points; returns the points reserved (0 for anonymous requests, and for a
@@ -364,7 +314,7 @@ async def admit_sweep(who: Principal, stores: Stores, sweep_id: str, n_points: i
     st = await run_in_threadpool(stores.sweeps.status, sweep_id)
     if st is not None and st.get("status") != "cancelled":
         return 0
-    ks, q = _keys_of(stores), who.quotas
+    ks, q = stores.keys, who.quotas
     active = await run_in_threadpool(ks.active_sweeps, who.name)
     if active >= q.concurrent_sweeps:
         raise QuotaError(
@@ -393,7 +343,7 @@ async def sweep_submitted(
     points back when nothing new was started (an existing sweep was returned)."""
     if who.anonymous or who.name is None:
         return
-    ks = _keys_of(stores)
+    ks = stores.keys
     await run_in_threadpool(ks.set_owner, sweep_id, who.name)
     if not charged and reserved:
         await run_in_threadpool(ks.refund_points, who.name, reserved)
@@ -404,7 +354,7 @@ async def check_owner(who: Principal, stores: Stores, sweep_id: str) -> None:
     auth off or loopback without keys) may touch any sweep, other keys only their own."""
     if who.scope.allows(Scope.admin):
         return
-    owner = await run_in_threadpool(_keys_of(stores).owner, sweep_id)
+    owner = await run_in_threadpool(stores.keys.owner, sweep_id)
     if owner is None and await run_in_threadpool(stores.sweeps.status, sweep_id) is None:
         return  # unknown sweep: the route answers 404
     if owner != who.name:

@@ -22,8 +22,8 @@ from typing import Any
 from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
+from .admission import is_computing
 from .auth import scope_for
-from .limits import is_computing
 
 __all__ = ["PROBLEM_SCHEMA", "install", "refine"]
 

@@ -1,4 +1,4 @@
-"""Bounds applied before a request is parsed, and per-key rate limits (ASGI middleware).
+"""Bounds applied before a request is parsed, and per-key admission (ASGI middleware).
 
 :class:`Limits`, in this order, for every HTTP request:
 
@@ -7,10 +7,12 @@
    and fit endpoints) -> 413.  A ``Content-Length`` above the limit is refused before a
    single body byte is read; a chunked body is counted as it streams and refused as
    soon as it passes the limit;
-3. per API key, on the endpoints that may compute (single queries, batch, fit,
-   figures): at most ``concurrent_requests`` computing requests in flight over every API
-   process and host (leases in the database, :mod:`rsfapp.store.inflight`), and fresh
-   computations limited to ``fresh_per_s`` per second by a token bucket (burst
+3. on the endpoints that may compute (single queries, batch, fit, figures): the
+   request's :class:`service.admission.Admission`, kept in its ASGI scope and handed to
+   the guard and the handlers as a dependency.  Per API key, at most
+   ``concurrent_requests`` computing requests are in flight over every API process and
+   host (leases in the database, :mod:`rsfapp.store.inflight`), and fresh computations
+   are limited to ``fresh_per_s`` per second by a token bucket (burst
    ``max(1, fresh_per_s)``) shared by every API process and host: it lives in the
    database (:mod:`rsfapp.store.ratelimits`, one atomic statement per change).  A key
    whose bucket is empty gets 429 + ``Retry-After`` (seconds until one token is back)
@@ -21,28 +23,28 @@
 
 Only fresh computations touch the bucket, and cached lookups never do:
 
-* single queries (:data:`SELF_ADMITTED`, answered by :func:`service.answer.answer`)
-  take a token atomically once the answer is known not to be cached, just before
-  computing (or joining an identical computation, or queueing), and are refused 429 if
-  there is none;
+* single queries (:data:`service.admission.SELF_ADMITTED`, answered by
+  :func:`service.answer.answer`) take a token atomically once the answer is known not
+  to be cached, just before computing (or joining an identical computation, or
+  queueing), and are refused 429 if there is none;
 * the other computing endpoints (batch, fits, figures, protocols) cannot tell before
   their work whether it will be fresh: :func:`service.auth.guard` refuses them 429 while
-  the key's bucket is empty (one read), and the middleware charges one token after an
+  the key's bucket is empty (one read), and this middleware charges one token after an
   answer that was computed (``X-Cache: miss``) or deferred (202); the level may go below
   zero, and the key waits until it is back to >= 1.
 
 The in-flight count (``concurrent_requests``) counts the requests that compute, as a
-lease each (:class:`FreshGate`): one row in the database, taken atomically only while
-the key holds fewer than its quota (else 429 + ``Retry-After: 1``), renewed every
-``RSF_REQUEST_LEASE_S / 3`` while the request runs and deleted just before the last part
-of its answer is sent (so the client's next request never finds it), or in a
-``finally`` when the request ends otherwise (a lease left by a process that died stops
+lease each (:class:`service.admission.FreshGate`): one row in the database, taken
+atomically only while the key holds fewer than its quota (else 429 + ``Retry-After:
+1``), renewed every ``RSF_REQUEST_LEASE_S / 3`` while the request runs and deleted just
+before the last part of its answer is sent (so the client's next request never finds
+it), or when the request ends otherwise (a lease left by a process that died stops
 counting after ``RSF_REQUEST_LEASE_S``):
 
-* a single query (:data:`SELF_ADMITTED`) takes its lease together with its token, once
-  it is known to compute (or join a computation, or queue): a cached lookup takes none
-  (it is answered in ~100 us from memory and cannot pile up, and a lease would cost two
-  database writes on every lookup);
+* a single query takes its lease together with its token, once it is known to compute
+  (or join a computation, or queue): a cached lookup takes none (it is answered in
+  ~100 us from memory and cannot pile up, and a lease would cost two database writes on
+  every lookup);
 * the other computing endpoints take theirs in :func:`service.auth.guard`, before their
   work, and hold it for the whole request, cached or not (they cannot tell before).
 
@@ -55,72 +57,26 @@ CORS (:func:`install`) is off unless ``RSF_CORS_ORIGINS`` lists allowed origins.
 
 from __future__ import annotations
 
-import asyncio
 import hashlib
 import logging
-import math
 import re
 from collections.abc import Callable
-from contextvars import ContextVar
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import anyio
 from fastapi import FastAPI
-from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.middleware.cors import CORSMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from rsfapp.config import Settings, get_settings
-from rsfapp.db.engine import Database
-from rsfapp.store.inflight import InflightStore
-from rsfapp.store.ratelimits import RateLimitStore
 
+from .admission import SELF_ADMITTED, Admission, is_computing
+from .answer import FastHits
 from .errors import problem
 
-if TYPE_CHECKING:
-    from .answer import FastHits
-
-__all__ = [
-    "COMPUTING_PREFIXES",
-    "FreshGate",
-    "Limits",
-    "QuotaError",
-    "RequestState",
-    "SELF_ADMITTED",
-    "inflight_store_for",
-    "install",
-    "is_computing",
-    "rate_store_for",
-    "request_state",
-]
+__all__ = ["Limits", "install"]
 log = logging.getLogger("rsf.service")
 
-#: Paths whose answers may be computed (and so count as fresh computations).
-COMPUTING_PREFIXES = (
-    "/v1/classify",
-    "/v1/trajectory",
-    "/v1/critical",
-    "/v1/analytic",
-    "/v1/boundaries",
-    "/v1/stiffness",
-    "/v1/figures/",
-    "/v1/fit",
-)
-#: Single-query paths answered by :func:`service.answer.answer`, which takes a token
-#: itself just before a fresh computation (no read of the bucket before).
-SELF_ADMITTED = frozenset(
-    {
-        "/v1/classify",
-        "/v1/classify/points",
-        "/v1/trajectory",
-        "/v1/critical",
-        "/v1/analytic/u",
-        "/v1/boundaries",
-        "/v1/stiffness",
-    }
-)
 _EXPOSED = [
     "Location",
     "Retry-After",
@@ -132,186 +88,11 @@ _EXPOSED = [
 ]
 
 
-def is_computing(path: str) -> bool:
-    """True for the endpoints subject to the fresh-computation quota."""
-    return path.startswith(COMPUTING_PREFIXES) or path.endswith("/batch")
-
-
 def _is_batch(path: str) -> bool:
     # sweeps too: scattered points (up to RSF_SWEEP_MAX_SCATTERED) travel in the body
     return (
         path.endswith(("/batch", "/points")) or path.startswith("/v1/fit") or path == "/v1/sweeps"
     )
-
-
-class QuotaError(Exception):
-    """429 answered as problem+json with ``Retry-After`` (handler in :mod:`service.auth`)."""
-
-    def __init__(self, detail: str, retry_after: int) -> None:
-        super().__init__(detail)
-        self.detail, self.retry_after = detail, retry_after
-
-
-_rate_stores: dict[int, RateLimitStore] = {}
-
-
-def rate_store_for(db: Database) -> RateLimitStore:
-    """The token buckets of ``db`` (one store per database and process)."""
-    st = _rate_stores.get(id(db))
-    if st is None or st.db is not db:
-        st = _rate_stores[id(db)] = RateLimitStore(db)
-    return st
-
-
-_inflight_stores: dict[int, InflightStore] = {}
-
-
-def inflight_store_for(db: Database) -> InflightStore:
-    """The in-flight leases of ``db`` (one store per database and process)."""
-    st = _inflight_stores.get(id(db))
-    if st is None or st.db is not db:
-        st = _inflight_stores[id(db)] = InflightStore(db)
-    return st
-
-
-class FreshGate:
-    """The fresh-computation bucket and the in-flight lease of one key, for one request
-    (made by :func:`service.auth.guard` once the key is authenticated; the middleware
-    releases the lease when the request ends).
-
-    Args:
-        store: the token buckets.
-        key_id: SHA-256 of the key.
-        rate: the key's quota ``fresh_per_s`` [1/s], > 0.
-        slots: the in-flight leases (None: ``concurrent_requests`` not enforced).
-        quota: the key's quota ``concurrent_requests``, >= 1.
-        lease_s: lease length [s], > 0 (``RSF_REQUEST_LEASE_S``).
-    """
-
-    def __init__(
-        self,
-        store: RateLimitStore,
-        key_id: str,
-        rate: float,
-        slots: InflightStore | None = None,
-        quota: int = 1,
-        lease_s: float = 30.0,
-    ) -> None:
-        self.store, self.key_id, self.rate = store, key_id, rate
-        self.slots, self.quota, self.lease_s = slots, quota, lease_s
-        #: True once this request took or was charged its token.
-        self.taken = False
-        #: the lease this request holds, if any
-        self.lease_id: str | None = None
-        self._renewer: asyncio.Task[None] | None = None
-
-    async def hold(self) -> None:
-        """Take a lease on one of the key's ``concurrent_requests`` (at most once per
-        request; renewed until :meth:`release`).
-
-        Raises:
-            QuotaError: the key already has ``concurrent_requests`` leases (429 with
-                ``Retry-After: 1``).
-        """
-        if self.slots is None or self.lease_id is not None:
-            return
-        lease = await run_in_threadpool(self.slots.acquire, self.key_id, self.quota, self.lease_s)
-        if not lease.admitted:
-            raise QuotaError(
-                "too many requests of this key in flight (quota "
-                f"concurrent_requests = {self.quota})",
-                retry_after=1,
-            )
-        self.lease_id = lease.lease_id
-        self._renewer = asyncio.get_running_loop().create_task(self._renew(lease.lease_id))
-
-    async def _renew(self, lease_id: str | None) -> None:
-        slots = self.slots
-        assert slots is not None and lease_id is not None
-        while True:
-            await asyncio.sleep(self.lease_s / 3.0)
-            try:
-                if not await run_in_threadpool(slots.renew, lease_id, self.lease_s):
-                    return  # expired (the database was out of reach for a whole lease)
-            except Exception:  # noqa: BLE001 - try again at the next beat
-                log.warning("could not renew the lease of a request in flight", exc_info=True)
-
-    async def release(self) -> None:
-        """Give the lease back (if one is held); never raises, and runs to the end even
-        when the request is cancelled (a lease that could not be deleted expires)."""
-        lease_id, self.lease_id = self.lease_id, None
-        if self._renewer is not None:
-            self._renewer.cancel()
-            self._renewer = None
-        if lease_id is None or self.slots is None:
-            return
-        with anyio.CancelScope(shield=True):
-            try:
-                await run_in_threadpool(self.slots.release, lease_id)
-            except Exception:  # noqa: BLE001 - the lease expires by itself
-                log.warning("could not release the lease of a request", exc_info=True)
-
-    def _refusal(self, wait_s: float) -> QuotaError:
-        return QuotaError(
-            f"fresh computations of this key exceed its quota (fresh_per_s = {self.rate:g})",
-            retry_after=max(1, math.ceil(wait_s)),
-        )
-
-    async def admit(self) -> None:
-        """Take a lease (:meth:`hold`), then one token, before a fresh computation (each
-        at most once per request); the lease is given back if there is no token.
-
-        Raises:
-            QuotaError: too many requests of the key in flight, or its bucket is empty
-                (429 with ``Retry-After``).
-        """
-        if self.taken:
-            return
-        await self.hold()
-        adm = await run_in_threadpool(self.store.take, self.key_id, self.rate)
-        if not adm.admitted:
-            await self.release()
-            raise self._refusal(adm.wait_s)
-        self.taken = True
-
-    async def check(self) -> None:
-        """Refuse (QuotaError) while the bucket is empty; reads only."""
-        wait = await run_in_threadpool(self.store.wait_s, self.key_id, self.rate)
-        if wait > 0:
-            raise self._refusal(wait)
-
-    async def charge(self) -> None:
-        """Charge one token after a fresh answer (unless one was taken before)."""
-        if not self.taken:
-            self.taken = True
-            await run_in_threadpool(self.store.charge, self.key_id, self.rate)
-
-
-@dataclass
-class RequestState:
-    """What the layers of one request to a computing endpoint tell the middleware.
-
-    Attributes:
-        key_id: SHA-256 of the bearer token sent, if any.
-        gate: the key's bucket and in-flight lease, set by :func:`service.auth.guard` once
-            authenticated (the middleware releases the lease when the request ends).
-        need: the scope the guard checked (value of :class:`rsfapp.store.keys.Scope`).
-        cache_key: set by :func:`service.answer.answer` once the request is validated.
-    """
-
-    key_id: str | None = None
-    gate: FreshGate | None = None
-    need: str | None = None
-    cache_key: str | None = None
-
-
-_state: ContextVar[RequestState | None] = ContextVar("rsf_request_state", default=None)
-
-
-def request_state() -> RequestState | None:
-    """The :class:`RequestState` of the request being handled (None outside a computing
-    endpoint)."""
-    return _state.get()
 
 
 def _header(scope: Scope, name: bytes) -> bytes | None:
@@ -435,7 +216,8 @@ class Limits:
         self, scope: Scope, receive: Receive, send: Send, kid: str | None, cl: bytes | None
     ) -> None:
         """A request to a computing endpoint: a cached lookup answered from memory, or
-        the app, with the fresh-computation bookkeeping of :class:`RequestState`."""
+        the app, with the request's :class:`~service.admission.Admission` (made here,
+        finished when the request ends)."""
         fast = self.fast
         body: bytes | None = None
         if (
@@ -455,7 +237,7 @@ class Limits:
                     await resp(scope, receive, send)
                     return
         seen: dict[str, Any] = {"status": 0, "fresh": False, "json": False}
-        state = RequestState(key_id=kid)
+        adm = Admission(kid).install(scope)
 
         async def watch(msg: Message) -> None:
             if msg["type"] == "http.response.start":
@@ -466,47 +248,25 @@ class Limits:
                         seen["fresh"] = True
                     elif k == b"content-type" and v == b"application/json":
                         seen["json"] = True
-            elif (
-                msg["type"] == "http.response.body"
-                and not msg.get("more_body", False)
-                and state.gate is not None
-            ):
+            elif msg["type"] == "http.response.body" and not msg.get("more_body", False):
                 # before the client has the whole answer: its next request must find
                 # the lease given back
-                await state.gate.release()
+                await adm.answered()
             await send(msg)
 
-        token = _state.set(state)
         try:
             await self.app(scope, receive, watch)
         finally:
-            _state.reset(token)
-            try:
-                await self._after(scope, state, bool(seen["fresh"]) or seen["status"] == 202)
-            finally:
-                if state.gate is not None:
-                    await state.gate.release()
+            await adm.finish(bool(seen["fresh"]) or seen["status"] == 202)
         if (
             fast is not None
             and body is not None
             and seen["status"] == 200
             and seen["json"]
-            and state.cache_key is not None
-            and state.need is not None
+            and adm.cache_key is not None
+            and adm.need is not None
         ):
-            fast.remember(scope, body, state.cache_key, state.need)
-
-    async def _after(self, scope: Scope, state: RequestState, fresh: bool) -> None:
-        """Charge a fresh answer not admitted before."""
-        p = scope.get("rsf.principal")
-        kid = state.key_id
-        if kid is None or p is None or getattr(p, "key_id", None) != kid:
-            return  # not authenticated with this key: nothing to account
-        if fresh and state.gate is not None and not state.gate.taken:
-            try:
-                await state.gate.charge()
-            except Exception:  # noqa: BLE001 - the answer is sent; never fail it now
-                log.warning("could not charge a fresh computation to its key", exc_info=True)
+            fast.remember(scope, body, adm.cache_key, adm.need)
 
 
 _allow_cache: dict[int, list[tuple[re.Pattern[str], set[str]]]] = {}
@@ -569,8 +329,6 @@ def _counting(receive: Receive, limit: int) -> Receive:
 
 def install(app: FastAPI, settings: Settings | None = None) -> None:
     """Add :class:`Limits` and, if origins are configured, CORS (outermost) to ``app``."""
-    from .answer import FastHits  # here: service.answer imports this module
-
     s = settings or get_settings()
     app.add_middleware(Limits, fast=FastHits())
     origins = s.cors_origin_list

@@ -26,8 +26,8 @@ from starlette.responses import Response
 from rsfapp import adapter
 from rsfapp.requests.batch import BatchRequest, ClassifyBatchRequest, CriticalBatchRequest
 
+from ..context import CtxDep
 from ..errors import ProblemError
-from .compute import CtxDep
 
 __all__ = ["router"]
 

@@ -8,17 +8,13 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
 from functools import partial
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Query
-from pydantic import BaseModel
+from fastapi import APIRouter, Query
 from starlette.responses import Response
 
 from rsfapp import adapter
-from rsfapp.config import Settings
-from rsfapp.queue import Queue
 from rsfapp.requests import (
     AnalyticRequest,
     BoundariesQueryRequest,
@@ -29,78 +25,17 @@ from rsfapp.requests import (
     StiffnessRequest,
     TrajectoryRequest,
 )
-from rsfapp.store import Stores
-from rsfapp.store.keys import Scope
 
 from .. import images
-from ..answer import answer
-from ..auth import Principal, PrincipalDep
-from ..deps import Inflight, InflightDep, QueueDep, SettingsDep, StoresDep
+from ..context import CtxDep
 from ..errors import ProblemError
 from ..images import choice, format_query, image, image_response, png_content
 from ..responses import ClassifyResult, CriticalResult, TrajectoryResult
+from ..tables import csv_table
 
 router = APIRouter(prefix="/v1", tags=["compute"])
 
 
-@dataclass(frozen=True)
-class Ctx:
-    """What every compute endpoint needs: stores, queue, in-flight table, settings."""
-
-    stores: Stores
-    queue: Queue
-    inflight: Inflight
-    settings: Settings
-    principal: Principal
-
-    @property
-    def quick_steps(self) -> int:
-        """Step budget of the in-process attempt: the setting, capped by the key's quota."""
-        return min(self.settings.quick_steps, self.principal.quotas.step_budget)
-
-    @property
-    def queue_refusal(self) -> str | None:
-        """Why a long integration of this key may not go to the queue (None: it may)."""
-        p = self.principal
-        if not p.scope.allows(Scope.submit):
-            return (
-                "this query needs a long integration through the queue, which needs a key "
-                f"with scope 'submit' (this key has '{p.scope.value}')"
-            )
-        if p.quotas.step_budget <= self.settings.quick_steps:
-            return (
-                "this query needs more integrator steps than this key's step budget "
-                f"({p.quotas.step_budget}; quota step_budget)"
-            )
-        return None
-
-    async def answer(
-        self, kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]]
-    ) -> Response:
-        """The cached or computed answer (:func:`service.answer.answer`)."""
-        return await answer(
-            kind,
-            req,
-            fn,
-            stores=self.stores,
-            queue=self.queue,
-            inflight=self.inflight,
-            settings=self.settings,
-            queue_refusal=self.queue_refusal,
-        )
-
-
-async def _ctx(  # async: no thread hop for a dependency without I/O
-    stores: StoresDep,
-    queue: QueueDep,
-    inflight: InflightDep,
-    settings: SettingsDep,
-    principal: PrincipalDep,
-) -> Ctx:
-    return Ctx(stores, queue, inflight, settings, principal)
-
-
-CtxDep = Annotated[Ctx, Depends(_ctx)]
 _R: dict[int | str, dict[str, Any]] = {
     422: {
         "description": "Invalid input (problem+json naming the field and its range) or a "
@@ -202,8 +137,6 @@ def _as_csv(resp: Response) -> Response:
         return resp
     result = json.loads(bytes(resp.body))
     cols = result.get("trajectory") or {}
-    from .protocols import csv_table
-
     samp = result.get("sampling", {}).get("kind", "tau")
     return Response(
         csv_table(cols),

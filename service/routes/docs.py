@@ -15,6 +15,7 @@ from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from starlette.responses import FileResponse, HTMLResponse, Response
 
 from ..errors import ProblemError
+from ..files import file_in
 
 __all__ = ["ASSETS", "router"]
 
@@ -56,9 +57,9 @@ async def redoc() -> HTMLResponse:
 @router.get("/docs-assets/{name}")
 async def asset(name: str) -> Response:
     """One local asset of the documentation pages."""
-    path = (ASSETS / name).resolve()
-    if path.parent != ASSETS or path.suffix not in _TYPES or not path.is_file():
-        raise ProblemError(404, "Not found", f"no documentation asset {name!r}")
+    path = file_in(ASSETS, name, _TYPES)
+    if path is None:
+        raise ProblemError(404, "Not found", f"no documentation asset {name[:100]!r}")
     return FileResponse(
         path, media_type=_TYPES[path.suffix], headers={"Cache-Control": "public, max-age=86400"}
     )

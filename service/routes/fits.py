@@ -30,10 +30,10 @@ from rsfapp.store import JobState
 
 from .. import images
 from ..answer import body
+from ..context import CtxDep
 from ..errors import ProblemError
 from ..images import choice, format_query, image, image_response
-from .compute import CtxDep
-from .protocols import csv_table
+from ..tables import csv_table
 
 __all__ = ["router"]
 

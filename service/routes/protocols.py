@@ -12,8 +12,6 @@ plot (friction and slip rate against time, peaks marked).  Cached like every sin
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from collections.abc import Callable
 from typing import Annotated, Any
@@ -26,10 +24,11 @@ from rsfapp import adapter
 from rsfapp.requests.protocols import LoadHistoryRequest, SlideHoldSlideRequest, VelocityStepRequest
 
 from .. import images
+from ..context import Ctx, CtxDep
 from ..images import choice, format_query, image, image_response
-from .compute import CtxDep
+from ..tables import csv_table
 
-__all__ = ["router", "csv_table"]
+__all__ = ["router"]
 
 router = APIRouter(prefix="/v1/protocols", tags=["protocols"])
 _FORMATS = ("json", "csv", "png")
@@ -50,17 +49,6 @@ _FMT_HELP = (
 )
 
 
-def csv_table(columns: dict[str, list[Any]]) -> str:
-    """Columns of equal length -> CSV text with a header row (empty cell for null)."""
-    keys = list(columns)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(keys)
-    for row in zip(*(columns[k] for k in keys), strict=True):
-        w.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in row])
-    return buf.getvalue()
-
-
 def _plot(result: dict[str, Any]) -> bytes:
     from rsfplots.lab import plot_protocol
 
@@ -68,7 +56,7 @@ def _plot(result: dict[str, Any]) -> bytes:
 
 
 async def _answer(
-    kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]], ctx: Any, fmt: str
+    kind: str, req: BaseModel, fn: Callable[[Any], dict[str, Any]], ctx: Ctx, fmt: str
 ) -> Response:
     fmt = choice(fmt, _FORMATS, "format")
     resp: Response = await ctx.answer(kind, req, fn)

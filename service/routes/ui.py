@@ -13,6 +13,7 @@ from fastapi import APIRouter
 from starlette.responses import FileResponse, Response
 
 from ..errors import ProblemError
+from ..files import file_in
 
 __all__ = ["router", "STATIC"]
 
@@ -30,9 +31,9 @@ _TYPES = {
 
 
 def _serve(name: str, cache: str) -> Response:
-    path = (STATIC / name).resolve()
-    if path.parent != STATIC or path.suffix not in _TYPES or not path.is_file():
-        raise ProblemError(404, "Not found", f"no static file {name!r}")
+    path = file_in(STATIC, name, _TYPES)
+    if path is None:
+        raise ProblemError(404, "Not found", f"no static file {name[:100]!r}")
     return FileResponse(path, media_type=_TYPES[path.suffix], headers={"Cache-Control": cache})
 
 

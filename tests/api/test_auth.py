@@ -326,18 +326,15 @@ def test_auto_mode_open_on_loopback_until_a_key_exists(
 
 
 def test_auto_mode_refuses_anonymous_requests_on_other_interfaces() -> None:
-    from starlette.requests import Request
+    from service.proxies import from_this_host
 
-    from service.auth import _local
+    def local(server: tuple[str, int] | None) -> bool:
+        scope = {"type": "http", "server": server, "headers": [], "method": "GET", "path": "/"}
+        return from_this_host(scope, ())
 
-    def req(server: tuple[str, int] | None) -> Request:
-        return Request(
-            {"type": "http", "server": server, "headers": [], "method": "GET", "path": "/"}
-        )
-
-    assert _local(req(("127.0.0.1", 8000))) and _local(req(("::1", 8000)))
-    assert _local(req(None))  # unix socket
-    assert not _local(req(("10.1.2.3", 8000))) and not _local(req(("192.168.0.7", 80)))
+    assert local(("127.0.0.1", 8000)) and local(("::1", 8000))
+    assert local(None)  # unix socket
+    assert not local(("10.1.2.3", 8000)) and not local(("192.168.0.7", 80))
 
 
 def sweep(*eps: float) -> dict[str, Any]:
@@ -451,7 +448,6 @@ def test_long_integration_needs_submit_scope_and_step_budget(tmp_path, monkeypat
     from rsfapp.store import stores_for
     from rsfapp.store.keys import Scope
     from service.app import create_app
-    from service.auth import get_key_store
     from service.deps import get_queue
     from tests.api.conftest import RecordingQueue
 
@@ -460,7 +456,7 @@ def test_long_integration_needs_submit_scope_and_step_budget(tmp_path, monkeypat
     monkeypatch.setenv("RSF_DATA_DIR", str(tmp_path))
     monkeypatch.setenv("RSF_AUTH", "on")
     monkeypatch.setenv("RSF_QUICK_STEPS", "10")  # every real integration exceeds it
-    keys = get_key_store(stores_for(get_settings()))
+    keys = stores_for(get_settings()).keys
     read = keys.create("reader", Scope.read)
     submit = keys.create("submitter", Scope.submit)
     small = keys.create("small", Scope.submit, {"step_budget": 10})

@@ -1,6 +1,6 @@
 """Fresh-computation buckets and in-flight leases (the concurrent_requests quota)
-shared through the database, and cached lookups answered from memory (service.limits,
-service.answer.FastHits, rsfapp.store.ratelimits, rsfapp.store.inflight).
+shared through the database, and cached lookups answered from memory (service.admission,
+service.limits, service.answer.FastHits, rsfapp.store.ratelimits, rsfapp.store.inflight).
 
 In process: two separate app instances (each with its own middleware, as two API
 processes have) on one SQLite file, RSF_AUTH=on.  The real-process version (two uvicorn
@@ -378,7 +378,7 @@ def test_gate_renews_its_lease_and_gives_it_back(tmp_path: Path) -> None:
     """A request outliving its lease keeps it (renewed every lease_s / 3: here every
     1 s for a 3 s lease, held 4.5 s; only a 2 s stall of the event loop could lose it);
     a request refused a token gives its lease back at once."""
-    from service.limits import FreshGate, QuotaError
+    from service.admission import FreshGate, QuotaError
 
     db = Database(f"sqlite:///{tmp_path / 'g.sqlite3'}")
     slots, buckets = InflightStore(db), RateLimitStore(db)
