@@ -1,5 +1,6 @@
 """Sweep numbers: one chunk computed by rsfcore's batch kernel, and a sweep's stored blocks
-assembled into arrays, an xarray Dataset (NetCDF), CSV rows, JSON or a 2-D diagram slice.
+(or a subset of them, :mod:`rsfapp.sweepselect`) written as NetCDF-4, CSV rows, JSON or a
+2-D diagram slice, slab by slab in bounded memory.
 
 Per point (arrays of the chunk / of the whole sweep in flat-index order):
 
@@ -36,10 +37,12 @@ Nothing here knows about HTTP; I/O is only through a :class:`~rsfapp.store.Sweep
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
 import math
+import os
 from collections.abc import Iterator
 from typing import Any
 
@@ -53,6 +56,15 @@ from rsfcore.params import ParameterError
 
 from .grid import SpecError, SweepSpec, si_to_size
 from .store.sweeps import SweepStore
+from .sweepselect import (
+    FILL,
+    RESULT_VARIABLES,
+    BlockReader,
+    Gathered,
+    Selection,
+    Slab,
+    slabs,
+)
 
 __all__ = [
     "VARIABLES",
@@ -62,9 +74,10 @@ __all__ = [
     "critical_si",
     "si_names",
     "si_sizes",
-    "assemble",
-    "to_dataset",
-    "netcdf_bytes",
+    "netcdf_variables",
+    "write_netcdf",
+    "file_pieces",
+    "swept_at",
     "csv_rows",
     "json_chunks",
     "diagram",
@@ -174,108 +187,6 @@ def compute_chunk(
     return out, errors
 
 
-def _empty(n: int) -> dict[str, NDArray[Any]]:
-    return {
-        "critical_size": np.full(n, math.nan),
-        "kind": np.full(n, -1, np.int8),
-        "outcome": np.full(n, -1, np.int8),
-        "rel_accuracy": np.full(n, math.nan),
-        "failed": np.zeros(n, np.bool_),
-        "computed": np.zeros(n, np.bool_),
-        "method": np.full(n, -1, np.int8),
-        "outcome_uncertain": np.zeros(n, np.bool_),
-    }
-
-
-def assemble(store: SweepStore, sweep_id: str, n_total: int) -> dict[str, NDArray[Any]]:
-    """Flat arrays of every point (missing points NaN / -1, ``computed`` False)."""
-    out = _empty(n_total)
-    for b in store.blocks(sweep_id):
-        sl = slice(b.i0, b.i1)
-        for k in ("critical_size", "kind", "rel_accuracy", "failed", "method"):
-            out[k][sl] = b.arrays[k]
-        for k in ("outcome", "outcome_uncertain"):
-            if k in b.arrays:
-                out[k][sl] = b.arrays[k]
-        out["computed"][sl] = True
-    return out
-
-
-def to_dataset(spec: SweepSpec, status: dict[str, Any], arrays: dict[str, NDArray[Any]]) -> Any:
-    """An xarray Dataset: grid axes as named dimensions with coordinates (or a ``point``
-    dimension with the swept parameters as variables), the result variables, the fixed
-    parameters and sweep metadata as attributes."""
-    import xarray as xr
-
-    legends = {
-        "kind": "-1 missing/failed, 0 zero, 1 finite, 2 infinite",
-        "outcome": "-1 missing/failed/not asked, 0 stable, 1 unstable",
-        "failed": "1 = could not be computed (see the status failures)",
-        "critical_size": "0 for kind zero, inf for infinite, NaN where missing or "
-        "failed (d for a velocity jump, dv/v_o for a load-point jump)",
-        "rel_accuracy": "estimated relative accuracy of critical_size",
-        "method": "-1 missing/failed, else index into: "
-        + " | ".join(f"{k} {m.split(':')[0]}" for k, m in enumerate(METHODS)),
-        "outcome_uncertain": "1 = |size/critical size - 1| within the accuracy (or "
-        "kappa = kappa_crit up to rounding): the outcome may flip",
-    }
-    if spec.mode == "grid":
-        dims = tuple(a.name for a in spec.axes)
-        coords: dict[str, Any] = {a.name: a.all() for a in spec.axes}
-        shape = spec.shape
-    else:
-        dims = ("point",)
-        coords = {"point": np.arange(spec.n_total, dtype=np.int32)}
-        shape = (spec.n_total,)
-    data: dict[str, Any] = {}
-    for v in VARIABLES:
-        a = arrays[v]
-        if a.dtype == np.bool_:
-            a = a.astype(np.int8)
-        data[v] = (dims, a.reshape(shape), {"description": legends[v]})
-    if spec.mode == "points":
-        for name, vals in spec.coords().items():
-            data[name] = (("point",), vals, {"description": f"swept parameter {name}"})
-    attrs: dict[str, Any] = {
-        "sweep_id": status.get("id", ""),
-        "status": status.get("status", ""),
-        "perturbation": spec.perturbation,
-        "rtol": spec.rtol,
-        "output": spec.output,
-        "n_total": spec.n_total,
-        "n_done": int(status.get("n_done", 0)),
-        "n_failed": int(status.get("n_failed", 0)),
-        "numerics_version": str(status.get("numerics_version", "")),
-    }
-    for name, fv in spec.fixed.items():
-        if fv is not None:
-            attrs[f"fixed_{name}"] = float(fv)
-    phys = spec.physical_inputs()
-    if phys is not None:
-        for name, pv in phys.to_dict().items():
-            attrs[f"physical_{name}"] = float(pv)
-        attrs["time_scale_s"] = phys.time_scale_s
-        attrs["stress_scale_Pa"] = phys.stress_scale_Pa
-        attrs["k_crit_Pa_per_m"] = phys.k_crit_Pa_per_m
-        si_name, si_desc = SI_VARIABLES[spec.perturbation]
-        swept_si = spec.si_size
-        if swept_si is not None:  # the dimensionless size of each SI coordinate value
-            sdims = (swept_si,) if spec.mode == "grid" else ("point",)
-            data["size"] = (
-                sdims,
-                si_to_size(phys, spec.perturbation, swept_si, spec.coords()[swept_si]),
-                {"description": f"dimensionless perturbation size of {swept_si} ({_SIZE_OF})"},
-            )
-        if spec.n_total <= SI_VARIABLE_MAX_POINTS:
-            si = critical_si(phys, spec.perturbation, arrays["critical_size"])
-            data[si_name] = (dims, si.reshape(shape), {"description": si_desc, "units": "m/s"})
-        else:
-            attrs["si_variable_omitted"] = (
-                f"{si_name} is given up to {SI_VARIABLE_MAX_POINTS} points: {si_desc}"
-            )
-    return xr.Dataset(data, coords=coords, attrs=attrs)
-
-
 #: Largest sweep whose NetCDF gets the SI variable (about 2 us a point through
 #: rsfcore.units: at most ~4 s); larger sweeps get an attribute stating the formula.
 SI_VARIABLE_MAX_POINTS = 2_000_000
@@ -327,9 +238,136 @@ def si_sizes(spec: SweepSpec, swept: dict[str, NDArray[Any]]) -> NDArray[np.floa
     return si_to_size(phys, spec.perturbation, name, swept[name])
 
 
-def netcdf_bytes(ds: Any) -> bytes:
-    """The Dataset as a NetCDF file (classic 64-bit-offset format, scipy engine)."""
-    return bytes(ds.to_netcdf(engine="scipy", format="NETCDF3_64BIT"))
+def netcdf_variables(spec: SweepSpec) -> tuple[str, ...]:
+    """Variables a ``variables=`` list may name: the results, ``computed`` and, for a
+    sweep in SI, its SI critical size."""
+    _, si_col = si_names(spec)
+    return (*RESULT_VARIABLES, *([si_col] if si_col else []))
+
+
+def _slab_values(
+    reader: BlockReader, spec: SweepSpec, slab: Slab, names: tuple[str, ...], errors: bool = False
+) -> Gathered:
+    """The result variables ``names`` at a slab (the SI variable converted here)."""
+    _, si_col = si_names(spec)
+    stored = tuple(v for v in names if v != si_col)
+    need = (
+        stored if si_col not in names or "critical_size" in stored else (*stored, "critical_size")
+    )
+    g = reader.gather(slab.flat, need, errors)
+    phys = spec.physical_inputs()
+    if si_col and si_col in names and phys is not None:
+        g.arrays[si_col] = critical_si(phys, spec.perturbation, g.arrays["critical_size"])
+    return g
+
+
+def write_netcdf(
+    store: SweepStore,
+    spec: SweepSpec,
+    status: dict[str, Any],
+    selection: Selection,
+    path: str,
+    how: str = "",
+) -> None:
+    """Write the selected part of a sweep to ``path`` as NetCDF-4 (HDF5, written by
+    h5netcdf) slab by slab, in bounded memory (one slab of
+    :data:`~rsfapp.sweepselect.SLAB_POINTS` points and one stored block at a time).
+
+    CF-1.10 metadata (:mod:`rsfapp.sweepcf`); variables zlib-compressed (level 1, with
+    byte shuffle) in chunks of one slab; missing points are ``_FillValue`` (NaN for the
+    floats, -1 for kind/outcome/method).  Grid axes are dimensions with coordinate
+    variables; scattered sweeps have a ``point`` dimension (the flat indices) with the
+    swept parameters as variables.  A sweep in SI also gets its SI critical size (a
+    selection of at most :data:`SI_VARIABLE_MAX_POINTS` points; else the formula as
+    attribute ``si_variable_omitted``) and, when its size is swept in SI, ``size``."""
+    import h5netcdf
+
+    from .sweepcf import coordinate_attrs, global_attrs, variable_attrs
+
+    dims = selection.dims
+    shape = selection.shape
+    coords = selection.coords(spec)
+    vattrs = variable_attrs(spec)
+    size_col, si_col = si_names(spec)
+    names = tuple(v for v in selection.variables if v != si_col)
+    phys = spec.physical_inputs()
+    with_si = si_col is not None and si_col in selection.variables
+    if with_si and selection.n > SI_VARIABLE_MAX_POINTS:
+        with_si = False
+    first = next(slabs(selection))
+    chunks = first.shape
+    attrs = global_attrs(
+        spec, status, None if selection.is_full else selection.to_json(), how or "rsf sweep data"
+    )
+    if si_col and si_col in selection.variables and not with_si:
+        attrs["si_variable_omitted"] = (
+            f"{si_col} is given up to {SI_VARIABLE_MAX_POINTS} points: "
+            + SI_VARIABLES[spec.perturbation][1]
+        )
+    with h5netcdf.File(path, "w") as f:
+        f.dimensions = dict(zip(dims, shape, strict=True))
+        for d in dims:
+            v = f.create_variable(d, (d,), np.float64 if d != "point" else np.int64, data=coords[d])
+            v.attrs.update(coordinate_attrs(d))
+        if spec.mode == "points":
+            for name, vals in spec.coords().items():
+                v = f.create_variable(
+                    name, ("point",), np.float64, data=np.asarray(vals)[selection.index[0]]
+                )
+                v.attrs.update(coordinate_attrs(name))
+        if phys is not None and size_col is not None and spec.si_size is not None:
+            sdim = spec.si_size if spec.mode == "grid" else "point"
+            sv = si_to_size(phys, spec.perturbation, spec.si_size, spec.coords()[spec.si_size])
+            if spec.mode == "points":
+                sv = sv[selection.index[0]]
+            else:
+                sv = sv[selection.index[dims.index(sdim)]]
+            v = f.create_variable("size", (sdim,), np.float64, data=sv)
+            v.attrs.update(coordinate_attrs("size"))
+            v.attrs["comment"] = f"dimensionless size of {spec.si_size} ({_SIZE_OF})"
+        out: dict[str, Any] = {}
+        for name in (*names, *([si_col] if with_si and si_col else [])):
+            dtype, fill = FILL.get(name, (np.float64, math.nan))
+            kw: dict[str, Any] = {}
+            if (
+                name in ("kind", "outcome", "method", "critical_size", "rel_accuracy")
+                or name == si_col
+            ):
+                kw["fillvalue"] = dtype(fill)
+            out[name] = f.create_variable(
+                name,
+                dims,
+                dtype,
+                chunks=chunks,
+                compression="gzip",
+                compression_opts=1,
+                shuffle=True,
+                **kw,
+            )
+            if name == si_col:
+                out[name].attrs.update(
+                    {"long_name": SI_VARIABLES[spec.perturbation][1], "units": "m/s"}
+                )
+            else:
+                out[name].attrs.update(vattrs[name])
+        f.attrs.update(attrs)
+        reader = BlockReader(store, status.get("id", "") or "")
+        want = tuple(out)
+        for slab in slabs(selection):
+            g = _slab_values(reader, spec, slab, want)
+            for name, var in out.items():
+                var[slab.out] = g.arrays[name].reshape(slab.shape)
+
+
+def file_pieces(path: str, piece: int = 1 << 20) -> Iterator[bytes]:
+    """The file in pieces of ``piece`` bytes, deleted when done (or abandoned)."""
+    try:
+        with open(path, "rb") as fh:
+            while data := fh.read(piece):
+                yield data
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
 
 
 def _method(m: int) -> str:
@@ -341,18 +379,24 @@ def _fmt(v: float) -> str:
 
 
 def csv_rows(
-    store: SweepStore, spec: SweepSpec, sweep_id: str, batch_rows: int = 50_000
+    store: SweepStore, spec: SweepSpec, sweep_id: str, selection: Selection
 ) -> Iterator[str]:
-    """CSV text in pieces: a header, then one row per point in flat-index order:
-    idx, the swept parameters, kind, critical_size, outcome, rel_accuracy, method (short
-    name), failed, error.  A sweep in SI also has, after critical_size, the critical size
-    in SI (``critical_slip_rate_m_s`` [m/s] or ``critical_load_point_velocity_m_s``
-    [m/s]: ``inf`` where infinite) and, when its size is swept in SI, the dimensionless
-    ``size`` after the swept parameters.
-    Missing points have empty result fields."""
+    """CSV text in pieces (one slab at a time): a header, then one row per selected point
+    in flat-index order: idx, the swept parameters, kind, critical_size, outcome,
+    rel_accuracy, method (short name), failed, error.  A sweep in SI also has, after
+    critical_size, the critical size in SI (``critical_slip_rate_m_s`` [m/s] or
+    ``critical_load_point_velocity_m_s`` [m/s]: ``inf`` where infinite) and, when its
+    size is swept in SI, the dimensionless ``size`` after the swept parameters.  Missing
+    points have empty result fields.  ``variables`` keeps only those result columns
+    (``error`` goes with ``failed``)."""
     names = spec.swept
     size_col, si_col = si_names(spec)
-    phys = spec.physical_inputs()
+    chosen = selection.variables
+    cols = [
+        c
+        for c in ("kind", "critical_size", si_col, "outcome", "rel_accuracy", "method", "failed")
+        if c and c in chosen
+    ]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(
@@ -360,58 +404,58 @@ def csv_rows(
             "idx",
             *names,
             *([size_col] if size_col else []),
-            "kind",
-            "critical_size",
-            *([si_col] if si_col else []),
-            "outcome",
-            "rel_accuracy",
-            "method",
-            "failed",
-            "error",
+            *cols,
+            *(["error"] if "failed" in cols else []),
         ]
     )
     yield buf.getvalue()
-    blocks = store.blocks(sweep_id)
-    nxt = next(blocks, None)
-    i = 0
-    n = spec.n_total
-    while i < n:
-        if nxt is not None and nxt.i0 == i:
-            j, b = nxt.i1, nxt
-            nxt = next(blocks, None)
-        else:
-            j, b = min(n, nxt.i0 if nxt is not None else n, i + batch_rows), None
-        vals = spec.swept_values(i, j)
+    reader = BlockReader(store, sweep_id)
+    need = tuple(dict.fromkeys((*(c for c in cols if c != si_col), "computed")))
+    if si_col in cols:
+        need = (*need, si_col)
+    for slab in slabs(selection, 50_000):
+        flat = slab.flat
+        i, j = int(flat[0]), int(flat[-1]) + 1
+        vals = spec.swept_values(i, j) if j - i == flat.size else swept_at(spec, flat)
         sizes = si_sizes(spec, vals)
-        si_vals = (
-            critical_si(phys, spec.perturbation, b.arrays["critical_size"])
-            if b is not None and phys is not None
-            else None
-        )
+        g = _slab_values(reader, spec, slab, need, errors="failed" in cols)
+        a = g.arrays
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        for k in range(j - i):
-            row: list[Any] = [i + k, *(repr(float(vals[m][k])) for m in names)]
+        blank = [""] * (len(cols) + ("failed" in cols))
+        for k in range(flat.size):
+            row: list[Any] = [int(flat[k]), *(repr(float(vals[m][k])) for m in names)]
             if sizes is not None:
                 row.append(_fmt(sizes[k]))
-            if b is None:
-                row += [""] * (8 if si_col else 7)
+            if not a["computed"][k]:
+                row += blank
             else:
-                kd = int(b.arrays["kind"][k])
-                oc = int(b.arrays["outcome"][k]) if "outcome" in b.arrays else -1
-                row += [
-                    KINDS[kd] if kd >= 0 else "",
-                    _fmt(b.arrays["critical_size"][k]),
-                    *([_fmt(si_vals[k])] if si_vals is not None else []),
-                    _OUTCOMES[oc] if oc >= 0 else "",
-                    _fmt(b.arrays["rel_accuracy"][k]),
-                    _method(int(b.arrays["method"][k])),
-                    int(bool(b.arrays["failed"][k])),
-                    b.errors.get(k, ""),
-                ]
+                for c in cols:
+                    x = a[c][k]
+                    if c == "kind":
+                        row.append(KINDS[int(x)] if x >= 0 else "")
+                    elif c == "outcome":
+                        row.append(_OUTCOMES[int(x)] if x >= 0 else "")
+                    elif c == "method":
+                        row.append(_method(int(x)))
+                    elif c == "failed":
+                        row += [int(x), g.errors.get(k, "")]
+                    else:
+                        row.append(_fmt(x))
             w.writerow(row)
         yield buf.getvalue()
-        i = j
+
+
+def swept_at(spec: SweepSpec, flat: NDArray[np.int64]) -> dict[str, NDArray[np.float64]]:
+    """Values of the swept parameters at the flat indices ``flat`` (any order)."""
+    if spec.mode == "grid":
+        multi = np.unravel_index(flat, spec.shape)
+        return {
+            ax.name: ax.at(np.asarray(k, dtype=np.int64))
+            for ax, k in zip(spec.axes, multi, strict=True)
+        }
+    assert spec.points is not None
+    return {n: np.asarray(v, dtype=np.float64)[flat] for n, v in spec.points.items()}
 
 
 def _jlist(a: NDArray[Any], kind: str) -> str:
@@ -423,37 +467,52 @@ def _jlist(a: NDArray[Any], kind: str) -> str:
 
 
 def json_chunks(
+    store: SweepStore,
     spec: SweepSpec,
     status: dict[str, Any],
-    arrays: dict[str, NDArray[Any]],
+    selection: Selection,
     failures: list[tuple[int, str]],
 ) -> Iterator[str]:
-    """JSON document in pieces: status fields, ``coords`` (axis values, or the swept
-    parameters of each point), and one flat list per variable in flat-index order
-    (non-finite numbers and missing points are null; ``kind`` tells infinite from
-    missing), ``computed``, and ``failures`` [{idx, error}] (first 100).  A sweep in SI
-    (of at most SI_VARIABLE_MAX_POINTS points) also has its SI variable in ``data``."""
+    """JSON document in pieces, one slab of one variable at a time (bounded memory):
+    status fields, ``shape`` (of the selection) and ``selection`` ({dim: [first index,
+    last index, count]}), ``coords`` (selected axis values, or the swept parameters of
+    each selected point), and ``data``: one flat list per variable in flat-index order
+    of the selection (non-finite numbers and missing points are null; ``kind`` tells
+    infinite from missing), ``computed``, and ``failures`` [{idx, error}] (the first 100
+    of the sweep).  A sweep in SI (a selection of at most SI_VARIABLE_MAX_POINTS
+    points) also has its SI variable in ``data``."""
     head: dict[str, Any] = {
         k: status[k]
         for k in ("id", "status", "n_total", "n_done", "n_failed", "numerics_version")
         if k in status
     }
     head.update(spec.summary())
-    head["shape"] = list(spec.shape)
+    head["shape"] = list(selection.shape)
+    head["selection"] = selection.to_json()
     head["kind_legend"] = list(KINDS)
     head["outcome_legend"] = list(_OUTCOMES)
     head["method_legend"] = list(METHODS)
     yield json.dumps(head)[:-1] + ', "coords": {'
-    for n, (name, vals) in enumerate(spec.coords().items()):
+    if spec.mode == "grid":
+        coords = selection.coords(spec)
+    else:
+        assert spec.points is not None
+        coords = {n: np.asarray(v)[selection.index[0]] for n, v in spec.points.items()}
+    for n, (name, vals) in enumerate(coords.items()):
         yield ("," if n else "") + json.dumps(name) + ":" + _jlist(vals, "f")
     yield '}, "data": {'
-    for n, v in enumerate((*VARIABLES, "computed")):
-        kind = "f" if arrays[v].dtype.kind == "f" else "i"
-        yield ("," if n else "") + json.dumps(v) + ":" + _jlist(arrays[v], kind)
-    phys = spec.physical_inputs()
-    if phys is not None and spec.n_total <= SI_VARIABLE_MAX_POINTS:
-        si = critical_si(phys, spec.perturbation, arrays["critical_size"])
-        yield "," + json.dumps(SI_VARIABLES[spec.perturbation][0]) + ":" + _jlist(si, "f")
+    _, si_col = si_names(spec)
+    names = [v for v in selection.variables if v != si_col]
+    if si_col and si_col in selection.variables and selection.n <= SI_VARIABLE_MAX_POINTS:
+        names.append(si_col)
+    reader = BlockReader(store, str(status.get("id", "")))
+    for n, v in enumerate(names):
+        kind = "i" if v in FILL and FILL[v][0] is not np.float64 else "f"
+        yield ("," if n else "") + json.dumps(v) + ":["
+        for m, slab in enumerate(slabs(selection)):
+            body = _jlist(_slab_values(reader, spec, slab, (v,)).arrays[v], kind)[1:-1]
+            yield ("," if m else "") + body
+        yield "]"
     yield '}, "failures": ' + json.dumps([{"idx": i, "error": m} for i, m in failures]) + "}"
 
 
@@ -495,25 +554,45 @@ def parse_slice(spec: SweepSpec, text: str | None) -> dict[str, int]:
 
 
 def diagram(
+    store: SweepStore,
     spec: SweepSpec,
     status: dict[str, Any],
-    arrays: dict[str, NDArray[Any]],
     fixed_idx: dict[str, int],
+    selection: Selection | None = None,
 ) -> dict[str, Any]:
     """A 2-D slice as a stability diagram, laid out like
     ``rsfcore.diagram.DiagramResult.to_dict()``: critical_size[i][j] at (x[i], y[j]) (null
     where infinite or missing), kind codes 0 zero / 1 finite / 2 infinite, outcome codes 0
     stable / 1 unstable (null where missing) for outcome sweeps, present[i][j] (computed
     without error), plus status, n_done, n_total, n_failed and ``slice`` (the values of the
-    other axes)."""
-    free = [a for a in spec.axes if a.name not in fixed_idx]
-    sel = tuple(fixed_idx.get(a.name, slice(None)) for a in spec.axes)
+    other axes).  ``selection`` (``sel``/``isel``) narrows the two free axes to a window.
+    Only the slice is read (memory and time scale with the slice, not the sweep)."""
+    index = list(selection.index if selection is not None else (np.arange(a.n) for a in spec.axes))
+    for k, a in enumerate(spec.axes):
+        if a.name in fixed_idx:
+            index[k] = np.array([fixed_idx[a.name]], dtype=np.int64)
+    sel = Selection(
+        tuple(a.name for a in spec.axes),
+        tuple(np.asarray(i, dtype=np.int64) for i in index),
+        ("critical_size", "kind", "outcome", "failed", "computed"),
+        spec.shape,
+    )
+    free = [(a, index[k]) for k, a in enumerate(spec.axes) if a.name not in fixed_idx]
+    shape2 = (len(free[0][1]), len(free[1][1]))
+    arrays = {v: np.empty(sel.n, dtype=FILL[v][0]) for v in sel.variables}
+    reader = BlockReader(store, str(status["id"]))
+    pos = 0
+    for slab in slabs(sel):
+        g = reader.gather(slab.flat, sel.variables)
+        for v in sel.variables:
+            arrays[v][pos : pos + slab.flat.size] = g.arrays[v]
+        pos += slab.flat.size
 
     def sl(v: str) -> NDArray[Any]:
-        return np.asarray(arrays[v].reshape(spec.shape)[sel])
+        return arrays[v].reshape(shape2)
 
     cs, kind, oc = sl("critical_size"), sl("kind"), sl("outcome")
-    ok = sl("computed") & ~sl("failed")
+    ok = (sl("computed") > 0) & (sl("failed") == 0)
     outcome_mode = spec.output == "outcome"
     present = ok & (oc >= 0) if outcome_mode else ok
     csl = [[finite_or_none(v) for v in row] for row in cs.tolist()]
@@ -527,10 +606,10 @@ def diagram(
     fixed = {k: v for k, v in spec.fixed.items() if v is not None}
     fixed.update(sl_vals)
     return {
-        "x_name": free[0].name,
-        "x": free[0].all().tolist(),
-        "y_name": free[1].name,
-        "y": free[1].all().tolist(),
+        "x_name": free[0][0].name,
+        "x": free[0][0].at(free[0][1]).tolist(),
+        "y_name": free[1][0].name,
+        "y": free[1][0].at(free[1][1]).tolist(),
         "critical_size": csl,
         "kind": kl,
         "kind_legend": list(KINDS),

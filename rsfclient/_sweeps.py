@@ -202,7 +202,7 @@ class Sweep:
         for scattered sweeps; variables critical_size, kind, outcome, rel_accuracy, failed,
         method, outcome_uncertain (and the SI critical velocity of an SI sweep)."""
         xr = need("xarray")
-        return xr.open_dataset(io.BytesIO(self.data("netcdf")), engine="scipy").load()
+        return xr.open_dataset(io.BytesIO(self.data("netcdf")), engine="h5netcdf").load()
 
     def to_pandas(self) -> Any:
         """The result as a pandas.DataFrame, one row per point (GET .../data?format=csv)."""

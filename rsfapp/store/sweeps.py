@@ -111,10 +111,10 @@ def encode_block(arrays: dict[str, NDArray[Any]]) -> bytes:
     return buf.getvalue()
 
 
-def decode_block(data: bytes) -> dict[str, NDArray[Any]]:
-    """Inverse of :func:`encode_block`."""
+def decode_block(data: bytes, names: tuple[str, ...] | None = None) -> dict[str, NDArray[Any]]:
+    """Inverse of :func:`encode_block`; only the arrays ``names`` (those stored) if given."""
     with np.load(io.BytesIO(data), allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
+        return {k: z[k] for k in z.files if names is None or k in names}
 
 
 class ChunkRange(NamedTuple):
@@ -551,6 +551,32 @@ class SweepStore:
                 return
             errs = {int(a): str(b) for a, b in json.loads(r.errors or "{}").items()}
             yield Block(int(r.i0), int(r.i1), decode_block(r.data), errs)
+
+    def block_index(self, sweep_id: str) -> tuple[NDArray[np.int64], ...]:
+        """(chunk numbers, i0, i1) of the stored blocks, in index order (int64 arrays)."""
+        with self.db.read() as conn:
+            rows = conn.execute(
+                select(sweep_blocks.c.idx, sweep_blocks.c.i0, sweep_blocks.c.i1)
+                .where(sweep_blocks.c.sweep_id == sweep_id)
+                .order_by(sweep_blocks.c.i0)
+            ).all()
+        a = np.array(rows, dtype=np.int64).reshape(-1, 3)
+        return a[:, 0].copy(), a[:, 1].copy(), a[:, 2].copy()
+
+    def read_block(
+        self, sweep_id: str, idx: int, names: tuple[str, ...] | None = None
+    ) -> Block | None:
+        """Block ``idx`` (only the arrays ``names`` if given); None if not stored."""
+        with self.db.read() as conn:
+            r = conn.execute(
+                select(sweep_blocks).where(
+                    and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx)
+                )
+            ).first()
+        if r is None:
+            return None
+        errs = {int(a): str(b) for a, b in json.loads(r.errors or "{}").items()}
+        return Block(int(r.i0), int(r.i1), decode_block(r.data, names), errs)
 
     def disk_bytes(self, sweep_id: str) -> int:
         """Bytes of stored result blobs of a sweep (payload only)."""

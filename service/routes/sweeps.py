@@ -25,6 +25,10 @@ from __future__ import annotations
 
 import json
 import logging
+import os
+import tempfile
+import threading
+from collections.abc import Iterator
 from typing import Annotated, Any
 
 import numpy as np
@@ -32,7 +36,7 @@ from fastapi import APIRouter, Path, Query
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response, StreamingResponse
 
-from rsfapp import sweepdata
+from rsfapp import sweepdata, sweepselect
 from rsfapp.adapter import numerics_version
 from rsfapp.grid import SweepSpec, expand, plan_chunks
 from rsfapp.keys import cache_key
@@ -44,7 +48,7 @@ from rsfcore.critical import KINDS, METHODS
 from .. import images
 from ..auth import PrincipalDep, admit_sweep, check_owner, sweep_submitted
 from ..deps import QueueDep, SettingsDep, StoresDep
-from ..errors import ProblemError
+from ..errors import ProblemError, unavailable
 from ..images import choice, format_query, image, image_response, png_content
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
@@ -294,17 +298,60 @@ async def get_points(
 
 _DATA_FORMATS = ("netcdf", "csv", "json")
 
+#: Downloads (``/data``) served at once by one API process; one more is answered 503 with
+#: Retry-After (each holds about one slab, ~30-60 MB; see bench/bench_sweep_e2e.py).
+DOWNLOADS_AT_ONCE = 2
+_downloads = threading.BoundedSemaphore(DOWNLOADS_AT_ONCE)
+
+_SEL_DOC = (
+    "Subset by coordinate value, comma-separated <dim>:<value> (nearest) or "
+    "<dim>:<lo>:<hi> (lo <= value <= hi), e.g. 'eps:0.1:0.5,ba:2'. Dimensions: the grid "
+    "axes, or 'point' for scattered sweeps. A dimension kept at one value stays with "
+    "length 1. Valid range: each dimension at most once in sel and isel together."
+)
+_ISEL_DOC = (
+    "Subset by index, comma-separated <dim>:<i> or <dim>:<start>:<stop>[:<step>] (0-based, "
+    "Python slice rules, negative from the end), e.g. 'vo:3' or 'point:0:1000'. Valid "
+    "range: indices within the dimension, step >= 1, a non-empty result."
+)
+_VARS_DOC = (
+    "Comma-separated result variables to send (default all): critical_size, kind, "
+    "outcome, rel_accuracy, failed, method, outcome_uncertain, computed, and for a sweep "
+    "in SI its critical_slip_rate_m_s or critical_load_point_velocity_m_s."
+)
+SelQuery = Annotated[str | None, Query(description=_SEL_DOC, max_length=2000)]
+IselQuery = Annotated[str | None, Query(description=_ISEL_DOC, max_length=2000)]
+VarsQuery = Annotated[str | None, Query(description=_VARS_DOC, max_length=1000)]
+
+
+def _busy() -> Response:
+    return unavailable(
+        "Too many downloads",
+        f"{DOWNLOADS_AT_ONCE} sweep downloads are being served by this API process",
+        "retry after Retry-After seconds, or ask for a subset (sel, isel, variables)",
+    )
+
+
+def _released(pieces: Iterator[Any]) -> Iterator[Any]:
+    """``pieces``, releasing the download slot when done, failed or abandoned."""
+    try:
+        yield from pieces
+    finally:
+        _downloads.release()
+
 
 @router.get(
     "/{sweep_id}/data",
-    summary="Sweep result (NetCDF, CSV or JSON)",
+    summary="Sweep result or a subset of it (NetCDF, CSV or JSON)",
     responses={
         **_N,
         200: {
-            "description": "The whole result, also while running (missing points NaN / empty).",
+            "description": "The result (or the selected subset), also while running "
+            "(missing points are fill values / empty).",
             "content": {"application/x-netcdf": {}, "text/csv": {}, "application/json": {}},
         },
-        422: {"description": "Invalid format (problem+json)."},
+        422: {"description": "Invalid format, sel, isel or variables (problem+json)."},
+        503: {"description": "Too many downloads at once on this process (Retry-After)."},
     },
 )
 async def get_data(
@@ -315,53 +362,74 @@ async def get_data(
         format_query(  # noqa: A002
             _DATA_FORMATS,
             "netcdf",
-            "'netcdf': a NetCDF file (xarray.open_dataset opens it; grid axes as "
-            "named coordinates, scattered sweeps on a 'point' dimension); "
-            "'csv': one row per point with a header; 'json': flat arrays.",
+            "'netcdf': a NetCDF-4 file with CF-1.10 metadata, compressed (xarray.open_dataset "
+            "opens it with h5netcdf or netCDF4; grid axes as named coordinates, scattered "
+            "sweeps on a 'point' dimension); 'csv': one row per point with a header; "
+            "'json': flat arrays.",
         ),
     ] = "netcdf",
+    sel: SelQuery = None,
+    isel: IselQuery = None,
+    variables: VarsQuery = None,
 ) -> Response:
-    """The whole result, streamed, also while the sweep runs (points not computed yet are
-    NaN / -1 / empty).  Variables per point: ``critical_size`` (0 zero, inf infinite),
-    ``kind`` (0 zero, 1 finite, 2 infinite, -1 missing/failed), ``outcome`` (0 stable,
-    1 unstable, -1 missing or no size asked), ``rel_accuracy``, ``failed``, ``method``
-    (index into rsfcore.critical.METHODS), ``outcome_uncertain``; a sweep in SI also
-    ``critical_slip_rate_m_s`` or ``critical_load_point_velocity_m_s`` [m/s] (NetCDF
-    variable, CSV column after critical_size, JSON data), and with its size swept in SI
-    the dimensionless ``size`` (NetCDF, CSV).  Headers ``X-Sweep-Status`` and
-    ``X-Sweep-Progress: n_done/n_total``."""
+    """The whole result or a subset (``sel``, ``isel``: by coordinate value or index
+    range on any dimension; ``variables``), streamed in bounded memory, also while the
+    sweep runs (points not computed yet are NaN / -1 / empty).  Variables per point:
+    ``critical_size`` (0 zero, inf infinite), ``kind`` (0 zero, 1 finite, 2 infinite,
+    -1 missing/failed), ``outcome`` (0 stable, 1 unstable, -1 missing or no size asked),
+    ``rel_accuracy``, ``failed``, ``method`` (index into rsfcore.critical.METHODS),
+    ``outcome_uncertain``, ``computed``; a sweep in SI also ``critical_slip_rate_m_s``
+    or ``critical_load_point_velocity_m_s`` [m/s] (NetCDF variable, CSV column after
+    critical_size, JSON data), and with its size swept in SI the dimensionless ``size``
+    (NetCDF, CSV).  Example: ``?format=netcdf&sel=eps:0.1:0.5&isel=vo:3&variables=
+    critical_size,kind``.  Headers ``X-Sweep-Status``, ``X-Sweep-Progress:
+    n_done/n_total`` and ``X-Sweep-Selection`` (points selected).  The NetCDF file is
+    written to a temporary file first (time to first byte grows with the selection);
+    CSV and JSON start at once.  At most DOWNLOADS_AT_ONCE downloads per API process at
+    a time; one more is answered 503 with Retry-After."""
     fmt = choice(format, _DATA_FORMATS, "format")
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
+    selection = sweepselect.parse_selection(
+        spec, sel, isel, variables, sweepdata.netcdf_variables(spec)
+    )
     h = {
         "X-Sweep-Status": st["status"],
         "X-Sweep-Progress": f"{st['n_done']}/{st['n_total']}",
+        "X-Sweep-Selection": str(selection.n),
         "Content-Disposition": f'attachment; filename="sweep-{sweep_id}.'
         f'{ {"netcdf": "nc"}.get(fmt, fmt) }"',
     }
-    if fmt == "csv":
-        return StreamingResponse(
-            sweepdata.csv_rows(stores.sweeps, spec, sweep_id), media_type="text/csv", headers=h
+    if not _downloads.acquire(blocking=False):
+        return _busy()
+    try:
+        if fmt == "csv":
+            pieces: Iterator[Any] = sweepdata.csv_rows(stores.sweeps, spec, sweep_id, selection)
+            return StreamingResponse(_released(pieces), media_type="text/csv", headers=h)
+        if fmt == "json":
+            fails = await run_in_threadpool(stores.sweeps.failures, sweep_id, 100)
+            pieces = sweepdata.json_chunks(stores.sweeps, spec, st, selection, fails)
+            return StreamingResponse(_released(pieces), media_type="application/json", headers=h)
+        fd, path = tempfile.mkstemp(prefix=f"rsf-sweep-{sweep_id}-", suffix=".nc")
+        os.close(fd)
+        query = "&".join(
+            f"{k}={v}" for k, v in (("sel", sel), ("isel", isel), ("variables", variables)) if v
         )
-    arrays = await run_in_threadpool(sweepdata.assemble, stores.sweeps, sweep_id, spec.n_total)
-    if fmt == "json":
-        fails = await run_in_threadpool(stores.sweeps.failures, sweep_id, 100)
+        how = f"GET /v1/sweeps/{sweep_id}/data?format=netcdf{'&' + query if query else ''}"
+        try:
+            await run_in_threadpool(
+                sweepdata.write_netcdf, stores.sweeps, spec, st, selection, path, how
+            )
+        except BaseException:
+            os.unlink(path)
+            raise
+        h["Content-Length"] = str(os.path.getsize(path))
         return StreamingResponse(
-            sweepdata.json_chunks(spec, st, arrays, fails), media_type="application/json", headers=h
+            _released(sweepdata.file_pieces(path)), media_type="application/x-netcdf", headers=h
         )
-
-    def nc() -> bytes:
-        return sweepdata.netcdf_bytes(sweepdata.to_dataset(spec, st, arrays))
-
-    data = await run_in_threadpool(nc)
-    step = 1 << 20
-
-    def pieces() -> Any:
-        for k in range(0, len(data), step):
-            yield data[k : k + step]
-
-    h["Content-Length"] = str(len(data))
-    return StreamingResponse(pieces(), media_type="application/x-netcdf", headers=h)
+    except BaseException:
+        _downloads.release()
+        raise
 
 
 _JSON_OR_PNG = ("json", "png")
@@ -398,13 +466,17 @@ async def get_diagram(
             max_length=500,
         ),
     ] = None,
+    sel: SelQuery = None,
+    isel: IselQuery = None,
 ) -> Response:
     """A finished or partial grid sweep as a stability diagram over two of its axes (the
     others fixed by ``slice``), laid out like ``rsfcore.diagram.DiagramResult.to_dict()``:
     ``critical_size[i][j]`` at (x[i], y[j]) (null where infinite or not yet computed),
     ``kind`` 0 zero / 1 finite / 2 infinite, ``outcome`` 0 stable / 1 unstable when the
     sweep classifies a size, ``present[i][j]`` (computed without error), ``slice`` (the
-    values of the other axes), with status, n_done, n_total, n_failed.  ``?format=png``:
+    values of the other axes), with status, n_done, n_total, n_failed.  ``sel``/``isel``
+    (as for ``/data``) narrow the two free axes to a window (zoom); only the slice is
+    read.  ``?format=png``:
     the image, points not computed yet (or failed) left blank; headers
     ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``.  Images of finished
     sweeps are cached."""
@@ -412,12 +484,14 @@ async def get_diagram(
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
     fixed_idx = sweepdata.parse_slice(spec, slice)
-    arrays = await run_in_threadpool(sweepdata.assemble, stores.sweeps, sweep_id, spec.n_total)
-    d = sweepdata.diagram(spec, st, arrays, fixed_idx)
+    window = sweepselect.parse_selection(spec, sel, isel) if sel or isel else None
+    d = await run_in_threadpool(sweepdata.diagram, stores.sweeps, spec, st, fixed_idx, window)
     if fmt == "json":
         return _json(d)
     final = d["status"] in ("done", "cancelled")
     tag = "-".join(f"{k}{v}" for k, v in sorted(fixed_idx.items()))
+    if window is not None:
+        tag += "-" + cache_key("window", window.to_json(), "")[:12]
     key = f"sweep-{sweep_id}-{tag}-{d['status']}-{d['n_done']}-{d['n_failed']}.png"
     data, hit = await image(key, lambda: images.diagram_png(d), store=final)
     return image_response(

@@ -38,7 +38,7 @@ def _nc(c: TestClient, sid: str) -> Any:
 
     r = c.get(f"/v1/sweeps/{sid}/data")
     assert r.status_code == 200, r.text
-    return xr.open_dataset(io.BytesIO(r.content), engine="scipy")
+    return xr.open_dataset(io.BytesIO(r.content), engine="h5netcdf")
 
 
 def _both(c: TestClient, si_body: dict[str, Any], dl_body: dict[str, Any]) -> tuple[Any, Any]:
