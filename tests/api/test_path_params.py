@@ -102,7 +102,10 @@ def test_hostile_path_parameter_is_a_4xx_problem(
     client: TestClient, method: str, path: str, param: str, value: str
 ) -> None:
     url = _url(path, param, value)
-    r = client.request(method, url)
+    r = client.request(method, url, follow_redirects=False)
+    if r.status_code == 307:  # a trailing (decoded) slash: redirected without it, as any path
+        assert value.endswith("%2F") and r.headers["location"].endswith(url.removesuffix("%2F"))
+        r = client.request(method, url.removesuffix("%2F"), follow_redirects=False)
     assert 400 <= r.status_code < 500, (url[:200], r.status_code, r.text[:300])
     assert r.headers["content-type"].startswith("application/problem+json"), r.headers
     body = r.json()
