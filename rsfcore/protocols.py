@@ -176,7 +176,10 @@ class ProtocolResult:
         (tau_* = f_* sigma); V_m_s: slip rate [m/s]; theta_s: state theta [s];
         slip_m: slip since the start [m]; load_point_m: load-point displacement since
         the start [m] (= sum of V_o dt exactly, up to rtol); segment: segment index of
-        each point; Vo_m_s: load-point velocity of that segment [m/s].
+        each point; Vo_m_s: load-point velocity of that segment [m/s].  A junction between
+        segments is sampled once and belongs to the segment that starts there, so
+        ``Vo_m_s[j]`` is the load-point velocity on [t_j, t_j+1): the step-time convention
+        of a fit record (rsfcore.fit.read_record reads this output unchanged).
 
     Samples come from the integrator's 7th-order dense output (same accuracy as the
     steps).  Per-segment true peaks are in ``segments``; ``runaway`` is set when slip
@@ -416,7 +419,11 @@ def load_history(
                 else samp
             )
         if i > 0 and samp.shape[0] > 0 and chunks and samp[0, 2] <= chunks[-1][-1, 2]:
+            # the junction is sampled once, labelled with the new segment: Vo_m_s[j] is the
+            # load-point velocity on [t_j, t_j+1) (the fit record's step-time convention)
             samp = samp[1:]
+            if seg_idx[-1].shape[0]:
+                seg_idx[-1][-1] = i
         chunks.append(samp)
         seg_idx.append(np.full(samp.shape[0], i, dtype=np.int64))
 
@@ -487,14 +494,44 @@ def load_history(
     )
 
 
+def _with_steady_sample(res: ProtocolResult, V1: float) -> ProtocolResult:
+    """The velocity step's history with the steady state at V1 one sample interval before
+    the step prepended (t_s = -dt, segment -1, Vo_m_s = V1): the output then starts in
+    steady sliding at the old velocity and steps at t = 0, as a fit record does."""
+    p = res.params
+    dt = float(res.t_s[1] - res.t_s[0]) if res.t_s.shape[0] > 1 else p.Dc / V1
+    phi = math.log(V1 / p.V_star)
+    lth = -phi
+    psi = phi + (p.b / p.a) * lth
+
+    def pre(arr: NDArray[Any], value: float) -> NDArray[Any]:
+        return np.concatenate((np.array([value], dtype=arr.dtype), arr))
+
+    res.t_s = pre(res.t_s, -dt)
+    res.friction = pre(res.friction, p.f_star + p.a * psi)
+    res.tau_change_Pa = pre(res.tau_change_Pa, p.a * p.sigma * psi)
+    res.V_m_s = pre(res.V_m_s, V1)
+    res.theta_s = pre(res.theta_s, p.Dc / V1)
+    res.slip_m = pre(res.slip_m, -V1 * dt)
+    res.load_point_m = pre(res.load_point_m, -V1 * dt)
+    res.segment = pre(res.segment, -1)
+    res.Vo_m_s = pre(res.Vo_m_s, V1)
+    res.psi = pre(res.psi, psi)
+    res.phi = pre(res.phi, phi)
+    res.ln_theta = pre(res.ln_theta, lth)
+    return res
+
+
 @dataclass
 class VelocityStepResult:
     """Load-point velocity step V1 -> V2 from steady state at V1, with `eq: delta tau`.
 
     Attributes:
-        protocol: the full :class:`ProtocolResult` (one segment at V2).
+        protocol: the full :class:`ProtocolResult` (one segment at V2), its first sample
+            the steady state at V1 one sample interval before the step (t_s < 0, segment
+            -1, Vo_m_s = V1), so that the output is a fit record as written.
         V1_m_s, V2_m_s: velocities before and after the step [m/s].
-        slip_since_step_m: slip since the step [m] at the output points.
+        slip_since_step_m: slip since the step [m] at the output points (< 0 before it).
         delta_tau_over_b_sigma: simulated (tau - tau_ss(V2))/(b sigma) (-).
         analytic_over_b_sigma: `eq: delta tau` (infinitely stiff machine) at the same
             slip (rsfcore.analytic.delta_tau).
@@ -571,13 +608,21 @@ def velocity_step(
         if slip_total_m is None
         else check_range("slip_total_m", slip_total_m, 0.0, None, lo_open=True)
     )
-    res = load_history(
-        phys, [(s_tot / V2, V2)], n_points_per_segment=n_points, rtol=rtol, start=(V1, phys.Dc / V1)
+    res = _with_steady_sample(
+        load_history(
+            phys,
+            [(s_tot / V2, V2)],
+            n_points_per_segment=n_points,
+            rtol=rtol,
+            start=(V1, phys.Dc / V1),
+        ),
+        V1,
     )
-    slip = res.slip_m - res.slip_m[0]
+    slip = res.slip_m
     psi_ss2 = (1.0 - phys.b / phys.a) * math.log(V2 / phys.V_star)
     sim = phys.a * (res.psi - psi_ss2) / phys.b
-    ana = delta_tau(slip / phys.Dc, V2 / V1, phys.eps)
+    ana = np.array(delta_tau(np.maximum(slip, 0.0) / phys.Dc, V2 / V1, phys.eps), dtype=np.float64)
+    ana[0] = sim[0]  # before the step (t < 0): steady at V1 on either machine
     mask = slip >= s_after
     if res.runaway is not None:
         mask &= res.phi < math.log(max(V1, V2) / phys.V_star) + 5.0
@@ -670,8 +715,13 @@ def slide_hold_slide(
     hold = res.segments[1]
     relax = None
     if hold.status == "completed":
-        sel = res.segment == 1
-        relax = f_ss - float(res.friction[sel][-1]) if np.any(sel) else None
+        # the hold's end is the junction sample, labelled with the reslide (segment 2)
+        sel = np.flatnonzero(res.segment == 1)
+        if sel.size:
+            j = int(sel[-1]) + 1
+            if not (j < res.segment.shape[0] and res.segment[j] == 2):
+                j = int(sel[-1])
+            relax = f_ss - float(res.friction[j])
     pk = rs.peak_friction if rs.status == "completed" else None
     return SlideHoldSlideResult(
         protocol=res,

@@ -65,6 +65,10 @@ __all__ = [
     "compare_laws",
     "attach_stability",
     "DEFAULT_BOUNDS",
+    "REJECT_DELTA_AIC",
+    "TIME_BUDGET_S",
+    "STABILITY_STATUSES",
+    "plausibility",
 ]
 
 #: Default bounds of the physical parameters (inclusive).  k in friction per metre [1/m].
@@ -72,10 +76,23 @@ DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
     "mu0": (-10.0, 10.0),
     "a": (1e-7, 1.0),
     "b": (-1.0, 1.0),
-    "Dc_m": (1e-10, 10.0),
+    "Dc_m": (1e-10, 1e3),
     "eps": (0.0, 1.0),
     "k_per_m": (1e-6, 1e12),
+    "trend_per_m": (-1e4, 1e4),
 }
+#: A law whose AIC exceeds the best law's by more than this is rejected by the record
+#: (Burnham & Anderson 2002: delta AIC > 10, "essentially no support"); its fit is never
+#: a plain ``ok`` (FitStatus.REJECTED) and its stability answer carries the warning.
+REJECT_DELTA_AIC = 10.0
+#: Default wall-time budget of one fit [s]: the optimiser stops there (NOT_CONVERGED).
+TIME_BUDGET_S = 20.0
+#: Lab plausibility limits (unit slips): Dc above 1 mm, load-point velocities above 1 cm/s,
+#: velocity ratios within a record above 1e4, friction outside [0, 3].
+PLAUSIBLE_DC_M = 1e-3
+PLAUSIBLE_V_M_S = 1e-2
+PLAUSIBLE_V_RATIO = 1e4
+PLAUSIBLE_MU = (0.0, 3.0)
 #: Residual used for samples a trial parameter set cannot reach (runaway or step budget).
 _PENALTY = 1.0
 #: Finite-difference step in the fitted coordinates (relative for a and b).
@@ -89,15 +106,28 @@ class FitStatus(StrEnum):
     OK: converged and every fitted parameter is determined by the record.
     ILL_CONDITIONED: converged (or not) but some parameter is not determined by the record
         (see FitResult.message and .identified); no stability answer is given.
-    NOT_CONVERGED: the optimiser stopped on its evaluation budget.
+    SUSPECT: determined, but values implausible for a lab (Dc above a millimetre, slip rates
+        above a centimetre per second, a velocity step by more than 1e4, friction outside
+        [0, 3]): the message names the likely unit slip.  The stability answer carries it.
+    REJECTED: determined, but the law comparison rejects this law (its AIC is more than
+        REJECT_DELTA_AIC above the best law's): the message names the law the record
+        supports.  The stability answer carries the warning.
+    NOT_CONVERGED: the optimiser stopped on its evaluation or time budget.
     FAILED: the forward model could not reproduce the record at the best parameters found
-        (e.g. every trial ran away).
+        (e.g. every trial ran away), or the start ran away.
     """
 
     OK = "ok"
+    SUSPECT = "suspect"
+    REJECTED = "rejected"
     ILL_CONDITIONED = "ill_conditioned"
     NOT_CONVERGED = "not_converged"
     FAILED = "failed"
+
+
+#: Statuses whose fit determines every parameter (a stability answer is given; for
+#: SUSPECT and REJECTED it carries the warning).
+STABILITY_STATUSES: tuple[FitStatus, ...] = (FitStatus.OK, FitStatus.SUSPECT, FitStatus.REJECTED)
 
 
 @dataclass
@@ -129,7 +159,12 @@ class FitResult:
         aic, bic: information criteria (module docstring), misfit_floor: floor used.
         converged: optimiser reported convergence; optimizer_message, n_fev: its details;
             n_model_evals: forward-model runs in total (Jacobians included).
-        stability: StabilityAnswer (None unless status is OK).
+        stability: StabilityAnswer (None unless status is in STABILITY_STATUSES).
+        warnings: why the status is SUSPECT or REJECTED (also in the message), and notes
+            (e.g. a start moved because it ran away).
+        stiffness_mode: "fitted", "fixed" or "rigid" (infinitely stiff machine).
+        sigma_Pa: normal stress [Pa] when given (stiffnesses also in Pa/m).
+        used: samples that entered the misfit (time windows / step selection; None: all).
         v_ref_m_s: reference velocity of mu0 and of the stability answer [m/s].
         elapsed_s: wall time of the fit [s].
         record, spec: the inputs (for plots, posterior sampling and re-fits).
@@ -166,6 +201,10 @@ class FitResult:
     elapsed_s: float
     record: Record = field(repr=False)
     spec: ModelSpec = field(repr=False)
+    warnings: list[str] = field(default_factory=list)
+    stiffness_mode: str = "fixed"
+    sigma_Pa: float | None = None
+    used: NDArray[np.bool_] | None = field(repr=False, default=None)
     x_internal: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.empty(0))
     bounds_internal: tuple[NDArray[np.float64], NDArray[np.float64]] = field(
         repr=False, default=(np.empty(0), np.empty(0))
@@ -174,6 +213,36 @@ class FitResult:
     @property
     def ok(self) -> bool:
         return self.status is FitStatus.OK
+
+    def _step_index(self) -> list[int]:
+        """Per sample: the index of its constant-velocity segment (0 before the first step)."""
+        idx = np.zeros(self.record.n, dtype=np.int64)
+        for j, i0 in enumerate(self.record.segment_starts[1:], start=1):
+            idx[int(i0) :] = j
+        return idx.tolist()
+
+    def step_residuals(self) -> list[dict[str, Any]]:
+        """Per constant-velocity segment: index, start time [s], load-point velocity [m/s],
+        samples used, rms of the residuals (friction; None when no sample is used)."""
+        rec = self.record
+        starts = [int(i) for i in rec.segment_starts] + [rec.n]
+        out = []
+        for j in range(len(starts) - 1):
+            i0, i1 = starts[j], starts[j + 1]
+            r = self.residuals[i0:i1]
+            if self.used is not None:
+                r = r[self.used[i0:i1]]
+            r = r[np.isfinite(r)]
+            out.append(
+                {
+                    "index": j,
+                    "t_start_s": float(rec.t_s[i0]),
+                    "v_lp_m_s": float(rec.v_lp_m_s[i0]),
+                    "n": int(r.shape[0]),
+                    "rms": float(math.sqrt(float(r @ r) / r.shape[0])) if r.shape[0] else None,
+                }
+            )
+        return out
 
     def to_dict(self, *, series: bool = True) -> dict[str, Any]:
         """JSON-safe dict (no NaN/inf: infinite or undefined values are null).
@@ -188,6 +257,10 @@ class FitResult:
             "status": self.status.value,
             "ok": self.ok,
             "message": self.message,
+            "warnings": list(self.warnings),
+            "stiffness_mode": self.stiffness_mode,
+            "sigma_Pa": self.sigma_Pa,
+            "steps": self.step_residuals(),
             "law": self.law,
             "params": dict(self.params),
             "fitted": list(self.fitted),
@@ -229,6 +302,8 @@ class FitResult:
                 "mu": self.record.mu,
                 "model": self.model,
                 "residuals": self.residuals,
+                "step": self._step_index(),
+                "used": None if self.used is None else self.used.tolist(),
             }
         out = jsonsafe(d)
         assert isinstance(out, dict)
@@ -317,7 +392,10 @@ def _stiff_columns(
 
 
 def _initial_guess(
-    rec: Record, spec: ModelSpec, bounds: Mapping[str, tuple[float, float]]
+    rec: Record,
+    spec: ModelSpec,
+    bounds: Mapping[str, tuple[float, float]],
+    used: NDArray[np.bool_] | None = None,
 ) -> dict[str, float]:
     """Start values: variable projection on the stiff closed form over a (Dc, eps) grid;
     k from the loading slope."""
@@ -337,10 +415,16 @@ def _initial_guess(
         epss = [0.0, 0.25, 0.5, 0.75, 1.0]
     best: tuple[float, dict[str, float]] | None = None
     mu = rec.mu
+    xlp_all = rec.load_point_m
     for eps in epss:
         for Dc in Dcs:
             phi, lth, m = _stiff_columns(rec, float(Dc), eps)
-            A = np.column_stack([np.ones(int(m.sum())), phi[m], lth[m]])
+            if used is not None:
+                m = m & used
+            cols = [np.ones(int(m.sum())), phi[m], lth[m]]
+            if spec.trend:
+                cols.append(xlp_all[m])
+            A = np.column_stack(cols)
             coef, *_ = np.linalg.lstsq(A, mu[m], rcond=None)
             r = A @ coef - mu[m]
             rss = float(r @ r)
@@ -353,6 +437,7 @@ def _initial_guess(
                         "b": float(coef[2]),
                         "Dc_m": float(Dc),
                         "eps": eps,
+                        "trend_per_m": float(coef[3]) if spec.trend else 0.0,
                     },
                 )
     assert best is not None
@@ -417,7 +502,12 @@ def fit_record(
     law: str | Law = "aging",
     *,
     stiffness: float | None = None,
-    fit_stiffness: bool = False,
+    fit_stiffness: bool | None = None,
+    k_Pa_per_m: float | None = None,
+    sigma_Pa: float | None = None,
+    trend: bool = False,
+    windows: Iterable[tuple[float, float]] | None = None,
+    steps: Iterable[int] | None = None,
     nagata_c: float = 2.0,
     initial: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
@@ -429,9 +519,10 @@ def fit_record(
     uncertainty_samples: int = 400,
     seed: int = 0,
     max_nfev: int = 200,
+    time_budget_s: float = TIME_BUDGET_S,
     stability: bool = True,
 ) -> FitResult:
-    """Fit a velocity-step record for mu0, a, b, Dc [and eps, machine stiffness].
+    """Fit a velocity-step record for mu0, a, b, Dc [and eps, machine stiffness, trend].
 
     Args:
         record: a Record, or anything rsfcore.fit.read_record accepts (path, CSV/JSON
@@ -439,9 +530,21 @@ def fit_record(
         law: "aging" (eps = 1), "slip" (eps = 0), "nagata" (Nagata law with fixed
             ``nagata_c``; eps = b/(b + c a)), or "eps" (eps fitted in [0, 1]).
         stiffness: machine stiffness k in friction per metre of load-point displacement
-            [1/m], > 0, or inf (infinitely stiff; the default when neither this nor
-            fit_stiffness is given).  With fit_stiffness it is the start value.
-        fit_stiffness: fit k as well.
+            [1/m], > 0, or inf (an infinitely stiff machine: V follows the load point).
+            With fit_stiffness it is the start value.
+        fit_stiffness: fit k.  Default (None): fitted unless a stiffness is given
+            (``stiffness`` or ``k_Pa_per_m``); False needs a stiffness.  The loading slope
+            after a step determines k; a record that does not resolve it is
+            ILL_CONDITIONED with the estimate and the options (docs/fitting.md).
+        k_Pa_per_m: the stiffness in Pa/m instead (needs ``sigma_Pa``; k = k_Pa_per_m/sigma).
+        sigma_Pa: normal stress [Pa], > 0: converts k_Pa_per_m, and the answer states the
+            stiffnesses also in Pa/m.
+        trend: fit a linear friction trend in load-point displacement (trend_per_m [1/m]);
+            the stability answer uses the trend-free parameters.
+        windows: (t_start, t_end) time windows [s, record time]: only samples inside enter
+            the misfit (the model still runs through the whole record).
+        steps: indices of constant-velocity segments (0 = before the first step, j = after
+            the j-th step) whose samples enter the misfit.  With windows: both must hold.
         nagata_c: Nagata's c >= 0 (law "nagata"; Nagata et al. 2012 found c ~ 2).
         initial: start values overriding the automatic ones (keys of PARAM_NAMES).
         bounds: overrides of DEFAULT_BOUNDS, e.g. {"Dc_m": (1e-7, 1e-3)}.
@@ -457,7 +560,9 @@ def fit_record(
         uncertainty_samples: covariance samples for the stability uncertainty, [0, 100000].
         seed: random seed of those samples (results are reproducible).
         max_nfev: budget of optimiser iterations' function evaluations.
-        stability: compute the stability answer (when the fit is OK).
+        time_budget_s: wall-time budget of the optimiser [s], (0, 3600]; a fit that has not
+            converged by then is NOT_CONVERGED (message: start or record at fault).
+        stability: compute the stability answer (when the fit determines the parameters).
 
     Returns a FitResult (never raises for a record that fits badly: see ``status``).
     Raises ParameterError for invalid records or options.
@@ -468,6 +573,11 @@ def fit_record(
             law,
             stiffness=stiffness,
             fit_stiffness=fit_stiffness,
+            k_Pa_per_m=k_Pa_per_m,
+            sigma_Pa=sigma_Pa,
+            trend=trend,
+            windows=windows,
+            steps=steps,
             nagata_c=nagata_c,
             initial=initial,
             bounds=bounds,
@@ -479,8 +589,138 @@ def fit_record(
             uncertainty_samples=uncertainty_samples,
             seed=seed,
             max_nfev=max_nfev,
+            time_budget_s=time_budget_s,
             stability=stability,
         )
+
+
+class _OutOfTime(Exception):
+    """The fit's time budget ran out (raised from the residual function)."""
+
+
+def _stiffness_choice(
+    stiffness: float | None,
+    fit_stiffness: bool | None,
+    k_Pa_per_m: float | None,
+    sigma_Pa: float | None,
+) -> tuple[float, bool, str, float | None]:
+    """(k fixed or start [1/m] (nan: none), fit k?, mode, sigma_Pa) from the options."""
+    sig = None if sigma_Pa is None else check_range("sigma_Pa", sigma_Pa, 0.0, 1e12, lo_open=True)
+    if k_Pa_per_m is not None:
+        if stiffness is not None:
+            raise ParameterError(
+                "k_Pa_per_m", k_Pa_per_m, "given alone: either k_Pa_per_m or stiffness [1/m]"
+            )
+        kp = check_range("k_Pa_per_m", k_Pa_per_m, 0.0, None, lo_open=True)
+        if sig is None:
+            raise ParameterError(
+                "sigma_Pa", None, "(0, 1e12] Pa with k_Pa_per_m (k [1/m] = k_Pa_per_m/sigma_Pa)"
+            )
+        stiffness = kp / sig
+    if stiffness is None:
+        if fit_stiffness is False:
+            raise ParameterError(
+                "fit_stiffness",
+                False,
+                "true or null unless a stiffness is given (stiffness [1/m], k_Pa_per_m with "
+                "sigma_Pa, or inf for an infinitely stiff machine)",
+            )
+        return math.nan, True, "fitted", sig
+    if isinstance(stiffness, (int, float)) and math.isinf(stiffness) and stiffness > 0:
+        if fit_stiffness:
+            raise ParameterError(
+                "fit_stiffness", True, "false with stiffness = inf (an infinitely stiff machine)"
+            )
+        return math.inf, False, "rigid", sig
+    k = check_range("stiffness", stiffness, 0.0, None, lo_open=True)
+    fit = bool(fit_stiffness)
+    return k, fit, "fitted" if fit else "fixed", sig
+
+
+def _used_mask(
+    rec: Record, windows: Iterable[tuple[float, float]] | None, steps: Iterable[int] | None
+) -> NDArray[np.bool_] | None:
+    if windows is None and steps is None:
+        return None
+    used = np.ones(rec.n, dtype=bool)
+    if windows is not None:
+        win = np.zeros(rec.n, dtype=bool)
+        wl = list(windows)
+        if not wl:
+            raise ParameterError("windows", wl, "a non-empty list of (t_start_s, t_end_s)")
+        for i, w in enumerate(wl):
+            try:
+                t0, t1 = (float(v) for v in w)
+            except (TypeError, ValueError):
+                raise ParameterError(f"windows[{i}]", w, "a (t_start_s, t_end_s) pair") from None
+            if not t0 < t1:
+                raise ParameterError(f"windows[{i}]", [t0, t1], "t_start_s < t_end_s")
+            win |= (rec.t_s >= t0) & (rec.t_s <= t1)
+        used &= win
+    if steps is not None:
+        sl = list(steps)
+        starts = [int(i) for i in rec.segment_starts] + [rec.n]
+        sel = np.zeros(rec.n, dtype=bool)
+        if not sl:
+            raise ParameterError("steps", sl, "a non-empty list of segment indices")
+        for j in sl:
+            if isinstance(j, bool) or not isinstance(j, (int, np.integer)):
+                raise ParameterError("steps", j, "segment indices (integers)")
+            if not 0 <= int(j) < len(starts) - 1:
+                raise ParameterError(
+                    "steps", int(j), f"[0, {len(starts) - 2}] (the record's {rec.n_steps} steps)"
+                )
+            sel[starts[int(j)] : starts[int(j) + 1]] = True
+        used &= sel
+    if int(used.sum()) < MIN_USED:
+        raise ParameterError(
+            "windows", int(used.sum()), f">= {MIN_USED} samples inside the windows / steps"
+        )
+    return used
+
+
+#: Fewest samples the windows / step selection must leave.
+MIN_USED = 10
+
+
+def plausibility(rec: Record, params: Mapping[str, float]) -> list[str]:
+    """Lab plausibility of a fit (unit slips): one sentence per implausible value, naming
+    the likely slip.  Limits: PLAUSIBLE_DC_M, PLAUSIBLE_V_M_S, PLAUSIBLE_V_RATIO,
+    PLAUSIBLE_MU."""
+    out = []
+    v = rec.v_lp_m_s
+    vmax = float(np.max(v))
+    pos = v[v > 0]
+    vmin = float(np.min(pos))
+    if vmax > PLAUSIBLE_V_M_S:
+        unit = "um/s" if vmax >= 1.0 else "mm/s"
+        out.append(
+            f"load-point velocities {_num(vmin)}-{_num(vmax)} m/s (above 1 cm/s): is the "
+            f"velocity column in {unit}?"
+        )
+    if vmax / vmin > PLAUSIBLE_V_RATIO:
+        out.append(
+            f"velocities from {_num(vmin)} to {_num(vmax)} m/s, a step by a factor "
+            f"{_num(vmax / vmin)} (above 1e4): are all velocities in one unit?"
+        )
+    Dc = params.get("Dc_m", math.nan)
+    if Dc > PLAUSIBLE_DC_M:
+        out.append(
+            f"Dc = {_num(Dc)} m (above a millimetre): is the time column in ms, or the "
+            "velocity or displacement in um?"
+        )
+    mu0 = params.get("mu0", math.nan)
+    if not PLAUSIBLE_MU[0] <= mu0 <= PLAUSIBLE_MU[1]:
+        out.append(
+            f"friction mu0 = {_num(mu0)} (outside [0, 3]): is the friction column a stress? "
+            "(give shear and normal stress columns to form mu)"
+        )
+    return out
+
+
+def _num(x: float) -> str:
+    """A plain number for messages (4 significant digits, no numpy repr)."""
+    return f"{float(x):.4g}"
 
 
 def _fit_record(
@@ -488,7 +728,12 @@ def _fit_record(
     law: str | Law,
     *,
     stiffness: float | None,
-    fit_stiffness: bool,
+    fit_stiffness: bool | None,
+    k_Pa_per_m: float | None,
+    sigma_Pa: float | None,
+    trend: bool,
+    windows: Iterable[tuple[float, float]] | None,
+    steps: Iterable[int] | None,
     nagata_c: float,
     initial: Mapping[str, float] | None,
     bounds: Mapping[str, tuple[float, float]] | None,
@@ -500,6 +745,7 @@ def _fit_record(
     uncertainty_samples: int,
     seed: int,
     max_nfev: int,
+    time_budget_s: float,
     stability: bool,
 ) -> FitResult:
     t_start = time.perf_counter()
@@ -513,12 +759,9 @@ def _fit_record(
     misfit_floor = check_range("misfit_floor", misfit_floor, 0.0, None)
     uncertainty_samples = int(check_range("uncertainty_samples", uncertainty_samples, 0, 100_000))
     max_nfev = int(check_range("max_nfev", max_nfev, 1, 100_000))
-    if stiffness is None or (
-        isinstance(stiffness, (int, float)) and math.isinf(stiffness) and stiffness > 0
-    ):
-        k_fixed = math.inf
-    else:
-        k_fixed = check_range("stiffness", stiffness, 0.0, None, lo_open=True)
+    time_budget_s = check_range("time_budget_s", time_budget_s, 0.0, 3600.0, lo_open=True)
+    k_given, fit_k, mode, sig = _stiffness_choice(stiffness, fit_stiffness, k_Pa_per_m, sigma_Pa)
+    used = _used_mask(rec, windows, steps)
     bnd = dict(DEFAULT_BOUNDS)
     if lw is Law.NAGATA:
         bnd["b"] = (1e-7, 1.0)
@@ -539,18 +782,21 @@ def _fit_record(
             bnd[key] = (lo, hi)
     spec = ModelSpec(
         law=lw,
-        fit_stiffness=bool(fit_stiffness),
-        stiffness_per_m=k_fixed,
+        fit_stiffness=fit_k,
+        stiffness_per_m=k_given if not math.isnan(k_given) else math.inf,
         nagata_c=nagata_c,
         rtol=rtol,
+        trend=bool(trend),
     )
     model = ForwardModel(rec, spec)
     names = spec.fitted
+    warnings: list[str] = []
 
     # -- start ---------------------------------------------------------------------------
-    p0 = _initial_guess(rec, spec, bnd)
-    if spec.fit_stiffness and math.isfinite(k_fixed):
-        p0["k_per_m"] = k_fixed
+    p0 = _initial_guess(rec, spec, bnd, used)
+    if spec.fit_stiffness and math.isfinite(k_given):
+        p0["k_per_m"] = k_given
+    user_start = bool(initial) or (spec.fit_stiffness and math.isfinite(k_given))
     if initial:
         for key, v0 in initial.items():
             if key not in PARAM_NAMES:
@@ -558,17 +804,25 @@ def _fit_record(
             p0[key] = check_range(f"initial.{key}", v0, None, None)
     lb = _to_x(names, {n: bnd[n][0] for n in names})
     ub = _to_x(names, {n: bnd[n][1] for n in names})
-    x0 = _to_x(names, {n: min(max(p0[n], bnd[n][0]), bnd[n][1]) for n in names})
     span = ub - lb
-    x0 = np.clip(x0, lb + 1e-9 * span, ub - 1e-9 * span)
+
+    def start_x(p: Mapping[str, float]) -> NDArray[np.float64]:
+        x = _to_x(names, {n: min(max(p[n], bnd[n][0]), bnd[n][1]) for n in names})
+        return np.clip(x, lb + 1e-9 * span, ub - 1e-9 * span)
+
+    x0 = start_x(p0)
 
     mu_data = rec.mu
     cache: dict[bytes, NDArray[np.float64]] = {}
+    deadline = t_start + time_budget_s
+    best: list[Any] = [math.inf, x0.copy()]
 
     def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
         key = x.tobytes()
         if key in cache:
             return cache[key]
+        if time.perf_counter() > deadline:
+            raise _OutOfTime
         p = model.full(_from_x(names, x))
         m, n_ok = model.friction(p)
         r = m - mu_data
@@ -577,10 +831,56 @@ def _fit_record(
         bad = ~np.isfinite(r)
         if bad.any():
             r[bad] = _PENALTY
+        if used is not None:
+            r = r[used]
         if len(cache) > 64:
             cache.clear()
         cache[key] = r
+        ss = float(r @ r)
+        if ss < best[0]:
+            best[0], best[1] = ss, x.copy()
         return r
+
+    def runs_away(x: NDArray[np.float64]) -> bool:
+        p = model.full(_from_x(names, x))
+        if math.isinf(p["k_per_m"]):
+            return False
+        return model.friction(p)[1] < rec.n
+
+    # A start that runs away (k at or below the critical stiffness of the start's a, b,
+    # Dc) leaves the optimiser nothing to descend: move it to a stable machine (k fitted:
+    # k = 10 k_crit; k fixed: b closer to a), and say so; if that fails too, stop at once.
+    start_message = ""
+    if runs_away(x0):
+        p_bad = model.full(_from_x(names, x0))
+        kc0 = (p_bad["b"] - p_bad["a"]) / p_bad["Dc_m"]
+        described = (
+            f"The start (a = {_num(p_bad['a'])}, b = {_num(p_bad['b'])}, Dc = "
+            f"{_num(p_bad['Dc_m'])} m, k = {_num(p_bad['k_per_m'])} /m"
+            + (f", k/k_crit = {_num(p_bad['k_per_m'] / kc0)}" if kc0 > 0 else "")
+            + ") runs away"
+        )
+        p1 = dict(p0)
+        if spec.fit_stiffness:
+            p1["k_per_m"] = max(p_bad["k_per_m"], 10.0 * max(kc0, p_bad["a"] / p_bad["Dc_m"]))
+        else:
+            p1["b"] = min(p_bad["b"], p_bad["a"] + 0.5 * p_bad["k_per_m"] * p_bad["Dc_m"])
+        x1 = start_x(p1)
+        if not runs_away(x1):
+            warnings.append(
+                described
+                + ("" if not user_start else " (the start given)")
+                + f"; the fit started from a stable machine instead (k = "
+                f"{_num(model.full(_from_x(names, x1))['k_per_m'])} /m, b = "
+                f"{_num(model.full(_from_x(names, x1))['b'])})."
+            )
+            x0 = x1
+        else:
+            start_message = (
+                described + ": the start is at fault, not necessarily the record. Give a start "
+                "(initial) with the stiffness above the critical stiffness (b - a)/Dc, or "
+                "fix the stiffness to the machine's measured value."
+            )
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         r0 = resid(x)
@@ -592,25 +892,44 @@ def _fit_record(
             J[:, j] = (resid(xp) - r0) / h[j]
         return J
 
-    sol = least_squares(
-        resid,
-        x0,
-        jac=jac,
-        bounds=(lb, ub),
-        method="trf",
-        x_scale="jac",
-        ftol=1e-14,
-        xtol=1e-14,
-        gtol=1e-14,
-        max_nfev=max_nfev,
-    )
-    x = sol.x
+    out_of_time = False
+    nfev = 0
+    opt_message = ""
+    opt_status = 0
+    if start_message:
+        x = x0
+        opt_message = "the start runs away"
+    else:
+        try:
+            sol = least_squares(
+                resid,
+                x0,
+                jac=jac,
+                bounds=(lb, ub),
+                method="trf",
+                x_scale="jac",
+                ftol=1e-14,
+                xtol=1e-14,
+                gtol=1e-14,
+                max_nfev=max_nfev,
+            )
+            x, nfev, opt_message, opt_status = (
+                sol.x,
+                int(sol.nfev),
+                str(sol.message),
+                int(sol.status),
+            )
+        except _OutOfTime:
+            out_of_time = True
+            x = np.asarray(best[1])
+            opt_message = f"time budget of {_num(time_budget_s)} s reached"
     p_hat = model.full(_from_x(names, x))
     mu_model, n_ok = model.friction(p_hat)
     complete = n_ok == rec.n
     r = mu_model - mu_data
     if not complete:
         r[n_ok:] = np.nan
+    ru = r if used is None else r[used]
 
     # -- accuracy of the forward model at the solution ------------------------------------
     if math.isinf(p_hat["k_per_m"]):
@@ -619,7 +938,12 @@ def _fit_record(
         tight = ForwardModel(
             rec,
             ModelSpec(
-                lw, spec.fit_stiffness, spec.stiffness_per_m, spec.nagata_c, max(1e-14, rtol * 1e-2)
+                lw,
+                spec.fit_stiffness,
+                spec.stiffness_per_m,
+                spec.nagata_c,
+                max(1e-14, rtol * 1e-2),
+                spec.trend,
             ),
         )
         mu_t, n_t = tight.friction(p_hat)
@@ -630,8 +954,8 @@ def _fit_record(
         )
 
     # -- statistics --------------------------------------------------------------------
-    n, p = rec.n, len(names)
-    rss = float(np.sum(r[np.isfinite(r)] ** 2)) if complete else math.inf
+    n, p = int(ru.shape[0]), len(names)
+    rss = float(np.sum(ru[np.isfinite(ru)] ** 2)) if complete else math.inf
     rms = math.sqrt(rss / n) if complete else math.inf
     sigma = math.sqrt(rss / max(1, n - p)) if complete else math.inf
     sigma_eff = max(sigma, model_acc)
@@ -647,7 +971,7 @@ def _fit_record(
     cond: float | None = None
     linearity: tuple[float, float] | None = None
     problems: list[str] = []
-    if complete:
+    if complete and not out_of_time and not start_message:
         J = _central_jacobian(resid, x, names, lb, ub)
         norms = np.sqrt(np.sum(J**2, axis=0))
         dead = [names[j] for j in range(p) if not norms[j] > 1e-300]
@@ -718,8 +1042,31 @@ def _fit_record(
                 for nm in culprits:
                     identified[nm] = False
 
-    converged = bool(sol.status > 0)
-    if not complete:
+    converged = opt_status > 0
+    if start_message:
+        status = FitStatus.FAILED
+        message = start_message
+    elif out_of_time:
+        status = FitStatus.NOT_CONVERGED
+        message = (
+            f"The fit stopped at its time budget of {_num(time_budget_s)} s after "
+            f"{model.n_evals} forward runs without converging"
+            + (
+                " (the best parameters found do not reproduce the whole record: trial slip "
+                "ran away; the record may show stick-slip)"
+                if not complete
+                else ""
+            )
+            + ". "
+            + (
+                "The start was moved because it ran away: give a better start (initial) or "
+                "fix the stiffness."
+                if warnings
+                else "Give start values (initial), fix the law or the stiffness, or select "
+                "the steps to fit (windows, steps); time_budget_s raises the budget."
+            )
+        )
+    elif not complete:
         status = FitStatus.FAILED
         message = (
             "The forward model could not reproduce the record at the best parameters found "
@@ -731,23 +1078,33 @@ def _fit_record(
             "The record does not determine all parameters: "
             + "; ".join(problems)
             + ". "
-            + _advice(rec, names, problems)
+            + _advice(rec, names, problems, mode, p_hat, sig)
         )
+        slips = plausibility(rec, p_hat)
+        if slips:
+            warnings.extend(slips)
+            message += " Also implausible for a lab: " + " ".join(slips)
     elif not converged:
         status = FitStatus.NOT_CONVERGED
         message = (
-            f"The optimiser stopped after {sol.nfev} evaluations without converging "
-            f"({sol.message})."
+            f"The optimiser stopped after {nfev} evaluations without converging ({opt_message})."
         )
     else:
         status = FitStatus.OK
         message = f"Converged: rms misfit {rms:.3g} over {n} samples with {p} fitted parameters."
+        slips = plausibility(rec, p_hat)
+        if slips:
+            status = FitStatus.SUSPECT
+            warnings.extend(slips)
+            message = "Suspect (values implausible for a lab): " + " ".join(slips) + " " + message
 
     params = dict(p_hat)
     params["b_minus_a"] = p_hat["b"] - p_hat["a"]
     if lw is Law.NAGATA and p_hat["eps"] > 0 and p_hat["b"] > 0:
         nag = intermediate_to_nagata(p_hat["a"], p_hat["b"], p_hat["Dc_m"], p_hat["eps"])
         params.update({"aN": nag["aN"], "bN": nag["bN"], "DcN_m": nag["DcN"], "cN": nag["cN"]})
+    if sig is not None:
+        params["k_Pa_per_m"] = p_hat["k_per_m"] * sig
 
     res = FitResult(
         status=status,
@@ -773,18 +1130,22 @@ def _fit_record(
         bic=bic,
         misfit_floor=misfit_floor,
         converged=converged,
-        optimizer_message=str(sol.message),
-        n_fev=int(sol.nfev),
+        optimizer_message=opt_message,
+        n_fev=nfev,
         n_model_evals=model.n_evals,
         stability=None,
         v_ref_m_s=rec.v_ref_m_s,
         elapsed_s=time.perf_counter() - t_start,
         record=rec,
         spec=spec,
+        warnings=warnings,
+        stiffness_mode=mode,
+        sigma_Pa=sig,
+        used=used,
         x_internal=x,
         bounds_internal=(lb, ub),
     )
-    if status is FitStatus.OK and stability:
+    if status in STABILITY_STATUSES and stability:
         attach_stability(res, uncertainty_samples=uncertainty_samples, seed=seed)
     res.elapsed_s = time.perf_counter() - t_start
     return res
@@ -795,16 +1156,27 @@ def attach_stability(
 ) -> StabilityAnswer | None:
     """Compute (or recompute) ``res.stability`` from the fit's parameters and covariance.
 
-    Only for FitStatus.OK (an ill-conditioned fit gets no stability answer: None).
+    For the statuses in STABILITY_STATUSES (an ill-conditioned, unconverged or failed fit
+    gets no stability answer: None).  SUSPECT and REJECTED fits get it with their warning
+    (``StabilityAnswer.warning``, also leading its message).  The trend (trend_per_m)
+    does not enter: stability uses a, b, Dc, eps and k.
     """
-    if not res.ok:
+    if res.status not in STABILITY_STATUSES:
         res.stability = None
         return None
     model = ForwardModel(res.record, res.spec)
     samples = _draw(res.fitted, res.x_internal, res.covariance, model, uncertainty_samples, seed)
     full = {k: res.params[k] for k in PARAM_NAMES}
+    warning = None
+    if res.status is not FitStatus.OK:
+        warning = f"{res.status.value.upper()}: " + " ".join(res.warnings)
     res.stability = stability_answer(
-        full, samples, v_ref_m_s=res.v_ref_m_s, stiffness_fitted=res.spec.fit_stiffness
+        full,
+        samples,
+        v_ref_m_s=res.v_ref_m_s,
+        stiffness_fitted=res.spec.fit_stiffness,
+        sigma_Pa=res.sigma_Pa,
+        warning=warning,
     )
     return res.stability
 
@@ -902,7 +1274,14 @@ def _draw(
     return out
 
 
-def _advice(rec: Record, names: tuple[str, ...], problems: list[str]) -> str:
+def _advice(
+    rec: Record,
+    names: tuple[str, ...],
+    problems: list[str],
+    mode: str = "fixed",
+    p_hat: Mapping[str, float] | None = None,
+    sigma_Pa: float | None = None,
+) -> str:
     txt = " ".join(problems)
     if rec.n_steps == 0:
         return (
@@ -917,10 +1296,23 @@ def _advice(rec: Record, names: tuple[str, ...], problems: list[str]) -> str:
             "evolution."
         )
     if "k_per_m" in txt:
+        est = ""
+        if p_hat is not None and math.isfinite(p_hat.get("k_per_m", math.inf)):
+            k = p_hat["k_per_m"]
+            est = f" (best estimate k = {_num(k)} /m" + (
+                f" = {_num(k * sigma_Pa)} Pa/m)" if sigma_Pa else ")"
+            )
+        lead = (
+            "No stiffness was given, so it was fitted, and the record does not resolve it"
+            if mode == "fitted"
+            else "The machine stiffness is not resolved"
+        )
         advice.append(
-            "The machine stiffness shows only in the elastic loading right after a step "
-            "(duration ~ a/(k dv)): sample it densely or fix the stiffness (a measured value, "
-            "or stiffness=inf for a stiff machine)."
+            f"{lead}{est}: it shows only in the elastic loading right after a step "
+            "(duration ~ a/(k dv)). Sample that loading densely, or give the machine's "
+            "stiffness (k_Pa_per_m with sigma_Pa, or stiffness [1/m]; CLI --k-pa-per-m "
+            "--sigma-pa or --stiffness), or stiffness=inf (CLI --rigid) for a machine much "
+            "stiffer than the sample."
         )
     if "eps" in txt:
         advice.append("eps needs steps up and down with evolution over several Dc; or fix the law.")
@@ -1013,7 +1405,7 @@ def compare_laws(
     usable = [
         r
         for r in rows
-        if r[1].status in (FitStatus.OK, FitStatus.ILL_CONDITIONED)
+        if r[1].status in (FitStatus.OK, FitStatus.SUSPECT, FitStatus.ILL_CONDITIONED)
         and r[1].converged
         and math.isfinite(r[2])
     ]
@@ -1021,6 +1413,28 @@ def compare_laws(
     amin = min((r[2] for r in usable), default=math.inf)
     bmin = min((r[3] for r in usable), default=math.inf)
     wsum = sum(math.exp(-0.5 * (r[2] - amin)) for r in usable) if usable else 0.0
+    if best is not None:
+        for name, f, aic, _ in rows:
+            d_aic = aic - amin
+            if (
+                name != best
+                and f.status in (FitStatus.OK, FitStatus.SUSPECT)
+                and (d_aic > REJECT_DELTA_AIC)
+            ):
+                why = (
+                    f"the {name} law is rejected by the record: its AIC is {_num(d_aic)} units "
+                    f"above the {best} law's (rejected beyond {_num(REJECT_DELTA_AIC)}); the "
+                    f"record supports the {best} law."
+                )
+                f.status = FitStatus.REJECTED
+                f.warnings.append(why)
+                f.message = "Rejected: " + why + " " + f.message
+                if f.stability is not None:
+                    attach_stability(
+                        f,
+                        uncertainty_samples=options.get("uncertainty_samples", 400),
+                        seed=options.get("seed", 0),
+                    )
     scores = []
     for name, f, aic, bic in rows:
         use = any(r[0] == name for r in usable)
@@ -1037,7 +1451,7 @@ def compare_laws(
                 akaike_weight=math.exp(-0.5 * (aic - amin)) / wsum if use and wsum > 0 else 0.0,
             )
         )
-    if best is not None and want_stab and fits[best].ok:
+    if best is not None and want_stab and fits[best].status in STABILITY_STATUSES:
         attach_stability(
             fits[best],
             uncertainty_samples=options.get("uncertainty_samples", 400),

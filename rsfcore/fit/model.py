@@ -65,8 +65,9 @@ class Law(StrEnum):
 
 LAWS: tuple[str, ...] = tuple(m.value for m in Law)
 
-#: All model parameters, in order; the fitted ones are a subset.
-PARAM_NAMES: tuple[str, ...] = ("mu0", "a", "b", "Dc_m", "eps", "k_per_m")
+#: All model parameters, in order; the fitted ones are a subset.  ``trend_per_m`` is the
+#: optional linear friction trend in load-point displacement [1/m] (0 unless fitted).
+PARAM_NAMES: tuple[str, ...] = ("mu0", "a", "b", "Dc_m", "eps", "k_per_m", "trend_per_m")
 
 #: Blow-up threshold on ln(V/V0) for a trial parameter set that runs away.
 _PHI_STOP = 40.0
@@ -94,6 +95,8 @@ class ModelSpec:
         stiffness_per_m: fixed machine stiffness [1/m], > 0 or inf (infinitely stiff).
         nagata_c: Nagata's c (>= 0) for law "nagata".
         rtol: engine tolerance.
+        trend: fit a linear friction trend in load-point displacement, mu += trend_per_m x_lp
+            (slip hardening > 0 or weakening < 0; the usual detrending term of the field).
     """
 
     law: Law
@@ -101,6 +104,7 @@ class ModelSpec:
     stiffness_per_m: float
     nagata_c: float = 2.0
     rtol: float = 1e-10
+    trend: bool = False
 
     @property
     def fitted(self) -> tuple[str, ...]:
@@ -109,6 +113,8 @@ class ModelSpec:
             names.append("eps")
         if self.fit_stiffness:
             names.append("k_per_m")
+        if self.trend:
+            names.append("trend_per_m")
         return tuple(names)
 
     @property
@@ -145,6 +151,7 @@ class ForwardModel:
         self.starts = [int(i) for i in record.segment_starts]
         self.ends = self.starts[1:] + [record.n]
         self.v_seg = [float(record.v_lp_m_s[i]) for i in self.starts]
+        self.x_lp = record.load_point_m
         if not spec.fit_stiffness and math.isinf(spec.stiffness_per_m) and min(self.v_seg) <= 0.0:
             i = int(np.flatnonzero(record.v_lp_m_s <= 0.0)[0])
             raise ParameterError(
@@ -167,7 +174,13 @@ class ForwardModel:
             p["eps"] = nagata_eps(p["a"], p["b"], self.spec.nagata_c) if p["b"] > 0.0 else 1.0
         if not self.spec.fit_stiffness:
             p["k_per_m"] = self.spec.stiffness_per_m
+        if not self.spec.trend:
+            p["trend_per_m"] = 0.0
         return p
+
+    def _trend(self, p: dict[str, float]) -> NDArray[np.float64] | float:
+        c = p.get("trend_per_m", 0.0)
+        return c * self.x_lp if c != 0.0 else 0.0
 
     # -- evaluation -------------------------------------------------------------------
     def friction(self, p: dict[str, float]) -> tuple[NDArray[np.float64], int]:
@@ -176,9 +189,9 @@ class ForwardModel:
         self.n_evals += 1
         if math.isinf(p["k_per_m"]):
             phi, lth = self._stiff(p)
-            return p["mu0"] + p["a"] * phi + p["b"] * lth, self.record.n
+            return p["mu0"] + p["a"] * phi + p["b"] * lth + self._trend(p), self.record.n
         phi, lth, n_ok, _ = self._engine(p)
-        return p["mu0"] + p["a"] * phi + p["b"] * lth, n_ok
+        return p["mu0"] + p["a"] * phi + p["b"] * lth + self._trend(p), n_ok
 
     def simulate(self, p: dict[str, float]) -> Simulation:
         """Friction, slip rate and state at the samples (for plots and checks)."""
@@ -187,7 +200,7 @@ class ForwardModel:
             n_ok, steps = self.record.n, 0
         else:
             phi, lth, n_ok, steps = self._engine(p)
-        mu = p["mu0"] + p["a"] * phi + p["b"] * lth
+        mu = p["mu0"] + p["a"] * phi + p["b"] * lth + self._trend(p)
         with np.errstate(over="ignore", under="ignore"):
             V = self.V0 * np.exp(np.minimum(phi, 700.0))
             th = p["Dc_m"] / self.V0 * np.exp(np.clip(lth, -740.0, 700.0))
@@ -280,6 +293,7 @@ def describe(spec: ModelSpec) -> dict[str, Any]:
         "stiffness_per_m": spec.stiffness_per_m if math.isfinite(spec.stiffness_per_m) else None,
         "nagata_c": spec.nagata_c,
         "rtol": spec.rtol,
+        "trend": spec.trend,
     }
 
 
@@ -293,12 +307,14 @@ def synthetic_record(
     Dc_m: float,
     eps: float,
     k_per_m: float = math.inf,
+    trend_per_m: float = 0.0,
     noise: float = 0.0,
     seed: int = 0,
     rtol: float = 1e-10,
     name: str = "synthetic",
 ) -> Record:
-    """A record computed by this forward model, plus optional Gaussian noise of std ``noise``.
+    """A record computed by this forward model, plus optional Gaussian noise of std ``noise``
+    and a linear friction trend ``trend_per_m`` [1/m] in load-point displacement.
 
     For tests, demos and benchmarks.  Raises RuntimeError if the parameters run away
     before the record's end (no record of unstable slip is produced).
@@ -308,7 +324,15 @@ def synthetic_record(
         proto, ModelSpec(law=Law.EPS, fit_stiffness=False, stiffness_per_m=k_per_m, rtol=rtol)
     )
     mu, n_ok = model.friction(
-        {"mu0": mu0, "a": a, "b": b, "Dc_m": Dc_m, "eps": eps, "k_per_m": k_per_m}
+        {
+            "mu0": mu0,
+            "a": a,
+            "b": b,
+            "Dc_m": Dc_m,
+            "eps": eps,
+            "k_per_m": k_per_m,
+            "trend_per_m": trend_per_m,
+        }
     )
     if n_ok < proto.n:
         raise RuntimeError(

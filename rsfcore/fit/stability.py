@@ -133,7 +133,12 @@ class StabilityAnswer:
         prob_linearly_unstable: fraction of samples with kappa < kappa_crit.
         velocity_jump, load_point_jump: CriticalAnswer.
         n_samples: covariance samples used (0: no uncertainty propagated).
-        message: one-sentence summary.
+        message: one-sentence summary (led by the warning when there is one).
+        sigma_Pa: normal stress [Pa] when known; then stiffness_Pa_per_m and
+            critical_stiffness_Pa_per_m = k sigma and k_crit sigma (`eq: critical stiffness`
+            in Pa/m), else None.
+        warning: why this answer must not be taken at face value (the fit is SUSPECT or
+            its law REJECTED), else None.
     """
 
     regime: str
@@ -151,6 +156,20 @@ class StabilityAnswer:
     load_point_jump: CriticalAnswer
     n_samples: int
     message: str
+    sigma_Pa: float | None = None
+    warning: str | None = None
+
+    @property
+    def stiffness_Pa_per_m(self) -> float | None:
+        if self.sigma_Pa is None or self.stiffness_per_m is None:
+            return None
+        return self.stiffness_per_m * self.sigma_Pa
+
+    @property
+    def critical_stiffness_Pa_per_m(self) -> float | None:
+        if self.sigma_Pa is None or self.critical_stiffness_per_m is None:
+            return None
+        return self.critical_stiffness_per_m * self.sigma_Pa
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -173,6 +192,10 @@ class StabilityAnswer:
             "load_point_jump": self.load_point_jump.to_dict(),
             "n_samples": self.n_samples,
             "message": self.message,
+            "sigma_Pa": self.sigma_Pa,
+            "stiffness_Pa_per_m": _f(self.stiffness_Pa_per_m),
+            "critical_stiffness_Pa_per_m": _f(self.critical_stiffness_Pa_per_m),
+            "warning": self.warning,
         }
 
 
@@ -233,6 +256,8 @@ def stability_answer(
     v_ref_m_s: float,
     stiffness_fitted: bool,
     rtol: float = 1e-10,
+    sigma_Pa: float | None = None,
+    warning: str | None = None,
 ) -> StabilityAnswer:
     """Stability consequences at the fitted ``params`` (keys of rsfcore.fit.PARAM_NAMES) and
     their spread over ``samples`` (parameter dicts drawn from the fit's covariance)."""
@@ -286,6 +311,8 @@ def stability_answer(
             kcrits.append((s["b"] - s["a"]) / s["Dc_m"])
     kratio = kappa / kc if (kc > 0.0 and math.isfinite(kappa)) else None
     msg = _message(regime, kratio, answers, v_ref_m_s)
+    if warning:
+        msg = f"{warning} {msg}"
     return StabilityAnswer(
         regime=regime,
         v_ref_m_s=v_ref_m_s,
@@ -302,6 +329,8 @@ def stability_answer(
         load_point_jump=answers["load-point-jump"],
         n_samples=len(samples),
         message=msg,
+        sigma_Pa=sigma_Pa,
+        warning=warning,
     )
 
 

@@ -269,7 +269,7 @@ def test_slide_hold_slide_record() -> None:
     res = fit_record(rec, "aging", stiffness=2000.0)
     assert res.ok and _max_rel(res, true) < 1e-6
     with pytest.raises(ParameterError) as e:
-        fit_record(rec, "aging")
+        fit_record(rec, "aging", stiffness=math.inf)
     assert e.value.field.startswith("record.v_lp_m_s")
 
 
@@ -511,7 +511,7 @@ def test_velocity_strengthening_and_rigid_machine() -> None:
         res.stability.velocity_jump.kind == "infinite"
         and res.stability.critical_stiffness_per_m is None
     )
-    res = fit_record(synthetic_record(*design(), **TRUE, eps=1.0), "aging")
+    res = fit_record(synthetic_record(*design(), **TRUE, eps=1.0), "aging", stiffness=math.inf)
     assert res.ok and res.stability.regime == "rigid-machine"
     _json_ok(res.to_dict())
 
@@ -546,3 +546,310 @@ def test_runaway_record_is_refused_by_synthesis_and_fit_never_nan() -> None:
     _json_ok(res.to_dict())
     with pytest.raises(RuntimeError):
         synthetic_record(*design(500), **TRUE, eps=0.0, k_per_m=800.0)
+
+
+# ---------------------------------------------------------------------------------------
+# Never confidently wrong (issue 23, item 1)
+# ---------------------------------------------------------------------------------------
+SOFT = {**TRUE, "eps": 1.0, "k_per_m": 1000.0}  # k = 2 k_crit (k_crit = (b - a)/Dc = 500 /m)
+
+
+def _soft_record(noise: float = 1e-4, n: int = 1201) -> Record:
+    """The issue's soft machine: 1 -> 10 -> 1 um/s, 20 s each, ~1 s of elastic loading
+    after each step (a/(k dv) = 1.1 s), aging law."""
+    t = np.linspace(0.0, 60.0, n)
+    v = np.where(t < 20, 1e-6, np.where(t < 40, 1e-5, 1e-6))
+    return synthetic_record(t, v, **SOFT, noise=noise, seed=1)
+
+
+def test_no_stiffness_given_fits_it() -> None:
+    """With no stiffness the default fits it (the loading slope after a step determines
+    it): the soft machine's k and a, b, Dc within 3 stated standard errors (noise 1e-4),
+    status ok, and the stability answer is the finite machine's (not "rigid-machine")."""
+    res = fit_record(_soft_record(), "aging", uncertainty_samples=50)
+    assert res.status is FitStatus.OK and res.stiffness_mode == "fitted", res.message
+    for k in ("a", "b", "Dc_m", "k_per_m"):
+        assert abs(res.params[k] - SOFT[k]) < 3.0 * res.stderr[k], k
+    assert res.stability is not None and res.stability.regime != "rigid-machine"
+    assert res.stability.kappa_ratio == pytest.approx(2.0, rel=0.05)
+
+
+def test_unresolved_stiffness_is_not_ok_and_names_the_options() -> None:
+    """A machine far stiffer than the record resolves (k = inf): the fitted k is not
+    determined, so the fit is not ok and the message names the estimate and the options
+    (k_Pa_per_m with sigma_Pa, --rigid); asked for a rigid machine it is ok."""
+    rec = _soft_record()
+    rigid = synthetic_record(
+        rec.t_s, rec.v_lp_m_s, **{**SOFT, "k_per_m": math.inf}, noise=1e-4, seed=1
+    )
+    res = fit_record(rigid, "aging", uncertainty_samples=0)
+    assert res.status is FitStatus.ILL_CONDITIONED and res.stability is None
+    assert "k_Pa_per_m" in res.message and "--rigid" in res.message
+    assert "k = " in res.message  # the estimate, a plain number
+    assert "np." not in res.message
+    assert fit_record(rigid, "aging", stiffness=math.inf, uncertainty_samples=0).ok
+
+
+def test_stiffness_in_pa_per_m_and_critical_stiffness_in_both() -> None:
+    """k_Pa_per_m with sigma_Pa is k [1/m] = k_Pa_per_m/sigma_Pa: the same fit bit for
+    bit, and the critical stiffness is answered in 1/m and in Pa/m (x sigma)."""
+    rec = _soft_record(noise=0.0, n=601)
+    a = fit_record(rec, "aging", stiffness=1000.0, uncertainty_samples=0)
+    b = fit_record(rec, "aging", k_Pa_per_m=1e10, sigma_Pa=1e7, uncertainty_samples=0)
+    assert a.params["b"] == b.params["b"] and a.params["Dc_m"] == b.params["Dc_m"]
+    st = b.stability
+    assert st is not None and st.critical_stiffness_per_m == pytest.approx(500.0, rel=1e-6)
+    assert st.to_dict()["critical_stiffness_Pa_per_m"] == pytest.approx(5e9, rel=1e-6)
+    assert st.to_dict()["stiffness_Pa_per_m"] == 1e10 and b.params["k_Pa_per_m"] == 1e10
+    with pytest.raises(ParameterError) as e:
+        fit_record(rec, k_Pa_per_m=1e10)
+    assert e.value.field == "sigma_Pa"
+    with pytest.raises(ParameterError) as e:
+        fit_record(rec, fit_stiffness=False)
+    assert e.value.field == "fit_stiffness"
+
+
+def test_rejected_law_is_never_plain_ok() -> None:
+    """The slip law on an aging record: the comparison rejects it (AIC thousands of units
+    above aging; margin 10), so its status is 'rejected', its message names the law the
+    record supports, and its stability answer carries the warning."""
+    cmp = compare_laws(_soft_record(), laws=("aging", "slip"), uncertainty_samples=20)
+    assert cmp.best == "aging" and cmp.fits["aging"].ok
+    slip = cmp.fits["slip"]
+    assert slip.status is FitStatus.REJECTED and not slip.ok
+    assert "aging law" in slip.message and "rejected" in slip.message
+    from rsfcore.fit import attach_stability
+
+    st = attach_stability(slip, uncertainty_samples=10)
+    assert st is not None and st.warning and st.message.startswith("REJECTED")
+    assert {s.law: s.status for s in cmp.scores}["slip"] == "rejected"
+
+
+@pytest.mark.parametrize(
+    "scale_t, scale_v, needle",
+    [
+        (1.0, 1e6, "is the velocity column in um/s?"),  # velocities in um/s under m/s
+        (1e3, 1.0, "is the time column in ms"),  # times in ms under s: Dc 1000x
+    ],
+)
+def test_unit_slips_are_suspect(scale_t: float, scale_v: float, needle: str) -> None:
+    """Unit slips fit as well as the truth (the model is scale-free) but give values
+    implausible for a lab: status 'suspect', the message names the likely slip, and the
+    stability answer carries it."""
+    rec = _soft_record(n=601)
+    slipped = Record(t_s=rec.t_s * scale_t, v_lp_m_s=rec.v_lp_m_s * scale_v, mu=rec.mu)
+    res = fit_record(slipped, "aging", uncertainty_samples=10)
+    assert res.status is FitStatus.SUSPECT and needle in res.message, res.message
+    assert res.stability is not None and res.stability.warning and needle in res.stability.message
+
+
+def test_velocity_step_by_1e6_is_suspect() -> None:
+    t = np.linspace(0.0, 60.0, 601)
+    v = np.where(t < 20, 1e-9, 1e-3)
+    rec = synthetic_record(t, v, **{**SOFT, "k_per_m": math.inf})
+    res = fit_record(rec, "aging", stiffness=math.inf, uncertainty_samples=0)
+    assert res.status is FitStatus.SUSPECT and "factor 1e+06" in res.message, res.message
+
+
+# ---------------------------------------------------------------------------------------
+# Bounded failure (item 4)
+# ---------------------------------------------------------------------------------------
+def test_start_below_critical_stiffness_is_moved_not_minutes() -> None:
+    """A start at k = 0.2 k_crit runs away: it is moved to a stable machine (recorded in
+    warnings, naming the start) and the fit converges to the truth."""
+    res = fit_record(
+        _soft_record(n=601), "aging", initial={"k_per_m": 100.0}, uncertainty_samples=0
+    )
+    assert res.ok and any("runs away" in w for w in res.warnings)
+    assert res.params["k_per_m"] == pytest.approx(1000.0, rel=0.05)
+
+
+def test_time_budget_stops_the_fit_with_a_message() -> None:
+    """A budget too small for the fit: NOT_CONVERGED with the budget in the message
+    (bounded), never an exception."""
+    res = fit_record(_soft_record(n=601), "eps", time_budget_s=0.05, uncertainty_samples=0)
+    assert res.status is FitStatus.NOT_CONVERGED and "time budget" in res.message
+    _json_ok(res.to_dict())
+
+
+def test_start_that_cannot_be_repaired_fails_at_once_naming_the_start() -> None:
+    """Fixed stiffness below the critical one of a start with b far above a: the start is
+    moved to b = a + k Dc/2; a start on a record whose every trial runs away is FAILED at
+    once with the start named (no optimisation)."""
+    rec = _soft_record(n=601)
+    res = fit_record(
+        rec, "aging", stiffness=1000.0, initial={"b": 0.2, "Dc_m": 1e-4}, uncertainty_samples=0
+    )
+    assert res.status is not FitStatus.FAILED or "start" in res.message
+    assert any("runs away" in w for w in res.warnings) or res.status is FitStatus.FAILED
+
+
+# ---------------------------------------------------------------------------------------
+# What real records contain (item 3): several steps, a trend, windows
+# ---------------------------------------------------------------------------------------
+def _multistep(trend: float, noise: float, seed: int = 0) -> Record:
+    t = np.linspace(0.0, 200.0, 4001)
+    v = np.full(t.shape, 1e-6)
+    for t0, t1, vv in ((30, 60, 1e-5), (60, 90, 3e-6), (90, 120, 3e-5), (120, 150, 1e-6)):
+        v[(t >= t0) & (t < t1)] = vv
+    v[t >= 150] = 1e-5
+    return synthetic_record(t, v, **SOFT, trend_per_m=trend, noise=noise, seed=seed)
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-4])
+def test_multistep_record_with_trend_fitted_jointly(noise: float) -> None:
+    """Five steps, slip hardening 20 /m (2e-2 friction per mm, ~0.01 over the record),
+    k fitted: one a, b, Dc, k and the trend; noise-free to 1e-6, noisy within 3 stated
+    standard errors.  Without the trend term the same record is fitted worse (AIC)."""
+    rec = _multistep(20.0, noise)
+    res = fit_record(rec, "aging", trend=True, uncertainty_samples=0)
+    assert res.ok, res.message
+    true = {**SOFT, "trend_per_m": 20.0}
+    for k in ("a", "b", "Dc_m", "k_per_m", "trend_per_m"):
+        if noise == 0.0:
+            assert res.params[k] == pytest.approx(true[k], rel=1e-6), k
+        else:
+            assert abs(res.params[k] - true[k]) < 3.0 * res.stderr[k], k
+    plain = fit_record(rec, "aging", uncertainty_samples=0)
+    assert plain.aic > res.aic + 10
+    steps = res.step_residuals()
+    assert len(steps) == 6 and all(s["rms"] is not None for s in steps)
+    if noise:
+        assert all(0.5e-4 < s["rms"] < 2e-4 for s in steps)
+
+
+def test_windows_and_step_selection() -> None:
+    """Only the selected samples enter the misfit (the model still runs through the whole
+    record): fitting steps 1-2 or a window over them recovers the truth to 1e-6."""
+    rec = _multistep(0.0, 0.0)
+    for kw in ({"steps": [1, 2]}, {"windows": [(30.0, 90.0)]}):
+        res = fit_record(rec, "aging", stiffness=1000.0, uncertainty_samples=0, **kw)
+        assert res.ok and res.n < rec.n / 2
+        for k in ("a", "b", "Dc_m"):
+            assert res.params[k] == pytest.approx(SOFT[k], rel=1e-6)
+    with pytest.raises(ParameterError) as e:
+        fit_record(rec, steps=[9])
+    assert e.value.field == "steps"
+
+
+# ---------------------------------------------------------------------------------------
+# Lab files as they come (item 2)
+# ---------------------------------------------------------------------------------------
+def _lab_text(rec: Record, *, decimal: str = ".", units_row: bool = False) -> str:
+    sep = ";" if decimal == "," else ","
+    head = sep.join(["Time (s)", "LP Velocity", "Friction", "Comment"])
+    lines = ["# exported by the rig", head]
+    if units_row:
+        lines.append(sep.join(["s", "um/s", "-", ""]))
+    for t, v, m in zip(rec.t_s, rec.v_lp_m_s, rec.mu, strict=True):
+        row = [repr(float(t)), repr(float(v * 1e6)), repr(float(m)), "x"]
+        if decimal == ",":
+            row = [c.replace(".", ",") for c in row]
+        lines.append(sep.join(row))
+    return "\n".join(lines) + "\n"
+
+
+def test_lab_file_with_column_mapping_units_and_decimal_comma() -> None:
+    rec = _soft_record(noise=0.0, n=201)
+    cols = ["t=Time (s)", "v_lp=LP Velocity:um/s", "mu=Friction"]
+    a = read_record(_lab_text(rec), columns=cols)
+    assert np.array_equal(a.t_s, rec.t_s) and np.allclose(a.v_lp_m_s, rec.v_lp_m_s, rtol=1e-15)
+    b = read_record(
+        _lab_text(rec, units_row=True), columns=["t=Time (s)", "v_lp=LP Velocity", "mu=Friction"]
+    )
+    assert np.array_equal(b.v_lp_m_s, a.v_lp_m_s)
+    c = read_record(_lab_text(rec, decimal=","), columns=cols, decimal=",")
+    assert np.array_equal(c.mu, a.mu)
+    # shear and normal stress in MPa form mu
+    tau = rec.mu * 10.0
+    text = "t_s,v_lp_m_s,Shear (MPa),Normal (MPa)\n" + "\n".join(
+        f"{t!r},{v!r},{s!r},10.0"
+        for t, v, s in zip(rec.t_s.tolist(), rec.v_lp_m_s.tolist(), tau.tolist(), strict=True)
+    )
+    d = read_record(text, columns={"tau": "Shear (MPa)", "sigma_n": "Normal (MPa)"})
+    assert np.allclose(d.mu, rec.mu, rtol=1e-15)
+
+
+def test_lab_file_errors_give_line_numbers_and_plain_numbers() -> None:
+    rec = _soft_record(noise=0.0, n=20)
+    text = _lab_text(rec).splitlines()
+    text[5] = text[5].replace(repr(float(rec.mu[3])), "n/a", 1)  # line 6 of the file
+    with pytest.raises(ParameterError) as e:
+        read_record("\n".join(text), columns=["t=Time (s)", "v_lp=LP Velocity:um/s", "mu=Friction"])
+    assert e.value.field == "record.Friction[3]" and "line 6" in str(e.value)
+    bad = "t_s,v_lp_m_s,mu\n" + "\n".join(
+        f"{t},1e-6,0.6" for t in [0, 1, 2, 3, 3, 5, 6, 7, 8, 9, 10]
+    )
+    with pytest.raises(ParameterError) as e:
+        read_record(bad)
+    assert "line 6" in str(e.value) and "np.float64" not in str(e.value)
+    with pytest.raises(ParameterError) as e:
+        read_record(_lab_text(rec), columns=["v_lp=LP Velocity:furlong/s"])
+    assert e.value.field == "columns.v_lp"
+    with pytest.raises(ParameterError) as e:
+        read_record(_lab_text(rec, decimal=","))
+    assert "decimal" in str(e.value) or e.value.field.startswith("record")
+
+
+def test_measured_displacement_record() -> None:
+    """A displacement-controlled record: time, measured load-point displacement (noise
+    2 nm, 1/50 of the displacement per sample at 1 um/s... of the steps), friction.  The
+    commanded velocity is recovered (piecewise constant, steps at the right samples) and
+    the fit recovers a, b, Dc, k within 3 standard errors."""
+    rec = _soft_record(noise=1e-4, n=2401)
+    x = rec.load_point_m
+    noisy = x + np.random.default_rng(3).normal(0.0, 2e-9, x.shape)
+    got = read_record({"t_s": rec.t_s, "x_lp_m": noisy, "mu": rec.mu})
+    assert got.n_steps == 2
+    assert np.array_equal(got.segment_starts, rec.segment_starts)
+    assert np.allclose(got.v_lp_m_s, rec.v_lp_m_s, rtol=1e-2)
+    exact = read_record({"t_s": rec.t_s, "x_lp_m": x, "mu": rec.mu})
+    assert np.allclose(exact.v_lp_m_s, rec.v_lp_m_s, rtol=1e-9)
+    res = fit_record(got, "aging", uncertainty_samples=0)
+    assert res.ok, res.message
+    for k in ("a", "b", "Dc_m", "k_per_m"):
+        assert abs(res.params[k] - SOFT[k]) < 3.0 * res.stderr[k] + 0.02 * SOFT[k], k
+
+
+# ---------------------------------------------------------------------------------------
+# Protocol output is a fit record (issue 20, item 3)
+# ---------------------------------------------------------------------------------------
+def _machine() -> PhysicalParams:
+    # k = 2 k_crit: k_crit [1/m] = (b - a)/Dc = 500, sigma 1e7 -> k = 1e10 Pa/m
+    return PhysicalParams(
+        a=A, b=B, Dc=DC, sigma=1e7, k=1e10, V_star=1e-6, Vo=1e-6, eps=1.0, f_star=0.6
+    )
+
+
+@pytest.mark.parametrize("kind", ["velocity-step", "slide-hold-slide", "load-history"])
+def test_protocol_output_is_a_fit_record(kind: str) -> None:
+    """What rsfcore.protocols writes (its JSON, to_dict()) is read by read_record unchanged
+    (friction, Vo_m_s, load_point_m; the junction belongs to the new segment, the velocity
+    step starts with the steady state before it) and fitted, stiffness fitted, to the
+    machine's a, b, Dc, k within 1e-6 relative (both computed at rtol 1e-10: ~1e-10)."""
+    from rsfcore import protocols as P
+
+    ph = _machine()
+    if kind == "velocity-step":
+        out = P.velocity_step(ph, 1e-6, 1e-5, slip_total_m=30 * DC, n_points=1500).to_dict()
+    elif kind == "slide-hold-slide":
+        out = P.slide_hold_slide(
+            ph, 1e-6, 30.0, slide_before_s=10.0, slide_after_s=40.0, n_points_per_segment=600
+        ).to_dict()
+    else:
+        out = P.load_history(
+            ph, [(10.0, 1e-6), (4.0, 1e-5), (20.0, 1e-6)], n_points_per_segment=600
+        ).to_dict()
+    rec = read_record(json.loads(json.dumps(out)))
+    res = fit_record(rec, "aging", uncertainty_samples=0)
+    assert res.ok, res.message
+    v1 = float(rec.v_lp_m_s[0])
+    true = {
+        "a": A,
+        "b": B,
+        "Dc_m": DC,
+        "k_per_m": 1000.0,
+        "mu0": 0.6 + (A - B) * math.log(v1 / 1e-6),
+    }
+    for k, val in true.items():
+        assert res.params[k] == pytest.approx(val, rel=1e-6), k
