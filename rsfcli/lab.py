@@ -482,24 +482,75 @@ def protocol_history(
 
 
 # --------------------------------------------------------------------------- rsf fit
+def _pair(text: str, what: str, i: int) -> tuple[float, float]:
+    try:
+        a, b = text.split(":")
+        return float(a), float(b)
+    except ValueError:
+        _fail(f"{what}[{i}]: {text!r} is invalid (valid range: T_START_S:T_END_S, e.g. 30:90)")
+    raise AssertionError("unreachable")
+
+
 def fit_command(
     file: Path = typer.Argument(
-        ..., help="Lab record: CSV with header t_s (or x_lp_m), v_lp_m_s, mu; or JSON columns."
+        ...,
+        help="Lab record: CSV with header t_s (or x_lp_m), v_lp_m_s, mu, any other headers "
+        "with --column, a units row, or the protocol output as written; or JSON columns.",
     ),
     law: FitLaw | None = typer.Option(
         None,
         "--law",
         help="Evolution law of the reported fit (default: the best of the comparison).",
     ),
-    stiffness: float | None = typer.Option(
-        None,
-        "--stiffness",
-        help="Machine stiffness "
-        "K_PER_M in friction per metre of load-point "
-        "displacement [1/m] (default: infinitely stiff).",
+    k_pa_per_m: float | None = typer.Option(
+        None, "--k-pa-per-m", help="Machine stiffness [Pa/m] (with --sigma-pa)."
     ),
-    fit_stiffness: bool = typer.Option(
-        False, "--fit-stiffness", help="Fit the machine stiffness too."
+    sigma_pa: float | None = typer.Option(
+        None,
+        "--sigma-pa",
+        help="Normal stress [Pa]: converts --k-pa-per-m; stiffnesses answered also in Pa/m.",
+    ),
+    k_friction_per_m: float | None = typer.Option(
+        None,
+        "--k-friction-per-m",
+        "--stiffness",
+        help="Machine stiffness in friction per metre of load-point displacement [1/m] "
+        "(--stiffness: the same, older name).",
+    ),
+    fit_stiffness: bool | None = typer.Option(
+        None,
+        "--fit-stiffness/--fixed-stiffness",
+        help="Fit the stiffness (a given one is the start) or keep it fixed.  Default: "
+        "fitted unless a stiffness is given.",
+    ),
+    rigid: bool = typer.Option(
+        False, "--rigid", help="Assume an infinitely stiff machine (V follows the load point)."
+    ),
+    trend: bool = typer.Option(
+        False, "--trend", help="Fit a linear friction trend in load-point displacement [1/m]."
+    ),
+    window: list[str] | None = typer.Option(
+        None, "--window", help="T_START_S:T_END_S, repeated: only these times enter the misfit."
+    ),
+    step: list[int] | None = typer.Option(
+        None,
+        "--step",
+        help="Segment index, repeated (0 = before the first step): only these enter the misfit.",
+    ),
+    column: list[str] | None = typer.Option(
+        None,
+        "--column",
+        help="QUANTITY=HEADER[:UNIT], repeated (t, x_lp, v_lp, mu, tau, sigma_n), e.g. "
+        "'v_lp=LP Velocity:um/s'.",
+    ),
+    decimal: str = typer.Option(".", "--decimal", help="Decimal separator: '.' or ','."),
+    smooth: int | None = typer.Option(
+        None,
+        "--smooth",
+        help="Median-filter width [samples] when the velocity comes from a measured x_lp.",
+    ),
+    time_budget_s: float = typer.Option(
+        20.0, "--time-budget-s", help="Wall-time budget of each law's fit [s], (0, 600]."
     ),
     compare: bool = typer.Option(
         True, "--compare/--no-compare", help="Fit every law and compare them (AIC/BIC)."
@@ -518,12 +569,16 @@ def fit_command(
         help="Also sample the posterior with emcee (32 walkers, this many steps, a quarter burnt).",
     ),
     out: Path | None = typer.Option(
-        None, "--out", help="Also write .json (all), .csv (series) or .png (data, fit, residuals)."
+        None,
+        "--out",
+        help="Also write .json (all), .csv (series) or .png (data, fit, per-step residuals).",
     ),
     as_json: bool = JSON_OUT,
 ) -> None:
-    """Fit mu0, a, b, Dc (and eps, machine stiffness) to a velocity-step record; compare the
-    laws; say how close sample and machine are to instability (SI, with uncertainty)."""
+    """Fit mu0, a, b, Dc (and eps, machine stiffness, trend) to a lab record; compare the
+    laws; say how close sample and machine are to instability (SI, with uncertainty).
+    With no stiffness given it is fitted (docs/fitting.md); a status other than 'ok'
+    (suspect, rejected, ill_conditioned, ...) says why in the message."""
     from rsfapp import adapter
     from rsfapp.requests.fits import FitRequest
 
@@ -532,13 +587,32 @@ def fit_command(
     body: dict[str, Any] = {
         "record": file.read_text(encoding="utf-8-sig"),
         "compare": compare,
-        "fit_stiffness": fit_stiffness,
         "uncertainty_samples": samples,
+        "time_budget_s": time_budget_s,
+        "decimal": decimal,
     }
-    if law is not None:
-        body["law"] = law.value
-    if stiffness is not None:
-        body["stiffness_per_m"] = stiffness
+    opt: dict[str, Any] = {
+        "law": None if law is None else law.value,
+        "k_Pa_per_m": k_pa_per_m,
+        "sigma_Pa": sigma_pa,
+        "k_friction_per_m": k_friction_per_m,
+        "fit_stiffness": fit_stiffness,
+        "smooth": smooth,
+        "steps": step or None,
+        "windows": [_pair(w, "window", i) for i, w in enumerate(window or [])] or None,
+    }
+    body.update({k: v for k, v in opt.items() if v is not None})
+    if rigid:
+        body["rigid_machine"] = True
+    if trend:
+        body["trend"] = True
+    if column:
+        try:
+            from rsfcore.fit import parse_column_map
+
+            body["columns"] = parse_column_map(column)
+        except ValueError as exc:
+            _fail(str(exc))
     if posterior_steps is not None:
         body["posterior"] = {"n_steps": posterior_steps, "burn": posterior_steps // 4}
     d = _run(FitRequest, body, adapter.fit)
@@ -552,20 +626,29 @@ def fit_command(
     shown = d if series else {k: v for k, v in d.items() if k != "series"}
     p, se = d["params"], d["stderr"]
     lines = [f"law {d['law']}: {d['status']} - {d['message']}"]
-    for k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m"):
-        if k in p:
+    for w in d.get("warnings") or []:
+        if w not in d["message"]:
+            lines.append(f"  note: {w}")
+    for k in ("mu0", "a", "b", "Dc_m", "eps", "k_per_m", "k_Pa_per_m", "trend_per_m"):
+        if k in p and not (k == "trend_per_m" and k not in d["fitted"]):
             err = se.get(k)
             lines.append(
-                f"  {k:<8} {_g(p[k])}"
+                f"  {k:<11} {_g(p[k])}"
                 + (
                     f" +- {_g(err)}"
                     if err is not None
                     else " (fixed)"
-                    if k not in d["fitted"]
+                    if k not in d["fitted"] and k != "k_Pa_per_m"
                     else ""
                 )
             )
-    lines.append(f"  rms misfit {_g(d['misfit']['rms'])}, AIC {_g(d['misfit']['aic'])}")
+    lines.append(
+        f"  stiffness {d.get('stiffness_mode')}; rms misfit {_g(d['misfit']['rms'])} over "
+        f"{d['misfit']['n']} samples, AIC {_g(d['misfit']['aic'])}"
+    )
+    steps = d.get("steps") or []
+    if len(steps) > 1:
+        lines.append("  per step: " + ", ".join(f"#{s['index']} rms {_g(s['rms'])}" for s in steps))
     comp = d.get("law_comparison")
     if comp:
         lines.append(f"law comparison (best: {comp['best']}):")
@@ -576,9 +659,11 @@ def fit_command(
         ]
     st = d.get("stability")
     if st:
+        kc_pa = st.get("critical_stiffness_Pa_per_m")
         lines.append(
             f"stability: {st.get('regime')}; kappa/kappa_crit {_g(st.get('kappa_ratio'))}"
             f"; critical stiffness {_g(st.get('critical_stiffness_per_m'))} 1/m"
+            + (f" = {_g(kc_pa)} Pa/m" if kc_pa is not None else "")
         )
         if st.get("message"):
             lines.append(f"  {st['message']}")

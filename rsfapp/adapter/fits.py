@@ -22,7 +22,13 @@ def fit_record_of(req: FitRequest) -> Any:
     from rsfcore import fit as _fit
 
     try:
-        return guard(_fit.read_record, req.record)
+        return guard(
+            _fit.read_record,
+            req.record,
+            columns=req.columns,
+            decimal=req.decimal,
+            smooth=req.smooth,
+        )
     except ParameterError as exc:
         if exc.field.startswith("record"):
             raise
@@ -54,8 +60,11 @@ def _fit(req: FitRequest, progress: Callable[[str], None] | None) -> dict[str, A
     stage("reading the record")
     rec = fit_record_of(req)
     opts: dict[str, Any] = {
-        "stiffness": req.stiffness_per_m,
-        "fit_stiffness": req.fit_stiffness,
+        **req.stiffness_options(),
+        "trend": req.trend,
+        "windows": req.windows,
+        "steps": req.steps,
+        "time_budget_s": req.time_budget_s,
         "nagata_c": req.nagata_c,
         "rtol": req.rtol,
         "uncertainty_samples": req.uncertainty_samples,
@@ -67,7 +76,7 @@ def _fit(req: FitRequest, progress: Callable[[str], None] | None) -> dict[str, A
         cmp = guard(_fit.compare_laws, rec, laws=FIT_LAWS, **opts)
         law = req.law or cmp.best or (req.law or "aging")
         res = cmp.fits[law]
-        if res.ok and res.stability is None:
+        if res.status in _fit.STABILITY_STATUSES and res.stability is None:
             stage("stability answer with uncertainty")
             guard(
                 _fit.attach_stability,
@@ -111,11 +120,11 @@ def _fit(req: FitRequest, progress: Callable[[str], None] | None) -> dict[str, A
     return json_dict(out)
 
 
-#: Columns of a fit's CSV (data, model, residuals).
-FIT_COLUMNS = ("t_s", "v_lp_m_s", "mu", "model", "residuals")
+#: Columns of a fit's CSV (data, model, residuals, the sample's step and whether it was used).
+FIT_COLUMNS = ("t_s", "v_lp_m_s", "mu", "model", "residuals", "step", "used")
 
 
 def fit_table(result: dict[str, Any]) -> dict[str, list[Any]]:
     """The series of a fit answer as columns (FIT_COLUMNS)."""
     s = result.get("series") or {}
-    return {k: s[k] for k in FIT_COLUMNS if k in s}
+    return {k: s[k] for k in FIT_COLUMNS if k in s and s[k] is not None}

@@ -3,9 +3,12 @@
 The record is CSV or JSON text in the formats of rsfcore.fit.read_record (CSV with header
 columns ``t_s`` (or ``x_lp_m``, load-point displacement), ``v_lp_m_s`` (imposed
 load-point velocity [m/s]) and ``mu`` (friction); JSON ``{"t_s": [...], "v_lp_m_s": [...],
-"mu": [...]}``).  Machine stiffness is in friction per metre of load-point displacement
-[1/m] (the lab convention; k [Pa/m] = k [1/m] sigma).  The cache key of a fit is the
-record's content hash (rsfcore.fit.Record.digest) and these options.
+"mu": [...]}``; the protocol output as written; any headers with ``columns``, a units
+row, a decimal comma).  The machine stiffness is ``k_Pa_per_m`` with ``sigma_Pa`` (the
+SI spelling of every door), or ``k_friction_per_m`` in friction per metre of load-point
+displacement [1/m] (k [Pa/m] = k [1/m] sigma); with neither it is fitted (docs/fitting.md
+says why), ``rigid_machine`` assumes an infinitely stiff one.  The cache key of a fit is
+the record's content hash (rsfcore.fit.Record.digest) and these options.
 """
 
 from __future__ import annotations
@@ -68,21 +71,102 @@ class FitRequest(_Model):
         "comparison (misfit, AIC, BIC, Akaike weight per law).",
         name="compare",
     )
+    k_Pa_per_m: float | None = F(
+        None,
+        "null or (0, 1e21] Pa/m, with sigma_Pa",
+        "Machine stiffness [Pa/m] (needs sigma_Pa; k [1/m] = k_Pa_per_m/sigma_Pa).",
+        name="k_Pa_per_m",
+        gt=0,
+        le=1e21,
+    )
+    sigma_Pa: float | None = F(
+        None,
+        "null or (0, 1e12] Pa",
+        "Normal stress [Pa]: converts k_Pa_per_m, and the answer gives the stiffness and "
+        "the critical stiffness also in Pa/m.",
+        name="sigma_Pa",
+        gt=0,
+        le=1e12,
+    )
+    k_friction_per_m: float | None = F(
+        None,
+        "null or (0, 1e12] 1/m",
+        "Machine stiffness in friction per metre of load-point displacement [1/m] "
+        "(the lab convention; k [Pa/m]/sigma).",
+        name="k_friction_per_m",
+        gt=0,
+        le=1e12,
+    )
     stiffness_per_m: float | None = F(
         None,
         "null or (0, 1e12] 1/m",
-        "Machine stiffness in "
-        "friction per metre of load-point displacement [1/m] "
-        "(null: infinitely stiff, unless fit_stiffness).",
+        "Deprecated name of k_friction_per_m (friction per metre [1/m]).",
         name="stiffness_per_m",
         gt=0,
         le=1e12,
     )
-    fit_stiffness: bool = F(
+    fit_stiffness: bool | None = F(
+        None,
+        "null, true or false",
+        "Fit the machine stiffness (a given stiffness is the start value); null: fitted "
+        "unless a stiffness is given or rigid_machine; false needs a stiffness.",
+        name="fit_stiffness",
+    )
+    rigid_machine: bool = F(
         False,
         "true or false",
-        "Fit the machine stiffness too (stiffness_per_m, if given, is the start value).",
-        name="fit_stiffness",
+        "Assume an infinitely stiff machine (V follows the load point; no stiffness given).",
+        name="rigid_machine",
+    )
+    trend: bool = F(
+        False,
+        "true or false",
+        "Fit a linear friction trend in load-point displacement (trend_per_m [1/m]); the "
+        "stability answer uses the trend-free parameters.",
+        name="trend",
+    )
+    windows: list[tuple[float, float]] | None = F(
+        None,
+        "null or 1..1000 pairs [t_start_s, t_end_s], t_start_s < t_end_s",
+        "Time windows [s, record time]: only samples inside enter the misfit.",
+        name="windows",
+        min_length=1,
+        max_length=1000,
+    )
+    steps: list[int] | None = F(
+        None,
+        "null or 1..2000 segment indices (0 = before the first step)",
+        "Constant-velocity segments whose samples enter the misfit.",
+        name="steps",
+        min_length=1,
+        max_length=2000,
+    )
+    columns: dict[str, str] | None = F(
+        None,
+        "null or {quantity: 'header[:unit]'}, quantities t, x_lp, v_lp, mu, tau, sigma_n",
+        "Column mapping of the record, e.g. {'t': 'Time (s)', 'v_lp': 'LP Velocity:um/s', "
+        "'mu': 'Friction'}; units: s ms min h; m mm um nm; m/s mm/s um/s nm/s; Pa kPa MPa GPa.",
+        name="columns",
+    )
+    decimal: Literal[".", ","] = F(
+        ".", "'.' or ','", "Decimal separator of the CSV record.", name="decimal"
+    )
+    smooth: int | None = F(
+        None,
+        "null or [1, 100001] samples",
+        "Median-filter width when the load-point velocity is derived from a measured "
+        "load-point displacement (default max(5, n/200)).",
+        name="smooth",
+        ge=1,
+        le=100_001,
+    )
+    time_budget_s: float = F(
+        20.0,
+        "(0, 600] s",
+        "Wall-time budget of each law's fit: a fit not converged by then is not_converged.",
+        name="time_budget_s",
+        gt=0,
+        le=600,
     )
     nagata_c: float = F(
         2.0, "[0, 1e6]", "Nagata's c for law 'nagata' (-).", name="nagata_c", ge=0, le=1e6
@@ -106,9 +190,45 @@ class FitRequest(_Model):
 
     @model_validator(mode="after")
     def _law_needed(self) -> FitRequest:
+        name = type(self).__name__
         if not self.compare and self.law is None:
-            raise field_error(type(self).__name__, "law", "give a law when compare is false", None)
+            raise field_error(name, "law", "give a law when compare is false", None)
+        given = [
+            f for f in ("k_Pa_per_m", "k_friction_per_m", "stiffness_per_m") if getattr(self, f)
+        ]
+        if len(given) > 1:
+            raise field_error(
+                name, given[1], f"give one stiffness, not {' and '.join(given)}", None
+            )
+        if self.k_Pa_per_m is not None and self.sigma_Pa is None:
+            raise field_error(name, "sigma_Pa", "give sigma_Pa with k_Pa_per_m", None)
+        if self.rigid_machine and (given or self.fit_stiffness):
+            raise field_error(
+                name, "rigid_machine", "a rigid machine has no stiffness to give or fit", True
+            )
+        if self.fit_stiffness is False and not given and not self.rigid_machine:
+            raise field_error(
+                name,
+                "fit_stiffness",
+                "fit_stiffness false needs a stiffness (k_Pa_per_m with sigma_Pa, or "
+                "k_friction_per_m) or rigid_machine true",
+                False,
+            )
+        for i, w in enumerate(self.windows or []):
+            if not w[0] < w[1]:
+                raise field_error(name, "windows", f"windows[{i}]: t_start_s < t_end_s", list(w))
         return self
+
+    def stiffness_options(self) -> dict[str, object]:
+        """The stiffness as rsfcore.fit.fit_record takes it (stiffness [1/m] or inf,
+        fit_stiffness, k_Pa_per_m, sigma_Pa)."""
+        k = self.k_friction_per_m if self.k_friction_per_m is not None else self.stiffness_per_m
+        return {
+            "stiffness": float("inf") if self.rigid_machine else k,
+            "fit_stiffness": self.fit_stiffness,
+            "k_Pa_per_m": self.k_Pa_per_m,
+            "sigma_Pa": self.sigma_Pa,
+        }
 
     def options(self) -> dict[str, object]:
         """Everything but the record (with the record's digest: the cache key)."""

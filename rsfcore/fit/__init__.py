@@ -2,9 +2,10 @@
 
 Public API (docs/fitting.md):
 
-    read_record(path_or_text) -> Record
-    fit_record(record, law="aging"|"slip"|"nagata"|"eps", *, stiffness=K_PER_M | None,
-               fit_stiffness=False, ...) -> FitResult          (FitResult.to_dict() JSON-safe)
+    read_record(path_or_text, columns=..., decimal=".") -> Record
+    fit_record(record, law="aging"|"slip"|"nagata"|"eps", *, stiffness=K_PER_M | inf | None,
+               k_Pa_per_m=..., sigma_Pa=..., trend=False, windows=..., steps=...,
+               ...) -> FitResult                           (FitResult.to_dict() JSON-safe)
     compare_laws(record, laws=(...), **options) -> LawComparison
     sample_posterior(result, ...) -> Posterior                 (needs the ``fit`` extra: emcee)
 """
@@ -13,6 +14,9 @@ from __future__ import annotations
 
 from .core import (
     DEFAULT_BOUNDS,
+    REJECT_DELTA_AIC,
+    STABILITY_STATUSES,
+    TIME_BUDGET_S,
     FitResult,
     FitStatus,
     LawComparison,
@@ -20,6 +24,7 @@ from .core import (
     attach_stability,
     compare_laws,
     fit_record,
+    plausibility,
 )
 from .model import (
     LAWS,
@@ -32,11 +37,28 @@ from .model import (
     synthetic_record,
 )
 from .posterior import Posterior, sample_posterior
-from .record import MAX_SEGMENTS, RECORD_COLUMNS, Record, read_record
+from .record import (
+    MAX_SEGMENTS,
+    QUANTITIES,
+    RECORD_COLUMNS,
+    UNITS,
+    Record,
+    commanded_velocity,
+    parse_column_map,
+    read_record,
+)
 from .stability import REGIMES, CriticalAnswer, Spread, StabilityAnswer, stability_answer
 
 __all__ = [
     "DEFAULT_BOUNDS",
+    "REJECT_DELTA_AIC",
+    "STABILITY_STATUSES",
+    "TIME_BUDGET_S",
+    "plausibility",
+    "QUANTITIES",
+    "UNITS",
+    "commanded_velocity",
+    "parse_column_map",
     "FitResult",
     "FitStatus",
     "LawComparison",

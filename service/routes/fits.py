@@ -9,8 +9,11 @@ fitted once: later requests get the stored answer (200, ``X-Cache: hit``).
 
 GET answers 202 (``{"status": "queued"}``, or ``"running"`` with ``progress``: the stage
 the worker is at) while the fit runs, 200 with the fit when done
-(``?format=png``: data, fit and residuals; ``?format=csv``: t_s, v_lp_m_s, mu, model,
-residuals), 422 if the fit could not be computed, 404 for an unknown key.
+(``?format=png``: data, fit and per-step residuals; ``?format=csv``: t_s, v_lp_m_s, mu,
+model, residuals, step [, used]), 422 if the fit could not be computed, 404 for an
+unknown key.  A fit's ``status`` is ok only when nothing is wrong: suspect (unit slips),
+rejected (by the law comparison), ill_conditioned, not_converged, failed say why in
+``message``.
 """
 
 from __future__ import annotations
@@ -71,9 +74,11 @@ def _queued(key: str, progress: str = "") -> Response:
     },
 )
 async def submit_fit(req: FitRequest, ctx: CtxDep) -> Response:
-    """Fit mu0, a, b, Dc (and eps, machine stiffness [1/m]) to a velocity-step record by
+    """Fit mu0, a, b, Dc (and eps, machine stiffness, a friction trend) to a lab record by
     bounded non-linear least squares on the compiled forward model; compare the evolution
-    laws (AIC/BIC); answer the stability consequences in SI with uncertainty."""
+    laws (AIC/BIC); answer the stability consequences in SI with uncertainty.  The
+    stiffness is k_Pa_per_m with sigma_Pa, or k_friction_per_m [1/m]; with neither it is
+    fitted.  Any lab CSV is read with ``columns`` (units), a units row and ``decimal``."""
     summary = await run_in_threadpool(adapter.fit_key_request, req)
     version = adapter.numerics_version()
     key = cache_key("fit", summary, version)
@@ -114,8 +119,8 @@ async def get_fit(
         format_query(  # noqa: A002
             _FORMATS,
             "json",
-            "'png': data, fit and residuals; 'csv': the "
-            "series (t_s, v_lp_m_s, mu, model, residuals).",
+            "'png': data, fit and per-step residuals; 'csv': the "
+            "series (t_s, v_lp_m_s, mu, model, residuals, step, used).",
         ),
     ] = "json",
 ) -> Response:

@@ -79,7 +79,9 @@ async function runFit(ev) {
   clearProblem(errBox, form);
   const file = form.elements.record.files[0];
   if (!file) return;
-  const body = { record: await file.text(), fit_stiffness: form.elements.fit_stiffness.checked };
+  // fit_stiffness only when ticked: unticked with no stiffness means "fitted" (the API default)
+  const body = { record: await file.text() };
+  if (form.elements.fit_stiffness.checked) body.fit_stiffness = true;
   const law = form.elements.law.value;
   if (law) body.law = law;
   const k = num(form, "stiffness_per_m");
