@@ -602,6 +602,10 @@ class Client:
         """The deployment's health (GET /health): database, broker, workers."""
         return self.http.json("GET", "/health")
 
+    def metrics(self) -> str:
+        """The API process's Prometheus metrics (GET /metrics, text exposition format)."""
+        return self.http.request("GET", "/metrics").text
+
     def cache_stats(self) -> dict[str, Any]:
         """Result-cache statistics (GET /v1/cache/stats)."""
         return self.http.json("GET", "/v1/cache/stats")

@@ -198,8 +198,8 @@ class Sweep:
 
     def to_xarray(self) -> Any:
         """The result as an ``xarray.Dataset`` read in memory (GET .../data?format=netcdf;
-        needs xarray and scipy): grid axes as named coordinates, or a ``point`` dimension
-        for scattered sweeps; variables critical_size, kind, outcome, rel_accuracy, failed,
+        needs xarray and h5netcdf: the ``xarray`` extra): grid axes as named coordinates,
+        or a ``point`` dimension for scattered sweeps; variables critical_size, kind, outcome, rel_accuracy, failed,
         method, outcome_uncertain (and the SI critical velocity of an SI sweep)."""
         xr = need("xarray")
         return xr.open_dataset(io.BytesIO(self.data("netcdf")), engine="h5netcdf").load()

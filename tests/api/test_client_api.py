@@ -87,6 +87,7 @@ ROUTES: dict[tuple[str, str], str] = {
     ("get", "/v1/results/{key}"): "result",
     ("get", "/health"): "health",
     ("get", "/v1/cache/stats"): "cache_stats",
+    ("get", "/metrics"): "metrics",
 }
 #: Arguments of client methods that are not request fields.
 NOT_FIELDS = {"self", "spec", "fixed", "timeout", *rsfclient.MACHINE_FIELDS}

@@ -524,6 +524,7 @@ NOT_QUESTIONS: dict[str, str] = {
     "GET /v1/results/{key}": "a deferred answer (the same JSON as its question)",
     "GET /health": "service health",
     "GET /v1/cache/stats": "cache statistics",
+    "GET /metrics": "Prometheus metrics",
     # CLI commands
     "rsf serve": "starts the service",
     "rsf api": "starts the API",
@@ -548,6 +549,7 @@ NOT_QUESTIONS: dict[str, str] = {
     "Client.result": "a deferred answer",
     "Client.health": "service health",
     "Client.cache_stats": "cache statistics",
+    "Client.metrics": "Prometheus metrics",
 }
 
 
