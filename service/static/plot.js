@@ -94,7 +94,7 @@ const RsfPlot = (() => {
   }
   function colourOf(c, state, v) {
     if (state !== "finite") return COLOURS[state] || COLOURS.missing;
-    if (c.plain) return "#2456a6";
+    if (c.plain) return "#1d2433";
     if (!Number.isFinite(v)) return COLOURS.missing;
     if (c.log && v <= 0) return COLOURS.zero;
     const s = scale(c.lo, c.hi, 0, 1, c.log);
@@ -167,7 +167,9 @@ const RsfPlot = (() => {
       }
       y += h + 10;
     }
-    const legend = [["zero", "zero (any jump)"], ["infinite", "infinite (never)"], ["missing", "not computed"]];
+    const line = c.plain;
+  const legend = [["zero", line ? "zero (bottom edge)" : "zero (any jump)"],
+    ["infinite", line ? "infinite (top edge)" : "infinite (never)"], ["missing", "not computed"]];
     ctx.textAlign = "left"; ctx.textBaseline = "middle";
     for (const [st, text] of legend) {
       if (!present[st]) continue;
@@ -229,6 +231,14 @@ const RsfPlot = (() => {
       const r = pts.length > 5000 ? 1.5 : pts.length > 500 ? 2.5 : 4;
       for (const p of pts) {
         present[p.state] = true;
+        if (fig.type === "line" && p.state !== "finite" && Number.isFinite(p.x)) {
+          // no value to plot: a square on the top edge (infinite) or the bottom edge
+          const py = p.state === "infinite" ? box.t + r + 1 : box.t + box.h - r - 1;
+          ctx.fillStyle = COLOURS[p.state] || COLOURS.missing;
+          ctx.fillRect(sx(p.x) - r, py - r, 2 * r, 2 * r);
+          ctx.strokeStyle = "#1d2433"; ctx.strokeRect(sx(p.x) - r, py - r, 2 * r, 2 * r);
+          continue;
+        }
         if (!Number.isFinite(p.x) || !Number.isFinite(p.y)) continue;
         ctx.fillStyle = colourOf(fig.colour, p.state, p.v);
         ctx.beginPath(); ctx.arc(sx(p.x), sy(p.y), r, 0, 2 * Math.PI); ctx.fill();

@@ -79,7 +79,8 @@ function noteFailure(key, err) {
   let delay = Math.min(BACKOFF_MAX_MS, 1000 * 2 ** (tries - 1));
   const ra = err && err.retryAfter;
   if (ra) delay = Math.max(delay, Math.min(BACKOFF_MAX_MS, ra * 1000));
-  const f = { status, message: (err && err.message) || String(err), tries, nextAt: Date.now() + delay, final: isFinal(status) };
+  const f = { status, message: (err && err.message) || String(err), tries, nextAt: Date.now() + delay,
+              final: isFinal(status), delays: [...(prev ? prev.delays : []), delay] };
   failures.set(key, f);
   return f;
 }
@@ -766,7 +767,7 @@ function render(v, req, ans) {
       const fin = pts.filter(p => p.state === "finite").map(p => p.y);
       const ylog = fin.length > 0 && fin.every(y => y > 0) && Math.max(...fin) / Math.min(...fin) > 20;
       const lo = fin.length ? Math.min(...fin) : 1;
-      pts.forEach(p => { if (p.state !== "finite") p.y = lo; });  // drawn on the baseline, coloured by state
+      pts.forEach(p => { if (p.state !== "finite") p.y = lo; });  // the plot puts them on an edge
       fig = { type: "line", x: { label: paramLabel(xn, pert), log: logOf(xn) },
               y: { label: outcome ? "outcome" : colour.label, log: ylog }, points: pts };
     } else {
@@ -849,7 +850,7 @@ function links(v) {
     ["JSON", `/v1/sweeps/${id}/data?format=json`, "flat arrays"],
     ...(spec.mode === "grid" && spec.axes.length >= 2 ? [["PNG", png, "this slice as the server renders it"]] : []),
     ["points", `/v1/sweeps/${id}/points`, "paged points with their errors"],
-    ["lazy (xarray)", "#lazy", "open the sweep from Python without downloading it all"],
+    ["Python (xarray)", "#lazy", "open the sweep from Python"],
   ];
   const html = items.map(([t, href, title]) =>
     `<a href="${esc(href)}" title="${esc(title)}"${href.startsWith("#") ? "" : " data-download"} target="_blank">${esc(t)}</a>`).join(" \u00b7 ");
@@ -858,8 +859,15 @@ function links(v) {
     $("#diagram-links").dataset.html = html;
   }
   $("#lazy-code").textContent =
-    `from rsfclient import Client\nds = Client("${location.origin}").sweep("${id}").to_xarray()  # the whole result\n` +
-    `# or: xarray.open_dataset(<the NetCDF link>)`;
+    `from rsfclient import Client  # API key: RSF_API_KEY or Client(..., api_key=...)\n` +
+    `ds = Client("${location.origin}").get_sweep("${id}").to_xarray()  # xarray.Dataset\n` +
+    (sliceSel(v) ? `ds.critical_size.sel(${sliceSel(v)}, method="nearest")  # this slice` : "");
+}
+/** The view's slice as xarray .sel() arguments (grid sweeps), e.g. ba=1.4. */
+function sliceSel(v) {
+  const spec = v.spec;
+  if (spec.mode !== "grid" || !v.axes) return "";
+  return Object.entries(v.slice).map(([n, k]) => `${n}=${num12(axisValues(spec, n)[k])}`).join(", ");
 }
 /** A download link: plain when no API key is used; else fetched with the key. */
 async function download(ev) {

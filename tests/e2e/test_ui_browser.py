@@ -43,7 +43,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.conftest import Proc, Server, Worker
+from tests.conftest import Proc, Redis, Server, Worker
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -239,17 +239,32 @@ def png_size(data: bytes) -> tuple[int, int]:
     return struct.unpack(">II", data[16:24])
 
 
-def shoot(browser: Browser, tmp_path: Path, name: str, width: int = 1400) -> bytes:
-    """A screenshot of the whole page, kept in ``tmp_path`` and, when
+def shoot(
+    browser: Browser, tmp_path: Path, name: str, width: int = 1400, height: int | None = 900
+) -> bytes:
+    """A screenshot of the window (``width`` x ``height`` CSS pixels, scrolled to the top)
+    or with ``height=None`` of the whole page, kept in ``tmp_path`` and, when
     ``RSF_UI_SCREENSHOTS=<dir>`` is set, also in that directory (docs/ui-*.png are made so)."""
-    shot = browser.screenshot(width=width)
+    if height is None:
+        shot = browser.screenshot(width=width)
+    else:
+        browser.call(
+            "Emulation.setDeviceMetricsOverride",
+            width=width,
+            height=height,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
+        browser.js("window.scrollTo(0, 0), true")
+        time.sleep(0.3)
+        shot = base64.b64decode(browser.call("Page.captureScreenshot", format="png")["data"])
     w, _ = png_size(shot)
     assert w == width and len(shot) > 30_000, (w, len(shot))
     (tmp_path / f"ui-{name}.png").write_bytes(shot)
     out = os.environ.get("RSF_UI_SCREENSHOTS")
     if out:
         Path(out, f"ui-{name}.png").write_bytes(shot)
-    browser.call(  # back to a normal window after the full-page shot
+    browser.call(  # back to a normal window
         "Emulation.setDeviceMetricsOverride",
         width=width,
         height=1000,
@@ -358,13 +373,18 @@ MACHINE = {
 
 
 @pytest.fixture(scope="module")
-def ui(chromium_exe: str, tmp_path_factory: pytest.TempPathFactory) -> Any:
+def ui(chromium_exe: str, redis_exe: str, tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """Server, worker and browser for the module.  The broker is Redis: kombu's
+    filesystem transport (the single-machine default) lets a worker read a message file
+    before it is written under load ("Unrecoverable error: JSONDecodeError"), which
+    stalls the page's sweeps for reasons that are not the page's."""
     tmp_path = tmp_path_factory.mktemp("ui")
     started: list[Proc] = []
     browser = None
     try:
-        started.append(srv := Server(tmp_path, RSF_INLINE_BUDGET_S="120"))
-        started.append(Worker(tmp_path, plugin=True, RSF_TEST_POINT_DELAY_S="0.5"))
+        started.append(redis := Redis(redis_exe, tmp_path))
+        started.append(srv := Server(tmp_path, redis.url, RSF_INLINE_BUDGET_S="120"))
+        started.append(Worker(tmp_path, redis.url, plugin=True, RSF_TEST_POINT_DELAY_S="0.5"))
         browser = Browser(chromium_exe, tmp_path)
         yield UI(srv, browser, tmp_path)
     finally:
@@ -438,7 +458,7 @@ def test_dashboard_in_headless_chromium(ui: UI) -> None:
         if row and (not seen or row != seen[-1]):
             seen.append(row)
         if row and row["status"] == "running" and not (tmp_path / "ui-running.png").exists():
-            shoot(browser, tmp_path, "running", width=1280)
+            shoot(browser, tmp_path, "running", width=1280, height=800)
             browser.call(
                 "Emulation.setDeviceMetricsOverride",
                 width=1280,
@@ -491,7 +511,7 @@ def test_dashboard_in_headless_chromium(ui: UI) -> None:
         " s.dispatchEvent(new Event('change')); return true; })()"
     )
     browser.wait("document.querySelector('#figure-img').naturalWidth > 0", 90, "the paper figure")
-    shot = shoot(browser, tmp_path, "screenshot")
+    shot = shoot(browser, tmp_path, "screenshot", height=None)
     from matplotlib.image import imread
 
     px = imread(io.BytesIO(shot), format="png")
@@ -692,3 +712,28 @@ def test_scattered_sweep_scatter_plot(ui: UI) -> None:
     assert v2["image"] != v["image"] and "axes=eps,ba" in v2["href"], v2
     shoot(ui.b, ui.tmp, "scatter")
     assert ui.b.exceptions() == []
+
+
+def test_failures_back_off(ui: UI) -> None:
+    """With the service gone, the page asks again only with back-off (1 s, 2 s, 4 s, ...),
+    once per scheduled try, and says so once.  (Last test of the module: it stops the
+    server.)"""
+    ui.open("")
+    ui.b.wait("window.rsfUi.polls >= 2", 30, "the sweep list")
+    ui.srv.stop()
+    f = ui.b.wait(
+        "(() => { const f = window.rsfUi.failures.get('list');"
+        " return f && f.tries >= 4 ? {tries: f.tries, delays: f.delays} : null; })()",
+        60,
+        "four failed tries of the sweep list",
+    )
+    # the page's own schedule: each delay twice the one before (no Retry-After here)
+    assert f["delays"][:4] == [1000, 2000, 4000, 8000], f
+    note = ui.b.js("document.querySelector('#sweeps-note').textContent")
+    assert note.startswith("sweep list unavailable") and "retrying in" in note, note
+    assert ui.b.js("document.body.innerText.split('sweep list unavailable').length") == 2
+    # one request per try: the failed polls were not repeated in between
+    tries = ui.b.js("window.rsfUi.failures.get('list').tries")
+    after = [u for u in ui.requests("/v1/sweeps?limit")]
+    polls = ui.b.js("window.rsfUi.polls")
+    assert len(after) == polls + tries, (len(after), polls, tries)
