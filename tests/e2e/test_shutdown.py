@@ -1,5 +1,6 @@
 """A worker stopped by SIGTERM or SIGINT shuts down cleanly: its reaper thread stops and is
-joined, it leaves the worker registry, and its log holds no traceback.
+joined, it leaves the worker registry, and its log holds no traceback.  The same for an
+API process (uvicorn) that has just answered a computed query.
 
 A real Celery worker (prefork pool, one child: the pool's own threads and processes
 are stopped too) on the filesystem broker and SQLite; the signal goes to the main
@@ -19,7 +20,7 @@ from typing import Any
 
 import pytest
 
-from tests.conftest import Worker
+from tests.conftest import Server, Worker
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -78,3 +79,26 @@ def test_worker_stops_cleanly(sig: signal.Signals, tmp_path: Path) -> None:
         assert _registered(tmp_path) == [], "the reaper did not leave the worker registry"
     finally:
         w.stop()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_api_stops_cleanly(sig: signal.Signals, tmp_path: Path) -> None:
+    import httpx
+
+    srv = Server(tmp_path, RSF_AUTH="auto")
+    try:
+        body = {"ba": 2.0, "kappa": 2.0, "eps": 0.25, "size": 1.0}
+        r = httpx.post(srv.url + "/v1/classify", json=body, timeout=60)
+        assert r.status_code == 200, r.text
+        os.kill(srv.pid, sig)
+        try:
+            srv.p.wait(30)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f"still running 30 s after {sig.name}:\n{srv.tail()}") from None
+        # uvicorn re-raises the signal after its graceful shutdown: -SIGTERM, or 0 after SIGINT
+        assert srv.p.returncode in (0, -sig), srv.p.returncode
+        log = srv.log.read_text(errors="replace")
+        for bad in FORBIDDEN:
+            assert bad not in log, f"{bad!r} in the log after {sig.name}:\n{log[-6000:]}"
+    finally:
+        srv.stop()
