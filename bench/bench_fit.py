@@ -1,27 +1,40 @@
-"""Benchmark: fitting a 10^4-sample velocity-step record, compiled forward model vs scipy solve_ivp.
+"""Benchmark: fitting 10^4-sample lab records, the library and `rsf fit` against the
+do-it-yourself route, in the same run.
 
-Record: a = 0.01, b = 0.015, Dc = 10 um, mu0 = 0.6, aging law, machine stiffness
-k = 800 /m (kappa = 0.8, kappa/kappa_crit = 1.6); load point 1 um/s for 200 s, 10 um/s for
-30 s, 1 um/s for 300 s; 10^4 samples; noise-free and with Gaussian noise 1e-4.
+Records (10^4 samples each; aging law, a = 0.01, b = 0.015, Dc = 10 um, mu0 = 0.6,
+machine k = 1000 /m = 2 k_crit; Gaussian noise 1e-4 in friction; computed by
+rsfcore.fit.synthetic_record at rtol 1e-13):
 
-Fit: the 4 parameters mu0, a, b, Dc (law and stiffness fixed).  Both forward models are
-driven by the same optimiser set-up (scipy.optimize.least_squares, trust-region
-reflective, coordinates (mu0, a, b, ln Dc), start values from rsfcore's variable-projection
-start, forward-difference Jacobian with the same steps and tolerances):
+* ``single-step``: 1 um/s for 20 s, 10 um/s for 40 s;
+* ``multi-step+trend``: 1, 10, 3, 30, 1, 10 um/s (5 steps over 200 s) with a linear
+  friction trend of 20 /m in load-point displacement (slip hardening), fitted with the
+  trend term;
+* ``slide-hold-slide``: 1 um/s for 20 s, hold 30 s, 1 um/s for 50 s.
 
-* rsfcore: rsfcore.fit.ForwardModel (compiled DOP853 engine, rtol 1e-10);
-* scipy: solve_ivp (DOP853, rtol 1e-10, Python right-hand side) of the textbook SI
-  equations mu = mu0 + a ln(V/V0) + b ln(V0 theta/Dc), d mu/dt = k (v_lp - V),
-  d theta/dt = 1 - V theta/Dc, segment by segment, sampled with t_eval.
+Routes (stiffness fitted in every route, as the library does by default):
 
-It prints the wall time of each fit after warm-up (best of 3 for rsfcore, 1 run for
-scipy), their ratio, the number of forward-model runs, the relative parameter errors
-against the truth, and the friction error of each forward model against an rsfcore run
-at rtol 1e-13.  Also the full rsfcore.fit.fit_record (with uncertainty, identifiability
-and linearity checks and the stability answer).  BLAS and numba are limited to one
-thread ("one core").
+* library: ``rsfcore.fit.fit_record(record, "aging")`` (the default options: covariance,
+  identifiability and linearity checks, stability answer with 400 covariance samples);
+  best of 3 after a warm-up, wall and CPU time;
+* CLI: ``rsf fit FILE --law aging --no-compare [--trend] --json`` as a subprocess
+  (python -m rsfcli.main), warm (second run; kernels cached), wall time end to end;
+  also the default ``rsf fit FILE`` (all four laws compared);
+* do-it-yourself: an rsfmodel-style forward model written here (the textbook SI
+  equations, mu = mu0 + a ln(V/V0) + b ln(V0 theta/Dc) [+ trend x_lp],
+  d mu/dt = k (v_lp - V), d theta/dt = 1 - V theta/Dc, integrated by
+  scipy.integrate.solve_ivp LSODA at rtol 1e-8, segment by segment, t_eval at the
+  samples) and scipy.optimize.least_squares (trf, 2-point Jacobian, x_scale set to the
+  parameters' magnitudes, default tolerances) on (mu0, a, b, Dc, k [, trend]) from a
+  reasonable lab start: mu0 = first friction sample, a = 0.005, b = 0.01, Dc = 20 um,
+  k = 3000 /m [, trend 0].
 
-    python bench/bench_fit.py
+Printed per case and route: time per fit, status, and each parameter's error relative to
+the truth and in units of the library's stated standard error.  Targets (issue 23):
+library <= 0.2 s, CLI <= 1.5 s warm.  Also the machine load (os.getloadavg): on a shared
+machine the wall times scale with it; CPU times less so.
+
+    python bench/bench_fit.py            # all routes
+    python bench/bench_fit.py --no-diy   # skip the (slow) do-it-yourself route
 """
 
 from __future__ import annotations
@@ -33,51 +46,81 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
+import json  # noqa: E402
 import math  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
-from rsfcore.fit import ForwardModel, Law, ModelSpec, Record, fit_record, synthetic_record  # noqa: E402
-from rsfcore.fit.core import DEFAULT_BOUNDS, _initial_guess  # noqa: E402
+from rsfcore.fit import Record, fit_record, synthetic_record  # noqa: E402
 
 N = 10_000
-TRUE = {"mu0": 0.6, "a": 0.01, "b": 0.015, "Dc_m": 1e-5, "eps": 1.0, "k_per_m": 800.0}
-NAMES = ("mu0", "a", "b", "Dc_m")
+NOISE = 1e-4
+TRUE = {"mu0": 0.6, "a": 0.01, "b": 0.015, "Dc_m": 1e-5, "eps": 1.0, "k_per_m": 1000.0}
+NAMES = ("mu0", "a", "b", "Dc_m", "k_per_m")
 
 
-def design() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    t = np.linspace(0.0, 530.0, N)
-    v = np.where(t < 200.0, 1e-6, np.where(t < 230.0, 1e-5, 1e-6))
-    return t, v
+@dataclass(frozen=True)
+class Case:
+    name: str
+    record: Record
+    trend: float  # true trend [1/m] (fitted when nonzero)
 
 
-class ScipyModel:
-    """Textbook SI spring-slider (aging law) by solve_ivp DOP853 (Python right-hand side)."""
+def cases() -> list[Case]:
+    out = []
+    t = np.linspace(0.0, 60.0, N)
+    v = np.where(t < 20.0, 1e-6, 1e-5)
+    out.append(Case("single-step", synthetic_record(t, v, **TRUE, noise=NOISE, rtol=1e-13), 0.0))
+    t = np.linspace(0.0, 200.0, N)
+    v = np.full(N, 1e-6)
+    for t0, t1, vv in ((30, 60, 1e-5), (60, 90, 3e-6), (90, 120, 3e-5), (120, 150, 1e-6)):
+        v[(t >= t0) & (t < t1)] = vv
+    v[t >= 150] = 1e-5
+    rec = synthetic_record(t, v, **TRUE, trend_per_m=20.0, noise=NOISE, rtol=1e-13, seed=2)
+    out.append(Case("multi-step+trend", rec, 20.0))
+    t = np.linspace(0.0, 100.0, N)
+    v = np.where((t >= 20.0) & (t < 50.0), 0.0, 1e-6)
+    out.append(
+        Case(
+            "slide-hold-slide", synthetic_record(t, v, **TRUE, noise=NOISE, rtol=1e-13, seed=3), 0.0
+        )
+    )
+    return out
 
-    def __init__(self, rec: Record, k: float, rtol: float = 1e-10) -> None:
-        self.t, self.v, self.k, self.rtol = rec.t_s, rec.v_lp_m_s, k, rtol
+
+# --------------------------------------------------------------------------- DIY route
+class DiyModel:
+    """rsfmodel-style forward model: textbook SI equations by solve_ivp (LSODA)."""
+
+    def __init__(self, rec: Record, rtol: float = 1e-8) -> None:
+        self.t, self.v, self.rtol = rec.t_s, rec.v_lp_m_s, rtol
+        self.x = rec.load_point_m
         self.starts = [int(i) for i in rec.segment_starts] + [rec.n]
-        self.n_evals = 0
+        self.runs = 0
 
-    def friction(self, p: dict[str, float]) -> NDArray[np.float64]:
-        self.n_evals += 1
-        mu0, a, b, Dc, k = p["mu0"], p["a"], p["b"], p["Dc_m"], self.k
+    def friction(
+        self, mu0: float, a: float, b: float, Dc: float, k: float, c: float
+    ) -> NDArray[np.float64]:
+        self.runs += 1
         V0 = float(self.v[0])
 
         def rhs(_t: float, y: NDArray[np.float64], vlp: float) -> list[float]:
             mu, th = y
-            arg = (mu - mu0 - b * math.log(V0 * th / Dc)) / a
+            arg = (mu - mu0 - b * math.log(max(V0 * th / Dc, 1e-300))) / a
             V = V0 * math.exp(min(arg, 700.0))
             return [k * (vlp - V), 1.0 - V * th / Dc]
 
         y = np.array([mu0, Dc / V0])
         out = np.full(self.t.shape[0], np.nan)
-        atol = np.array([1e-14, 1e-14 * Dc / V0])
         t = self.t
         for j in range(len(self.starts) - 1):
             i0, i1 = self.starts[j], self.starts[j + 1]
@@ -89,158 +132,122 @@ class ScipyModel:
                 rhs,
                 (t[i0], t_end),
                 y,
-                method="DOP853",
+                method="LSODA",
                 t_eval=te,
                 rtol=self.rtol,
-                atol=atol,
+                atol=[1e-12, 1e-12 * Dc / V0],
                 args=(float(self.v[i0]),),
             )
             if not sol.success:
                 return out
             out[i0:i1] = sol.y[0, : i1 - i0]
             y = sol.y[:, -1]
-        return out
+        return out + c * self.x
 
 
-def drive(
-    friction: Callable[[dict[str, float]], NDArray[np.float64]],
-    rec: Record,
-    x0: NDArray[np.float64],
-    lb: NDArray[np.float64],
-    ub: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], int]:
-    """Same least-squares set-up as rsfcore.fit (coordinates, steps, tolerances)."""
+def diy_fit(case: Case) -> tuple[float, dict[str, float], str, int]:
+    rec = case.record
+    model = DiyModel(rec)
+    with_trend = case.trend != 0.0
 
-    def unpack(x: NDArray[np.float64]) -> dict[str, float]:
-        return {
-            "mu0": x[0],
-            "a": x[1],
-            "b": x[2],
-            "Dc_m": math.exp(x[3]),
-            "eps": 1.0,
-            "k_per_m": TRUE["k_per_m"],
-        }
-
-    def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        r = friction(unpack(x)) - rec.mu
+    def resid(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        c = p[5] if with_trend else 0.0
+        r = model.friction(p[0], p[1], p[2], p[3], p[4], c) - rec.mu
         r[~np.isfinite(r)] = 1.0
         return r
 
-    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        r0 = resid(x)
-        h = np.array([1e-6 * max(1.0, abs(x[0])), 1e-6 * x[1], 1e-6 * max(abs(x[2]), x[1]), 1e-6])
-        J = np.empty((r0.shape[0], 4))
-        for j in range(4):
-            xp = x.copy()
-            xp[j] += h[j]
-            J[:, j] = (resid(xp) - r0) / h[j]
-        return J
-
-    sol = least_squares(
-        resid,
-        x0,
-        jac=jac,
-        bounds=(lb, ub),
-        method="trf",
-        x_scale="jac",
-        ftol=1e-14,
-        xtol=1e-14,
-        gtol=1e-14,
-        max_nfev=200,
-    )
-    return sol.x, int(sol.nfev)
+    x0 = [float(rec.mu[0]), 0.005, 0.01, 2e-5, 3000.0] + ([0.0] if with_trend else [])
+    lo = [-10.0, 1e-6, -1.0, 1e-9, 1.0] + ([-1e4] if with_trend else [])
+    hi = [10.0, 1.0, 1.0, 1e-1, 1e9] + ([1e4] if with_trend else [])
+    scale = [1.0, 0.01, 0.01, 1e-5, 1e3] + ([10.0] if with_trend else [])
+    t0 = time.perf_counter()
+    sol = least_squares(resid, x0, bounds=(lo, hi), x_scale=scale, method="trf")
+    dt = time.perf_counter() - t0
+    est = dict(zip(NAMES, (float(v) for v in sol.x[:5]), strict=True))
+    if with_trend:
+        est["trend_per_m"] = float(sol.x[5])
+    return dt, est, str(sol.message), model.runs
 
 
-def errors(x: NDArray[np.float64]) -> str:
-    est = {"mu0": x[0], "a": x[1], "b": x[2], "Dc_m": math.exp(x[3])}
-    return "  ".join(f"{n} {est[n] / TRUE[n] - 1.0:+.1e}" for n in NAMES)
+# --------------------------------------------------------------------------- routes
+def library_fit(case: Case) -> tuple[float, float, object]:
+    kw = {"trend": case.trend != 0.0}
+    fit_record(case.record, "aging", **kw)  # warm-up
+    best_wall, best_cpu, res = math.inf, math.inf, None
+    for _ in range(3):
+        w0, c0 = time.perf_counter(), time.process_time()
+        res = fit_record(case.record, "aging", **kw)
+        best_wall = min(best_wall, time.perf_counter() - w0)
+        best_cpu = min(best_cpu, time.process_time() - c0)
+    return best_wall, best_cpu, res
+
+
+def cli_fit(path: Path, case: Case, compare: bool) -> tuple[float, dict]:
+    args = [sys.executable, "-m", "rsfcli.main", "fit", str(path), "--json"]
+    if not compare:
+        args += ["--law", "aging", "--no-compare"]
+    if case.trend:
+        args.append("--trend")
+    times = []
+    out: dict = {}
+    for _ in range(2):  # the first warms the kernel cache and the OS file cache
+        t0 = time.perf_counter()
+        p = subprocess.run(args, capture_output=True, text=True, check=True)
+        times.append(time.perf_counter() - t0)
+        out = json.loads(p.stdout)
+    return times[-1], out
+
+
+def errors(est: dict[str, float], truth: dict[str, float], se: dict[str, float | None]) -> str:
+    parts = []
+    for n, v in truth.items():
+        rel = est[n] / v - 1.0
+        s = se.get(n)
+        z = f" ({(est[n] - v) / s:+.1f} se)" if s else ""
+        parts.append(f"{n} {rel:+.1e}{z}")
+    return "  ".join(parts)
 
 
 def main() -> None:
-    t, v = design()
-    spec = ModelSpec(Law.AGING, False, TRUE["k_per_m"], rtol=1e-10)
-    ref = synthetic_record(t, v, **TRUE, rtol=1e-13)
+    diy = "--no-diy" not in sys.argv
     print(
-        f"record: {N} samples, 2 velocity steps, aging law, k = {TRUE['k_per_m']:g} /m; "
-        "4-parameter fit (mu0, a, b, Dc)"
+        f"10^4-sample records, aging law, k = {TRUE['k_per_m']:g} /m (2 k_crit), noise {NOISE:g}; "
+        f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
     )
-    # forward-model accuracy against the rtol 1e-13 reference
-    mu_r, _ = ForwardModel(ref, spec).friction(TRUE)
-    sm = ScipyModel(ref, TRUE["k_per_m"])
-    t0 = time.perf_counter()
-    mu_s = sm.friction(TRUE)
-    t_one_scipy = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    for _ in range(10):
-        ForwardModel(ref, spec).friction(TRUE)
-    t_one_rsf = (time.perf_counter() - t0) / 10
-    print(
-        f"one forward run: rsfcore {t_one_rsf * 1e3:.2f} ms, scipy {t_one_scipy * 1e3:.1f} ms "
-        f"(x{t_one_scipy / t_one_rsf:.0f}); max |friction error| vs rtol 1e-13: "
-        f"rsfcore {np.max(np.abs(mu_r - ref.mu)):.1e}, scipy {np.max(np.abs(mu_s - ref.mu)):.1e}"
-    )
-
-    for label, noise in (("noise-free", 0.0), ("noise 1e-4", 1e-4)):
-        rec = synthetic_record(t, v, **TRUE, noise=noise, seed=1, rtol=1e-13)
-        p0 = _initial_guess(rec, spec, DEFAULT_BOUNDS)
-        x0 = np.array([p0["mu0"], p0["a"], p0["b"], math.log(p0["Dc_m"])])
-        lb = np.array(
-            [
-                DEFAULT_BOUNDS["mu0"][0],
-                DEFAULT_BOUNDS["a"][0],
-                DEFAULT_BOUNDS["b"][0],
-                math.log(DEFAULT_BOUNDS["Dc_m"][0]),
-            ]
-        )
-        ub = np.array(
-            [
-                DEFAULT_BOUNDS["mu0"][1],
-                DEFAULT_BOUNDS["a"][1],
-                DEFAULT_BOUNDS["b"][1],
-                math.log(DEFAULT_BOUNDS["Dc_m"][1]),
-            ]
-        )
-        model = ForwardModel(rec, spec)
-
-        def rsf(p: dict[str, float], m: ForwardModel = model) -> NDArray[np.float64]:
-            return m.friction(p)[0]
-
-        drive(rsf, rec, x0, lb, ub)  # warm-up
-        best = math.inf
-        for _ in range(3):
-            model.n_evals = 0
-            t0 = time.perf_counter()
-            x_r, nfev_r = drive(rsf, rec, x0, lb, ub)
-            best = min(best, time.perf_counter() - t0)
-        runs_r = model.n_evals
-        smod = ScipyModel(rec, TRUE["k_per_m"])
-        t0 = time.perf_counter()
-        x_s, nfev_s = drive(smod.friction, rec, x0, lb, ub)
-        t_s = time.perf_counter() - t0
-        print(f"\n[{label}] same least-squares driver:")
-        print(
-            f"  rsfcore forward model: {best:7.3f} s  ({runs_r} forward runs, "
-            f"{nfev_r} evaluations)  errors: {errors(x_r)}"
-        )
-        print(
-            f"  scipy solve_ivp      : {t_s:7.3f} s  ({smod.n_evals} forward runs, "
-            f"{nfev_s} evaluations)  errors: {errors(x_s)}"
-        )
-        print(f"  ratio scipy/rsfcore  : {t_s / best:.0f}x")
-        fit_record(rec, "aging", stiffness=TRUE["k_per_m"])  # warm-up of the stability path
-        t0 = time.perf_counter()
-        res = fit_record(rec, "aging", stiffness=TRUE["k_per_m"])
-        t_full = time.perf_counter() - t0
-        rel = "  ".join(
-            f"{n} {res.params[n] / TRUE[n] - 1:+.1e} (se {res.stderr[n] / TRUE[n]:.1e})"
-            for n in NAMES
-        )
-        print(
-            "  rsfcore.fit.fit_record (fit + covariance + identifiability + linearity + "
-            "stability, "
-            f"{res.n_model_evals} forward runs): {t_full:.3f} s, status {res.status.value}"
-        )
-        print(f"    relative errors (and relative standard errors): {rel}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for case in cases():
+            truth = {n: TRUE[n] for n in NAMES}
+            if case.trend:
+                truth["trend_per_m"] = case.trend
+            wall, cpu, res = library_fit(case)
+            assert res is not None
+            se = res.stderr  # type: ignore[attr-defined]
+            print(f"\n[{case.name}] {case.record.n} samples, {case.record.n_steps} steps")
+            print(
+                f"  library  {wall:6.3f} s wall ({cpu:.3f} s CPU), status "
+                f"{res.status.value}, {res.n_model_evals} forward runs"  # type: ignore[attr-defined]
+            )
+            print(f"           errors: {errors(res.params, truth, se)}")  # type: ignore[attr-defined]
+            path = Path(tmp) / f"{case.name}.csv"
+            path.write_text(case.record.to_csv())
+            t_cli, d = cli_fit(path, case, compare=False)
+            same = all(d["params"][n] == res.params[n] for n in truth)  # type: ignore[attr-defined]
+            print(
+                f"  rsf fit  {t_cli:6.3f} s warm, end to end (--law aging --no-compare); "
+                f"status {d['status']}; parameters equal to the library's: {same}"
+            )
+            t_cmp, d2 = cli_fit(path, case, compare=True)
+            print(
+                f"  rsf fit  {t_cmp:6.3f} s warm with the default law comparison "
+                f"(best: {d2['law_comparison']['best']}, status {d2['status']})"
+            )
+            if diy:
+                t_diy, est, msg, runs = diy_fit(case)
+                print(
+                    f"  DIY      {t_diy:6.3f} s ({runs} forward runs; {msg}) "
+                    f"x{t_diy / wall:.0f} the library"
+                )
+                print(f"           errors: {errors(est, truth, se)}")
 
 
 if __name__ == "__main__":
