@@ -58,19 +58,10 @@ class SpecError(ParameterError):
         ValueError.__init__(self, f"{field}: {detail} (valid range: {valid})")
 
 
-#: The SI size statement that each perturbation kind reads (the other is refused).
-_SI_FOR_KIND = {
-    "velocity-jump": ("factor", "new_slip_rate_m_s"),
-    "load-point-jump": ("factor", "new_load_point_velocity_m_s"),
-}
-
-
 def _si_size_one(phys: PhysicalInputs, perturbation: str, name: str, x: float) -> float:
-    """One SI size statement -> the dimensionless size (rsfcore.units; ParameterError
-    from there on an out-of-range value)."""
-    if perturbation == "velocity-jump":
-        return float(units.velocity_jump_size(phys, **{name: x}))
-    return float(units.load_point_jump_size(phys, **{name: x}))
+    """One SI size statement -> the dimensionless size (rsfcore.units.size_from_si, the
+    one place of the SI size rules; ParameterError from there on an out-of-range value)."""
+    return float(units.size_from_si(phys, perturbation, name, x))
 
 
 def si_to_size(
@@ -638,8 +629,8 @@ def _si_size(
         raise SpecError("fixed.size", f"give either fixed.size or {fld}, never both", _SI_ONE)
     if "size" in where:
         raise SpecError(fld, f"the size is already swept ({where['size']})", _SI_ONE)
-    if name not in _SI_FOR_KIND[pert]:
-        kinds = " or ".join(_SI_FOR_KIND[pert])
+    if name not in units.SI_SIZE_FOR_KIND[pert]:
+        kinds = " or ".join(units.SI_SIZE_FOR_KIND[pert])
         raise SpecError(fld, f"{name} is not used by a {pert}", f"{kinds} for a {pert}")
     if not swept:
         x = float(getattr(fx, name))

@@ -29,6 +29,11 @@ from typing import Any
 
 import typer
 
+from rsfapp.requests import ClassifyRequest, PhysicalSI, TrajectoryRequest
+from rsfapp.requests.protocols import SlideHoldSlideRequest, VelocityStepRequest
+
+from .common import echo_lines, emit, fail, given, model_option, run
+
 __all__ = ["si_app", "protocol_app", "fit_command"]
 
 si_app = typer.Typer(
@@ -67,61 +72,26 @@ class FitLaw(str, Enum):  # noqa: UP042
     eps = "eps"
 
 
-A = typer.Option(..., "--a", help="Direct-effect coefficient a, (0, 1].")
-B = typer.Option(..., "--b", help="Evolution-effect coefficient b, (a, 1e6 a].")
-DC = typer.Option(..., "--dc-m", help="Characteristic slip distance Dc [m], (0, 1e3].")
-SIGMA = typer.Option(..., "--sigma-pa", help="Effective normal stress [Pa], (0, 1e12].")
-K = typer.Option(
-    ..., "--k-pa-per-m", help="Machine stiffness k [Pa/m], >= 0 (kappa = k Dc/(a sigma) <= 1e6)."
-)
-VSTAR = typer.Option(..., "--v-star-m-s", help="Reference slip rate V_* [m/s], (0, 1e3].")
-VLOAD = typer.Option(
-    None, "--v-load-m-s", help="Load-point velocity [m/s], [0, 1e3] (default V_*)."
-)
-EPS = typer.Option(1.0, "--eps", help="Evolution law, [0, 1]: 0 slip law, 1 aging law.")
-RTOL = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator, [1e-13, 1e-3].")
+# Options carrying a request field are spelled exactly as the field's JSON name (the
+# older kebab-case spelling is accepted too); not given = the request model's default.
+A = model_option(PhysicalSI, "a", required=True)
+B = model_option(PhysicalSI, "b", required=True)
+DC = model_option(PhysicalSI, "Dc_m", "--dc-m", required=True)
+SIGMA = model_option(PhysicalSI, "sigma_Pa", "--sigma-pa", required=True)
+K = model_option(PhysicalSI, "k_Pa_per_m", "--k-pa-per-m", required=True)
+VSTAR = model_option(PhysicalSI, "V_star_m_s", "--v-star-m-s", required=True)
+VLOAD = model_option(PhysicalSI, "V_load_m_s", "--v-load-m-s")
+EPS = model_option(ClassifyRequest, "eps")
+RTOL = model_option(ClassifyRequest, "rtol")
 JSON_OUT = typer.Option(False, "--json", help="Print one JSON object.")
 OUT = typer.Option(
     None, "--out", help="Also write the result: .json, .csv (the samples) or .png (plot)."
 )
 
 
-def _fail(msg: str) -> None:
-    typer.echo(f"error: {msg}", err=True)
-    raise typer.Exit(code=2)
-
-
-def _run(model: Any, body: dict[str, Any], fn: Callable[[Any], dict[str, Any]]) -> dict[str, Any]:
-    """Validate ``body`` as ``model`` and compute ``fn``; exit 2 naming the field on
-    invalid input, 1 on a failed computation."""
-    from pydantic import ValidationError
-
-    from rsfapp.adapter import ComputeError
-    from rsfapp.requests import VALID
-    from rsfcore import ParameterError
-
-    try:
-        req = model.model_validate(body)
-        return fn(req)
-    except ValidationError as exc:
-        e = exc.errors()[0]
-        loc = [p for p in e.get("loc", ()) if not isinstance(p, int)]
-        field = ".".join(str(p) for p in loc) or "input"
-        valid = next((VALID[str(p)] for p in reversed(loc) if str(p) in VALID), None)
-        _fail(f"{field}: {e.get('msg')}" + (f" (valid range: {valid})" if valid else ""))
-    except ParameterError as exc:
-        _fail(str(exc))
-    except ComputeError as exc:
-        typer.echo(f"error: could not be computed: {exc}", err=True)
-        raise typer.Exit(code=1) from None
-    raise AssertionError("unreachable")
-
-
-def _emit(obj: dict[str, Any], as_json: bool, lines: list[str]) -> None:
-    if as_json:
-        typer.echo(json.dumps(obj, allow_nan=False))
-    else:
-        typer.echo("\n".join(lines))
+_fail = fail
+_run = run
+_emit = emit
 
 
 def _csv(columns: dict[str, list[Any]]) -> str:
@@ -156,19 +126,15 @@ def _g(x: Any) -> str:
     return "-" if x is None else (f"{x:.6g}" if isinstance(x, float) else str(x))
 
 
-SIZE = typer.Option(
-    None, "--size", help="Dimensionless size (d = ln(V_new/V_before) or dv = V_new/V_load - 1)."
+SIZE = model_option(ClassifyRequest, "size")
+FACTOR = model_option(ClassifyRequest, "factor")
+NEWV = model_option(ClassifyRequest, "new_slip_rate_m_s", "--new-slip-rate-m-s")
+NEWVLP = model_option(
+    ClassifyRequest, "new_load_point_velocity_m_s", "--new-load-point-velocity-m-s"
 )
-FACTOR = typer.Option(
-    None, "--factor", help="V_new/V_before (velocity jump) or V_new/V_load (load-point jump)."
-)
-NEWV = typer.Option(None, "--new-slip-rate-m-s", help="Velocity jump to this slip rate [m/s].")
-NEWVLP = typer.Option(
-    None, "--new-load-point-velocity-m-s", help="Load-point jump to this velocity [m/s]."
-)
-PERT = typer.Option(Pert.velocity_jump, "--perturbation", help="Kind of perturbation.")
-FSTAR = typer.Option(0.6, "--f-star", help="Reference friction f_* at V_*, [-10, 10].")
-NPPS = typer.Option(200, "--n-points-per-segment", help="Samples per segment, [2, 100000].")
+PERT = model_option(ClassifyRequest, "perturbation")
+FSTAR = model_option(VelocityStepRequest, "f_star", "--f-star")
+NPPS = model_option(SlideHoldSlideRequest, "n_points_per_segment", "--n-points-per-segment")
 
 
 @dataclass(frozen=True)
@@ -185,25 +151,23 @@ class Machine:
     """
 
     physical: dict[str, Any]
-    eps: float
+    eps: float | None = None
     f_star: float | None = None
     perturbation: Pert | None = None
     size: dict[str, float] = field(default_factory=dict)
 
-    def si_body(self, rtol: float) -> dict[str, Any]:
-        """Body of an SI query (ClassifyRequest, CriticalRequest, TrajectoryRequest)."""
-        pert = self.perturbation or Pert.velocity_jump
+    def si_body(self, rtol: float | None) -> dict[str, Any]:
+        """Body of an SI query (ClassifyRequest, CriticalRequest, TrajectoryRequest): the
+        options given (the others take the request model's defaults)."""
         return {
             "physical": self.physical,
-            "eps": self.eps,
-            "rtol": rtol,
-            "perturbation": pert.value,
+            **given(eps=self.eps, rtol=rtol, perturbation=self.perturbation),
             **self.size,
         }
 
-    def protocol_body(self, rtol: float) -> dict[str, Any]:
+    def protocol_body(self, rtol: float | None) -> dict[str, Any]:
         """Common part of a protocol body (velocity step, slide-hold-slide, load history)."""
-        return {"physical": self.physical, "eps": self.eps, "f_star": self.f_star, "rtol": rtol}
+        return {"physical": self.physical, **given(eps=self.eps, f_star=self.f_star, rtol=rtol)}
 
 
 _KW = inspect.Parameter.KEYWORD_ONLY
@@ -230,11 +194,11 @@ def _shared_params(*, v_load: bool, f_star: bool, perturbation: str) -> list[ins
     ps = [inspect.Parameter(n, _KW, default=o, annotation=t) for n, _, o, t in _MACHINE_OPTIONS]
     if v_load:
         ps.append(inspect.Parameter("v_load_m_s", _KW, default=VLOAD, annotation=float | None))
-    ps.append(inspect.Parameter("eps", _KW, default=EPS, annotation=float))
+    ps.append(inspect.Parameter("eps", _KW, default=EPS, annotation=float | None))
     if f_star:
-        ps.append(inspect.Parameter("f_star", _KW, default=FSTAR, annotation=float))
+        ps.append(inspect.Parameter("f_star", _KW, default=FSTAR, annotation=float | None))
     if perturbation != "none":
-        ps.append(inspect.Parameter("perturbation", _KW, default=PERT, annotation=Pert))
+        ps.append(inspect.Parameter("perturbation", _KW, default=PERT, annotation=Pert | None))
     if perturbation == "sized":
         ps += [
             inspect.Parameter(n, _KW, default=o, annotation=float | None)
@@ -293,7 +257,7 @@ def _machine_command(
 
 
 @_machine_command(si_app, "classify", v_load=True, perturbation="sized")
-def si_classify(machine: Machine, rtol: float = RTOL, as_json: bool = JSON_OUT) -> None:
+def si_classify(machine: Machine, rtol: float | None = RTOL, as_json: bool = JSON_OUT) -> None:
     """Stable or unstable, for a perturbation stated in SI; times in s, peak in m/s."""
     from rsfapp import adapter
     from rsfapp.requests import ClassifyRequest
@@ -311,12 +275,13 @@ def si_classify(machine: Machine, rtol: float = RTOL, as_json: bool = JSON_OUT) 
             f"return_time_s      {_g(si['return_time_s'])}",
             f"peak_slip_rate_m_s {_g(si['peak_slip_rate_m_s'])}  at t = {_g(si['peak_time_s'])} s",
             f"rel_accuracy       {d['rel_accuracy']:.2e}",
+            *echo_lines(d),
         ],
     )
 
 
 @_machine_command(si_app, "critical", v_load=True, perturbation="kind")
-def si_critical(machine: Machine, rtol: float = RTOL, as_json: bool = JSON_OUT) -> None:
+def si_critical(machine: Machine, rtol: float | None = RTOL, as_json: bool = JSON_OUT) -> None:
     """Critical perturbation in SI: the slip rate [m/s] (and stress jump [Pa]) of the
     critical velocity jump, or the critical load-point velocity [m/s]."""
     from rsfapp import adapter
@@ -332,18 +297,17 @@ def si_critical(machine: Machine, rtol: float = RTOL, as_json: bool = JSON_OUT) 
     ]
     lines += [f"{k:<17} {_g(v)}" for k, v in jump.items()]
     lines.append(f"rel_accuracy      {d['rel_accuracy']:.2e}")
+    lines += echo_lines(d)
     _emit(d, as_json, lines)
 
 
 @_machine_command(si_app, "trajectory", v_load=True, perturbation="sized")
 def si_trajectory(
     machine: Machine,
-    rtol: float = RTOL,
-    n_points: int = typer.Option(200, "--n-points", help="Samples, [2, 10000]."),
-    sampling: Sampling = typer.Option(
-        Sampling.seconds, "--sampling", help="Evenly in tau, T or seconds."
-    ),
-    t_end_s: float | None = typer.Option(None, "--t-end-s", help="Run to this time [s]."),
+    rtol: float | None = RTOL,
+    n_points: int | None = model_option(TrajectoryRequest, "n_points", "--n-points"),
+    sampling: Sampling | None = model_option(TrajectoryRequest, "sampling"),
+    t_end_s: float | None = model_option(TrajectoryRequest, "t_end_s", "--t-end-s"),
     out: Path | None = OUT,
     as_json: bool = JSON_OUT,
 ) -> None:
@@ -352,9 +316,7 @@ def si_trajectory(
     from rsfapp.requests import TrajectoryRequest
 
     body = machine.si_body(rtol)
-    body.update(n_points=n_points, sampling=sampling.value)
-    if t_end_s is not None:
-        body["t_end_s"] = t_end_s
+    body.update(given(n_points=n_points, sampling=sampling, t_end_s=t_end_s))
     d = _run(TrajectoryRequest, body, lambda r: adapter.trajectory(r, max_steps=None))
 
     def plot(r: dict[str, Any]) -> bytes:
@@ -366,6 +328,7 @@ def si_trajectory(
     tr = d["trajectory"]
     lines = [
         f"outcome {d['outcome']}; sampling: {d['sampling']['description']}",
+        *echo_lines(d),
         "t_s V_m_s tau_change_Pa",
     ]
     lines += [
@@ -388,6 +351,7 @@ def _protocol_out(d: dict[str, Any], out: Path | None, as_json: bool) -> None:
     fc = d.get("friction_changes", {})
     prot = d.get("protocol", d)
     lines = [f"{d['kind']}: {'UNSTABLE (runaway)' if prot.get('unstable') else 'stable'}"]
+    lines += echo_lines(prot)
     lines += [f"{k:<28} {_g(v)}" for k, v in fc.items() if k != "segments"]
     for s in fc.get("segments", []):
         lines.append(
@@ -401,13 +365,13 @@ def _protocol_out(d: dict[str, Any], out: Path | None, as_json: bool) -> None:
 @_machine_command(protocol_app, "velocity-step", f_star=True)
 def protocol_velocity_step(
     machine: Machine,
-    v1: float = typer.Option(..., "--v1-m-s", help="Velocity before [m/s]."),
-    v2: float = typer.Option(..., "--v2-m-s", help="Velocity after [m/s]."),
-    slip_total_m: float | None = typer.Option(
-        None, "--slip-total-m", help="Displacement after the step [m] (default 10 Dc)."
+    v1: float = model_option(VelocityStepRequest, "V1_m_s", "--v1-m-s", required=True),
+    v2: float = model_option(VelocityStepRequest, "V2_m_s", "--v2-m-s", required=True),
+    slip_total_m: float | None = model_option(
+        VelocityStepRequest, "slip_total_m", "--slip-total-m"
     ),
-    n_points: int = typer.Option(400, "--n-points", help="Samples, [2, 10000]."),
-    rtol: float = RTOL,
+    n_points: int | None = model_option(VelocityStepRequest, "n_points", "--n-points"),
+    rtol: float | None = RTOL,
     out: Path | None = OUT,
     as_json: bool = JSON_OUT,
 ) -> None:
@@ -417,21 +381,23 @@ def protocol_velocity_step(
     from rsfapp.requests.protocols import VelocityStepRequest
 
     body = machine.protocol_body(rtol)
-    body.update(V1_m_s=v1, V2_m_s=v2, n_points=n_points)
-    if slip_total_m is not None:
-        body["slip_total_m"] = slip_total_m
+    body.update(V1_m_s=v1, V2_m_s=v2, **given(n_points=n_points, slip_total_m=slip_total_m))
     _protocol_out(_run(VelocityStepRequest, body, adapter.protocol_velocity_step), out, as_json)
 
 
 @_machine_command(protocol_app, "slide-hold-slide", f_star=True)
 def protocol_shs(
     machine: Machine,
-    v: float = typer.Option(..., "--v-m-s", help="Sliding velocity [m/s]."),
-    hold_s: float = typer.Option(..., "--hold-s", help="Hold time [s]."),
-    before_s: float = typer.Option(..., "--slide-before-s", help="Slide before [s]."),
-    after_s: float = typer.Option(..., "--slide-after-s", help="Reslide [s]."),
-    n_points: int = NPPS,
-    rtol: float = RTOL,
+    v: float = model_option(SlideHoldSlideRequest, "V_m_s", "--v-m-s", required=True),
+    hold_s: float = model_option(SlideHoldSlideRequest, "hold_s", "--hold-s", required=True),
+    before_s: float = model_option(
+        SlideHoldSlideRequest, "slide_before_s", "--slide-before-s", required=True
+    ),
+    after_s: float = model_option(
+        SlideHoldSlideRequest, "slide_after_s", "--slide-after-s", required=True
+    ),
+    n_points: int | None = NPPS,
+    rtol: float | None = RTOL,
     out: Path | None = OUT,
     as_json: bool = JSON_OUT,
 ) -> None:
@@ -443,9 +409,7 @@ def protocol_shs(
     body.update(
         V_m_s=v,
         hold_s=hold_s,
-        slide_before_s=before_s,
-        slide_after_s=after_s,
-        n_points_per_segment=n_points,
+        **given(slide_before_s=before_s, slide_after_s=after_s, n_points_per_segment=n_points),
     )
     _protocol_out(
         _run(SlideHoldSlideRequest, body, adapter.protocol_slide_hold_slide), out, as_json
@@ -458,8 +422,8 @@ def protocol_history(
     segment: list[str] = typer.Option(
         ..., "--segment", help="DURATION_S:V_LOAD_M_S, repeated in order (V 0 = hold)."
     ),
-    n_points: int = NPPS,
-    rtol: float = RTOL,
+    n_points: int | None = NPPS,
+    rtol: float | None = RTOL,
     out: Path | None = OUT,
     as_json: bool = JSON_OUT,
 ) -> None:
@@ -477,7 +441,7 @@ def protocol_history(
                 f"segment[{i}]: {s!r} is invalid (valid range: DURATION_S:V_LOAD_M_S, e.g. 10:1e-6)"
             )
     body = machine.protocol_body(rtol)
-    body.update(segments=segs, n_points_per_segment=n_points)
+    body.update(segments=segs, **given(n_points_per_segment=n_points))
     _protocol_out(_run(LoadHistoryRequest, body, adapter.protocol_load_history), out, as_json)
 
 

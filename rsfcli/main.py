@@ -16,8 +16,18 @@ from typing import Any
 
 import typer
 
-from rsfcore import limits
+from rsfapp.requests import (
+    ClassifyRequest,
+    CriticalRequest,
+    StiffnessPhysical,
+    StiffnessRequest,
+    SweepFixed,
+    SweepRequest,
+    TrajectoryRequest,
+)
 from rsfcore.limits import Limit
+
+from .common import echo_lines, emit, fail, given, model_option, run
 
 app = typer.Typer(
     rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
@@ -37,7 +47,8 @@ class PerturbationKind(StrEnum):
 
 class Sampling(StrEnum):
     tau = "tau"
-    time = "time"
+    T = "T"
+    time = "time"  # the older name of T
 
 
 class Case(StrEnum):
@@ -53,124 +64,126 @@ def _opt(limit: Limit, flag: str, extra: str = "") -> Any:
     return typer.Option(limit.default, flag, help=f"{limit.help()}{extra}")
 
 
-BA = _opt(limits.BA, "--ba")
-KAPPA = _opt(limits.KAPPA, "--kappa")
-EPS = _opt(limits.EPS, "--eps")
-VO = _opt(limits.VO, "--vo")
-PERT = typer.Option(
-    PerturbationKind.velocity_jump, "--perturbation", help="Kind of perturbation from steady state."
-)
-SIZE = typer.Option(
-    limits.VELOCITY_JUMP_SIZE.default,
-    "--size",
-    help="Perturbation size: velocity jump d (phi and psi jump by d), valid "
-    f"range {limits.VELOCITY_JUMP_SIZE.text}; or load-point jump dv "
-    f"(v_o -> v_o (1 + dv)), valid range {limits.LOAD_POINT_JUMP_SIZE.text}.",
-)
-RTOL = _opt(limits.RTOL, "--rtol")
+# The options of the single queries are the request model's fields (rsfapp.requests):
+# not given = the model's default, the same as over HTTP and from the Python client.
+BA = model_option(ClassifyRequest, "ba")
+KAPPA = model_option(ClassifyRequest, "kappa")
+EPS = model_option(ClassifyRequest, "eps")
+VO = model_option(ClassifyRequest, "vo")
+PERT = model_option(ClassifyRequest, "perturbation")
+SIZE = model_option(ClassifyRequest, "size")
+LOG_SIZE = model_option(ClassifyRequest, "log_size")
+RTOL = model_option(ClassifyRequest, "rtol")
 JSON = typer.Option(False, "--json", help="Print one JSON object.")
 
 
 def _fail(exc: Exception) -> None:
-    typer.echo(f"error: {exc}", err=True)
-    raise typer.Exit(code=2)
+    fail(str(exc))
 
 
 def _emit(obj: dict[str, Any], as_json: bool, lines: list[str]) -> None:
-    if as_json:
-        typer.echo(json.dumps(obj, allow_nan=False))
-    else:
-        typer.echo("\n".join(lines))
+    emit(obj, as_json, lines)
 
 
-def _params(ba: float, kappa: float, eps: float, vo: float) -> Any:
-    from rsfcore import Params
-
-    return Params(ba=ba, kappa=kappa, eps=eps, vo=vo)
+def _dimless(
+    ba: float | None, kappa: float | None, eps: float | None, vo: float | None
+) -> dict[str, Any]:
+    return given(ba=ba, kappa=kappa, eps=eps, vo=vo)
 
 
 @app.command()
 def classify(
-    ba: float = BA,
-    kappa: float = KAPPA,
-    eps: float = EPS,
-    vo: float = VO,
-    perturbation: PerturbationKind = PERT,
-    size: float = SIZE,
-    rtol: float = RTOL,
+    ba: float | None = BA,
+    kappa: float | None = KAPPA,
+    eps: float | None = EPS,
+    vo: float | None = VO,
+    perturbation: PerturbationKind | None = PERT,
+    size: float | None = SIZE,
+    log_size: float | None = LOG_SIZE,
+    rtol: float | None = RTOL,
     as_json: bool = JSON,
 ) -> None:
     """Certified outcome (stable/unstable) of one perturbation, with blow-up or return time and the true peak."""
-    from rsfcore import ParameterError, UndecidedError
-    from rsfcore import classify as _classify
+    from rsfapp import adapter
 
-    try:
-        r = _classify(_params(ba, kappa, eps, vo), perturbation.value, size, rtol=rtol)
-    except (ParameterError, UndecidedError) as e:
-        _fail(e)
-    d = r.to_dict()
-    d.pop("trajectory", None)
+    body = _dimless(ba, kappa, eps, vo)
+    body.update(given(perturbation=perturbation, size=size, log_size=log_size, rtol=rtol))
+    d = run(ClassifyRequest, body, lambda r: adapter.classify(r, max_steps=None))
     _emit(
         d,
         as_json,
         [
-            f"outcome      {r.outcome}  (certificate: {r.certificate})",
-            f"blowup_time  {r.blowup_time}",
-            f"return_time  {r.return_time}",
-            f"peak_phi     {r.peak_phi}  at T = {r.peak_time}",
-            f"rel_accuracy {r.rel_accuracy:.2e}   steps {r.n_steps}",
+            f"outcome       {d['outcome']}  (certificate: {d['certificate']})",
+            f"blowup_time   {d['blowup_time']}",
+            f"return_time   {d['return_time']}",
+            f"peak_phi      {d['peak_phi']}  at T = {d['peak_time']}",
+            f"rel_accuracy  {d['rel_accuracy']:.2e}   steps {d['n_steps']}",
+            *echo_lines(d),
         ],
     )
 
 
 @app.command()
 def trajectory(
-    ba: float = BA,
-    kappa: float = KAPPA,
-    eps: float = EPS,
-    vo: float = VO,
-    perturbation: PerturbationKind = PERT,
-    size: float = SIZE,
-    rtol: float = RTOL,
-    n_points: int = typer.Option(
-        limits.N_POINTS.default, "--n-points", help=limits.N_POINTS.help()
+    ba: float | None = BA,
+    kappa: float | None = KAPPA,
+    eps: float | None = EPS,
+    vo: float | None = VO,
+    perturbation: PerturbationKind | None = PERT,
+    size: float | None = SIZE,
+    log_size: float | None = LOG_SIZE,
+    rtol: float | None = RTOL,
+    n_points: int | None = model_option(TrajectoryRequest, "n_points", "--n-points"),
+    t_end: float | None = model_option(
+        TrajectoryRequest,
+        "t_end",
+        "--t-end",
+        help="Run to this dimensionless time T (default: to the decision).",
     ),
-    t_end: float | None = typer.Option(
-        None, "--t-end", help="Run to this dimensionless time T (default: to the decision)."
-    ),
-    sampling: Sampling = typer.Option(
-        Sampling.tau,
-        "--sampling",
-        help="Samples even in the engine's hybrid time (tau) or in T (time).",
+    sampling: Sampling | None = model_option(
+        TrajectoryRequest,
+        "sampling",
+        help="Samples even in the engine's hybrid time (tau) or in T ('time' is T too). "
+        "Default: tau.",
     ),
     out: Path | None = typer.Option(None, "--out", help="Also write the samples to .csv or .json."),
     as_json: bool = JSON,
 ) -> None:
-    """A trajectory downsampled to --n-points, plus everything `classify` reports."""
-    from rsfcore import ParameterError, UndecidedError, simulate
+    """A trajectory downsampled to --n_points, plus everything `classify` reports."""
+    from rsfapp import adapter
 
-    try:
-        r = simulate(
-            _params(ba, kappa, eps, vo),
-            perturbation.value,
-            size,
+    if out is not None and out.suffix not in (".csv", ".json"):
+        _fail(
+            ValueError(
+                f"out={str(out)!r} is invalid: valid range is a path ending in .csv or .json"
+            )
+        )
+    body = _dimless(ba, kappa, eps, vo)
+    body.update(
+        given(
+            perturbation=perturbation,
+            size=size,
+            log_size=log_size,
             rtol=rtol,
             n_points=n_points,
             t_end=t_end,
-            sampling=sampling.value,
+            sampling=None if sampling is None else ("T" if sampling.value == "time" else sampling),
         )
-    except (ParameterError, UndecidedError) as e:
-        _fail(e)
-    d = r.to_dict()
+    )
+    d = run(TrajectoryRequest, body, lambda r: adapter.trajectory(r, max_steps=None))
+    tr = d["trajectory"]
     if out is not None:
-        _write_table(out, d["trajectory"])
-    t = r.trajectory
-    assert t is not None
+        _write_table(out, tr)
     lines = [
-        f"outcome {r.outcome} ({r.certificate}); peak_phi {r.peak_phi} at T = {r.peak_time}",
+        f"outcome {d['outcome']} ({d['certificate']}); peak_phi {d['peak_phi']} at T = "
+        f"{d['peak_time']}",
+        *echo_lines(d),
+        f"sampling      {d['sampling']['kind']}: {d['sampling']['description']}",
         "T phi psi",
     ]
-    lines += [f"{a:.10g} {b:.10g} {c:.10g}" for a, b, c in zip(t.T, t.phi, t.psi, strict=True)]
+    lines += [
+        f"{a:.10g} {b:.10g} {c:.10g}" for a, b, c in zip(tr["T"], tr["phi"], tr["psi"], strict=True)
+    ]
     _emit(d, as_json, lines)
 
 
@@ -193,31 +206,30 @@ def _write_table(path: Path, columns: dict[str, list[float]]) -> None:
 
 @app.command()
 def critical(
-    ba: float = BA,
-    kappa: float = KAPPA,
-    eps: float = EPS,
-    vo: float = VO,
-    perturbation: PerturbationKind = PERT,
-    rtol: float = RTOL,
+    ba: float | None = BA,
+    kappa: float | None = KAPPA,
+    eps: float | None = EPS,
+    vo: float | None = VO,
+    perturbation: PerturbationKind | None = PERT,
+    rtol: float | None = RTOL,
     as_json: bool = JSON,
 ) -> None:
     """Critical perturbation size: kind zero / finite (with value) / infinite, method and accuracy."""
-    from rsfcore import ParameterError
-    from rsfcore.critical import critical_perturbation
+    from rsfapp import adapter
 
-    try:
-        r = critical_perturbation(_params(ba, kappa, eps, vo), perturbation.value, rtol=rtol)
-    except ParameterError as e:
-        _fail(e)
-    d = r.to_dict()
+    body = _dimless(ba, kappa, eps, vo)
+    body.update(given(perturbation=perturbation, rtol=rtol))
+    d = run(CriticalRequest, body, adapter.critical)
     _emit(
         d,
         as_json,
         [
             f"kind          {d['kind']}",
             f"critical_size {d['critical_size']}",
+            f"log_critical_size {d['log_critical_size']}",
             f"rel_accuracy  {d['rel_accuracy']:.2e}",
             f"method        {d['method']}",
+            *echo_lines(d),
         ],
     )
 
@@ -230,15 +242,16 @@ def diagram(
     y: tuple[str, float, float, int] = typer.Option(
         ..., "--y", help="NAME START STOP N for the second axis."
     ),
-    ba: float = BA,
-    kappa: float = KAPPA,
-    eps: float = EPS,
-    vo: float = VO,
-    perturbation: PerturbationKind = PERT,
-    size: float | None = typer.Option(
-        None, "--size", help="If given, also classify this perturbation size at every point."
+    ba: float | None = model_option(SweepFixed, "ba"),
+    kappa: float | None = model_option(SweepFixed, "kappa"),
+    kappa_ratio: float | None = model_option(SweepFixed, "kappa_ratio"),
+    eps: float | None = model_option(SweepFixed, "eps"),
+    vo: float | None = model_option(SweepFixed, "vo"),
+    perturbation: PerturbationKind | None = model_option(SweepRequest, "perturbation"),
+    size: float | None = model_option(
+        SweepFixed, "size", help="If given, also classify this perturbation size at every point."
     ),
-    rtol: float = RTOL,
+    rtol: float | None = model_option(SweepRequest, "rtol"),
     out: Path = typer.Option(
         ...,
         "--out",
@@ -246,90 +259,60 @@ def diagram(
     ),
     as_json: bool = JSON,
 ) -> None:
-    """Stability diagram on a 2-D grid of two of kappa_ratio, eps, ba, size (other parameters as in `critical`)."""
-    import numpy as np
+    """Stability diagram on a 2-D grid of two of kappa_ratio, eps, ba, size: the sweep
+    request of POST /v1/sweeps (x/y form, same defaults), computed in this process."""
+    from rsfapp.adapter import sweeps
 
-    from rsfcore import ParameterError
-    from rsfcore.diagram import stability_diagram
-
-    try:
-        for label, (_, _, _, n) in (("x", x), ("y", y)):
-            if not 1 <= n <= 2000:
-                raise ParameterError(label, n, "N in [1, 2000]")
-        if out.suffix not in (".npz", ".csv", ".json"):
-            raise ParameterError("out", str(out), "a path ending in .npz, .csv or .json")
-        p = _params(ba, kappa, eps, vo)
-        res = stability_diagram(
-            x[0],
-            np.linspace(x[1], x[2], x[3]),
-            y[0],
-            np.linspace(y[1], y[2], y[3]),
-            ba=p.ba,
-            kappa_ratio=p.kappa_ratio,
-            eps=p.eps,
-            vo=p.vo,
-            perturbation=perturbation.value,
-            size=size,
-            rtol=rtol,
-        )
-    except ParameterError as e:
-        _fail(e)
-    res.save(out)
-    cs = np.asarray(res.critical_size)
-    summary = {
-        "out": str(out),
-        "shape": list(cs.shape),
-        "n_finite": int(np.isfinite(cs).sum() - (cs == 0).sum()),
-        "n_zero": int((cs == 0).sum()),
-        "n_infinite": int(np.isinf(cs).sum()),
-        "n_on_boundary": int(np.asarray(res.on_boundary).sum()),
-        "max_rel_accuracy": float(np.max(np.asarray(res.rel_accuracy, dtype=float), initial=0.0)),
+    if out.suffix not in (".npz", ".csv", ".json"):
+        fail(f"out={str(out)!r} is invalid: valid range is a path ending in .npz, .csv or .json")
+    body: dict[str, Any] = {
+        "x": {"name": x[0], "start": x[1], "stop": x[2], "n": x[3]},
+        "y": {"name": y[0], "start": y[1], "stop": y[2], "n": y[3]},
+        "fixed": given(ba=ba, kappa=kappa, kappa_ratio=kappa_ratio, eps=eps, vo=vo, size=size),
+        **given(perturbation=perturbation, rtol=rtol),
     }
-    if getattr(res, "outcome", None) is not None:
-        oc = np.asarray(res.outcome)
-        summary["n_unstable"] = (
-            int((oc == "unstable").sum()) if oc.dtype.kind in "US" else int(oc.sum())
-        )
-    _emit(summary, as_json, [f"{k} {v}" for k, v in summary.items()])
+    req_echo: dict[str, Any] = {}
+
+    def compute(req: SweepRequest) -> dict[str, Any]:
+        res = sweeps.diagram(req)
+        res.save(out)
+        req_echo.update(req.model_dump(exclude_none=True, exclude={"chunk_points"}))
+        return sweeps.diagram_summary(res)
+
+    summary = {"out": str(out), **run(SweepRequest, body, compute), "request": req_echo}
+    lines = [f"{k} {v}" for k, v in summary.items() if k != "request"]
+    fixed = req_echo.get("fixed", {})
+    lines.append("fixed         " + "  ".join(f"{k} {v}" for k, v in fixed.items()))
+    lines.append(
+        f"used          perturbation {req_echo.get('perturbation')}  rtol {req_echo.get('rtol')}"
+    )
+    _emit(summary, as_json, lines)
 
 
 @app.command()
 def stiffness(
     case: Case = typer.Option(..., "--case", help="Continuum configuration of `tab: table` (A-E)."),
-    mode: int = typer.Option(0, "--mode", help="Eigenmode index (0 = smallest; B, D, E only)."),
-    mu: float | None = typer.Option(None, "--mu", help="Shear modulus mu [Pa] (> 0)."),
-    nu: float = typer.Option(0.25, "--nu", help="Poisson's ratio, [0, 0.5)."),
-    slip_mode: str = typer.Option(
-        "II", "--slip-mode", help="Mode of slip: II (in-plane) or III (anti-plane)."
-    ),
-    sigma: float | None = typer.Option(None, "--sigma", help="Normal stress [Pa] (> 0)."),
-    a: float | None = typer.Option(None, "--a", help="Direct-effect coefficient a (> 0)."),
-    b: float | None = typer.Option(None, "--b", help="Evolution-effect coefficient b (> a)."),
-    dc: float | None = typer.Option(
-        None, "--dc", help="Characteristic slip distance Dc [m] (> 0)."
-    ),
-    h: float | None = typer.Option(
-        None, "--h", help="Depth of the interface below the free surface [m] (cases C, D)."
-    ),
+    mode: int | None = model_option(StiffnessRequest, "mode"),
+    mu: float | None = model_option(StiffnessPhysical, "mu"),
+    nu: float | None = model_option(StiffnessPhysical, "nu"),
+    slip_mode: str | None = model_option(StiffnessPhysical, "mode_of_slip", "--slip-mode"),
+    sigma: float | None = model_option(StiffnessPhysical, "sigma_Pa", "--sigma"),
+    a: float | None = model_option(StiffnessPhysical, "a"),
+    b: float | None = model_option(StiffnessPhysical, "b"),
+    dc: float | None = model_option(StiffnessPhysical, "Dc_m", "--dc"),
+    h: float | None = model_option(StiffnessPhysical, "h"),
     as_json: bool = JSON,
 ) -> None:
-    """Continuum equivalent stiffness k/k_* (cases A-E) and, with physical parameters, the critical dimension."""
-    from rsfcore import ParameterError
-    from rsfcore.stiffness import stiffness_summary
+    """Continuum equivalent stiffness k/k_* (cases A-E) and, with physical parameters
+    (--mu, --sigma_Pa, --a, --b, --Dc_m), the critical dimension."""
+    from rsfapp import adapter
 
-    phys = {
-        k: v
-        for k, v in dict(
-            mu=mu, nu=nu, mode_of_slip=slip_mode, sigma=sigma, a=a, b=b, Dc=dc, h=h
-        ).items()
-        if v is not None
-    }
-    if mu is None or sigma is None or a is None or b is None or dc is None:
-        phys = {}
-    try:
-        d = stiffness_summary(case.value, mode=mode, **phys)
-    except (ParameterError, ValueError) as e:
-        _fail(e)
+    body: dict[str, Any] = {"case": case.value, **given(mode=mode)}
+    if None not in (mu, sigma, a, b, dc):
+        body["physical"] = given(
+            mu=mu, nu=nu, mode_of_slip=slip_mode, sigma_Pa=sigma, a=a, b=b, Dc_m=dc, h=h
+        )
+    d = run(StiffnessRequest, body, adapter.stiffness)
     _emit(d, as_json, [f"{k} {v}" for k, v in d.items()])
 
 

@@ -334,13 +334,17 @@ PSI_START = Limit(
 
 # --- physical parameters (rsfcore.PhysicalParams); the dimensionless image is checked too ---
 A = Limit("a", 0.0, 1.0, lo_open=True, description="Direct-effect coefficient a.")
-DC = Limit("Dc", 0.0, None, lo_open=True, unit="m", description="Characteristic slip distance Dc.")
-SIGMA = Limit("sigma", 0.0, None, lo_open=True, unit="Pa", description="Effective normal stress.")
-K = Limit("k", 0.0, None, unit="Pa/m", description="Spring stiffness per unit area.")
-V_STAR = Limit(
-    "V_star", 0.0, None, lo_open=True, unit="m/s", description="Reference slip rate V_*."
+DC = Limit(
+    "Dc_m", 0.0, None, lo_open=True, unit="m", description="Characteristic slip distance Dc."
 )
-VO_SI = Limit("Vo", 0.0, None, unit="m/s", description="Load-point velocity V_o.")
+SIGMA = Limit(
+    "sigma_Pa", 0.0, None, lo_open=True, unit="Pa", description="Effective normal stress."
+)
+K = Limit("k_Pa_per_m", 0.0, None, unit="Pa/m", description="Spring stiffness per unit area.")
+V_STAR = Limit(
+    "V_star_m_s", 0.0, None, lo_open=True, unit="m/s", description="Reference slip rate V_*."
+)
+VO_SI = Limit("V_load_m_s", 0.0, None, unit="m/s", description="Load-point velocity V_o.")
 F_STAR = Limit("f_star", None, None, default=0.6, description="Reference friction coefficient f_*.")
 
 # --- a spring-slider in SI as the request models accept it ------------------------------

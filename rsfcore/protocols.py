@@ -219,7 +219,7 @@ class ProtocolResult:
                 "b": p.b,
                 "Dc_m": p.Dc,
                 "sigma_Pa": p.sigma,
-                "k_Pa_m": p.k,
+                "k_Pa_per_m": p.k,
                 "V_star_m_s": p.V_star,
                 "eps": p.eps,
                 "f_star": p.f_star,

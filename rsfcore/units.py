@@ -54,6 +54,9 @@ __all__ = [
     "critical_si",
     "classify_si",
     "kappa_from_lab_stiffness",
+    "SI_SIZE_FIELDS",
+    "SI_SIZE_FOR_KIND",
+    "size_from_si",
     "lab_stiffness_from_kappa",
     "lab_stiffness_to_Pa_per_m",
 ]
@@ -295,11 +298,11 @@ class PhysicalInputs:
         return PhysicalParams(
             a=self.a,
             b=self.b,
-            Dc=self.Dc_m,
-            sigma=self.sigma_Pa,
-            k=self.k_Pa_per_m,
-            V_star=self.V_star_m_s,
-            Vo=self.V_load,
+            Dc_m=self.Dc_m,
+            sigma_Pa=self.sigma_Pa,
+            k_Pa_per_m=self.k_Pa_per_m,
+            V_star_m_s=self.V_star_m_s,
+            V_load_m_s=self.V_load,
             eps=eps,
             f_star=f_star,
         )
@@ -440,6 +443,36 @@ def load_point_jump_size(
         lo_open=True,
     )
     return V / phys.V_load - 1.0
+
+
+#: The names a perturbation size may be stated under in SI (instead of the dimensionless
+#: size), in the documented order: the one list every door reads (request models, sweeps).
+SI_SIZE_FIELDS: tuple[str, ...] = ("factor", "new_slip_rate_m_s", "new_load_point_velocity_m_s")
+#: Which of them each perturbation kind reads (the other is refused naming it).
+SI_SIZE_FOR_KIND: dict[str, tuple[str, ...]] = {
+    "velocity-jump": ("factor", "new_slip_rate_m_s"),
+    "load-point-jump": ("factor", "new_load_point_velocity_m_s"),
+}
+_KIND_WORDS = {"velocity-jump": "velocity jump", "load-point-jump": "load-point jump"}
+
+
+def size_from_si(phys: PhysicalInputs, perturbation: str, name: str, value: float) -> float:
+    """The dimensionless size of a perturbation stated in SI as ``name`` = ``value``
+    (``factor``, ``new_slip_rate_m_s`` or ``new_load_point_velocity_m_s``): the one place
+    that says which statement a kind reads and converts it (:func:`velocity_jump_size`,
+    :func:`load_point_jump_size`).  ParameterError names ``perturbation.<name>``."""
+    if perturbation not in SI_SIZE_FOR_KIND:
+        raise ParameterError("perturbation", perturbation, "one of " + ", ".join(SI_SIZE_FOR_KIND))
+    allowed = SI_SIZE_FOR_KIND[perturbation]
+    if name not in allowed:
+        raise ParameterError(
+            f"perturbation.{name}",
+            value,
+            f"not used by a {_KIND_WORDS[perturbation]} (give {' or '.join(allowed)})",
+        )
+    if perturbation == "velocity-jump":
+        return velocity_jump_size(phys, **{name: value})
+    return load_point_jump_size(phys, **{name: value})
 
 
 # ---------------------------------------------------------------------------------------
@@ -689,24 +722,26 @@ def classify_si(
     """
     from .trajectory import classify
 
-    if perturbation == "velocity-jump":
-        if new_load_point_velocity_m_s is not None:
-            raise ParameterError(
-                "perturbation.new_load_point_velocity_m_s",
-                new_load_point_velocity_m_s,
-                "not used by a velocity jump",
-            )
-        size = velocity_jump_size(phys, factor=factor, new_slip_rate_m_s=new_slip_rate_m_s)
-    elif perturbation == "load-point-jump":
-        if new_slip_rate_m_s is not None:
-            raise ParameterError(
-                "perturbation.new_slip_rate_m_s", new_slip_rate_m_s, "not used by a load-point jump"
-            )
-        size = load_point_jump_size(
-            phys, new_load_point_velocity_m_s=new_load_point_velocity_m_s, factor=factor
+    stated = {
+        k: v
+        for k, v in (
+            ("factor", factor),
+            ("new_slip_rate_m_s", new_slip_rate_m_s),
+            ("new_load_point_velocity_m_s", new_load_point_velocity_m_s),
         )
-    else:
-        raise ParameterError("perturbation", perturbation, "one of velocity-jump, load-point-jump")
+        if v is not None
+    }
+    if perturbation not in SI_SIZE_FOR_KIND:
+        raise ParameterError("perturbation", perturbation, "one of " + ", ".join(SI_SIZE_FOR_KIND))
+    wrong = [k for k in stated if k not in SI_SIZE_FOR_KIND[perturbation]]
+    if wrong:  # named before counting, as a request with the other kind's unit is told
+        size_from_si(phys, perturbation, wrong[0], stated[wrong[0]])
+    if len(stated) != 1:
+        raise ParameterError(
+            "perturbation", stated, "exactly one of " + ", ".join(SI_SIZE_FOR_KIND[perturbation])
+        )
+    ((name, value),) = stated.items()
+    size = size_from_si(phys, perturbation, name, value)
     r = classify(phys.to_params(eps), perturbation, size, rtol=rtol)
 
     def ts(T: float | None) -> float | None:

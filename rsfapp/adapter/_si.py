@@ -8,14 +8,14 @@ from typing import Any
 
 from rsfcore.params import ParameterError, Params
 from rsfcore.units import (
+    SI_SIZE_FIELDS,
     PhysicalInputs,
     load_point_jump_si,
-    load_point_jump_size,
+    size_from_si,
     velocity_jump_si,
-    velocity_jump_size,
 )
 
-from ..requests import SI_PERTURBATION_FIELDS, PhysicalSI
+from ..requests import PhysicalSI
 from ._common import dim_params, guard
 
 __all__ = [
@@ -52,27 +52,17 @@ def resolve_params(req: Any) -> tuple[Params, PhysicalInputs | None]:
 
 def resolve_size(req: Any, phys: PhysicalInputs | None) -> float:
     """The dimensionless perturbation size: ``size``, or the SI statement (``factor``,
-    ``new_slip_rate_m_s``, ``new_load_point_velocity_m_s``) converted by rsfcore.units."""
-    given = {f: getattr(req, f, None) for f in SI_PERTURBATION_FIELDS}
-    given = {f: v for f, v in given.items() if v is not None}
+    ``new_slip_rate_m_s``, ``new_load_point_velocity_m_s``) converted by
+    rsfcore.units.size_from_si (the one place of the SI size rules); ParameterError names
+    the request's field."""
+    given: dict[str, float] = {
+        f: float(v) for f in SI_SIZE_FIELDS if (v := getattr(req, f, None)) is not None
+    }
     if not given or phys is None:
         return float(req.size)
+    ((name, value),) = given.items()  # the request model allows one statement
     try:
-        if req.perturbation == "velocity-jump":
-            if "new_load_point_velocity_m_s" in given:
-                raise ParameterError(
-                    "new_load_point_velocity_m_s",
-                    given["new_load_point_velocity_m_s"],
-                    "not used by a velocity jump (give factor or new_slip_rate_m_s)",
-                )
-            return float(velocity_jump_size(phys, **given))
-        if "new_slip_rate_m_s" in given:
-            raise ParameterError(
-                "new_slip_rate_m_s",
-                given["new_slip_rate_m_s"],
-                "not used by a load-point jump (give factor or new_load_point_velocity_m_s)",
-            )
-        return float(load_point_jump_size(phys, **given))
+        return float(size_from_si(phys, req.perturbation, name, value))
     except ParameterError as exc:  # name the request's field, not units' dotted one
         field = exc.field.removeprefix("perturbation.")
         raise ParameterError(field, exc.value, exc.valid) from None

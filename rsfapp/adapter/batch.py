@@ -226,6 +226,7 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                     results[i] = item_error(i, getattr(exc, "field", None), str(exc))
                     continue
                 out = json_dict(r.to_dict())
+                out["rtol"] = rtol
             else:
                 # the layout of rsfcore.critical.CriticalResult.to_dict (tested equal to the
                 # single endpoint's answer item by item)
@@ -250,6 +251,7 @@ def critical_batch(items: list[dict[str, Any]]) -> dict[str, Any]:
                     "perturbation": name,
                     "params": pd,
                     "on_boundary": bool(onb_l[g]),
+                    "rtol": rtol,
                 }
             ph = physs.get(i)
             if ph is not None:

@@ -56,6 +56,7 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
         kw["log_size"] = req.log_size
     res = guard(_traj.classify, p, req.perturbation, size, start=start, rtol=req.rtol, **kw)
     out = json_dict(res.to_dict())
+    out["rtol"] = req.rtol  # every answer echoes the parameters it used
     if phys is not None:
         out["si"] = jsonsafe(outcome_si(phys, out, req.log_size))
     return out
@@ -86,9 +87,9 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
             PhysicalParams.from_dimensionless,
             p,
             a=s.a,
-            Dc=s.Dc,
-            sigma=s.sigma,
-            V_star=s.V_star,
+            Dc_m=s.Dc,
+            sigma_Pa=s.sigma,
+            V_star_m_s=s.V_star,
             f_star=s.f_star,
         )
     t_end = req.t_end
@@ -111,6 +112,7 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
         **kw,
     )
     out = json_dict(res.to_dict())
+    out["rtol"] = req.rtol  # every answer echoes the parameters it used
     out["sampling"] = {
         "kind": req.sampling,
         "n_points": req.n_points,
@@ -128,6 +130,7 @@ def critical(req: CriticalRequest) -> dict[str, Any]:
     p, phys = resolve_params(req)
     res = guard(_critical.critical_perturbation, p, req.perturbation, rtol=req.rtol)
     out = json_dict(res.to_dict())
+    out["rtol"] = req.rtol  # every answer echoes the parameters it used
     if phys is not None:
         out["si"] = jsonsafe(critical_si(phys, out))
     return out
@@ -151,7 +154,11 @@ def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
             u = guard(analytic.U_kcrit, phi, psi, req.ba, req.eps, req.vo)
         else:
             u = guard(analytic.U_vo0, phi, psi, req.ba, req.kappa, req.eps)
-    out.update(function=req.function, U=np.asarray(u, dtype=float))
+    out.update(
+        function=req.function,
+        params={"ba": req.ba, "kappa": req.kappa, "eps": req.eps, "vo": req.vo},
+        U=np.asarray(u, dtype=float),
+    )
     return json_dict(out)
 
 
@@ -193,10 +200,24 @@ def boundaries(req: BoundariesRequest) -> dict[str, Any]:
 
 def stiffness(req: StiffnessRequest) -> dict[str, Any]:
     """Eigenvalue k/k_* and, with physical parameters, the critical dimension [m]."""
-    phys = {} if req.physical is None else req.physical.model_dump()
-    if phys and phys.get("h") is None:
-        phys.pop("h")
-    return json_dict(guard(_stiff.stiffness_summary, req.case, req.mode, **phys))
+    phys: dict[str, Any] = {}
+    if req.physical is not None:
+        ph = req.physical
+        phys = {
+            "mu": ph.mu,
+            "nu": ph.nu,
+            "mode_of_slip": ph.mode_of_slip,
+            "sigma": ph.sigma_Pa,
+            "a": ph.a,
+            "b": ph.b,
+            "Dc": ph.Dc_m,
+        }
+        if ph.h is not None:
+            phys["h"] = ph.h
+    out = json_dict(guard(_stiff.stiffness_summary, req.case, req.mode, **phys))
+    if req.physical is not None:  # every answer echoes the parameters it used
+        out["physical"] = req.physical.model_dump()
+    return out
 
 
 def classify_points(req: ClassifyPointsRequest) -> dict[str, Any]:
@@ -205,5 +226,6 @@ def classify_points(req: ClassifyPointsRequest) -> dict[str, Any]:
     p = guard(Params, ba=req.ba, kappa=req.kappa, eps=req.eps, vo=req.vo)
     res = guard(_phase.classify_points, p, np.asarray(req.phi), np.asarray(req.psi), req.rtol)
     out = json_dict(res.to_dict())
+    out["rtol"] = req.rtol  # every answer echoes the parameters it used
     out["n_points"] = len(req.phi)
     return out

@@ -13,7 +13,9 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from ._base import RTOL, VALID_RTOL, F
+from rsfcore import limits
+
+from ._base import FL, F
 from ._base import Model as _Model
 from .single import PhysicalSI, field_error
 
@@ -36,20 +38,16 @@ class _Machine(_Model):
         "an object {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s}",
         "The spring-slider in SI units (V_load_m_s is not used: the protocol sets the load point).",
     )
-    eps: float = F(
-        1.0,
-        "[0, 1]",
-        "Evolution-law parameter: 0 = slip law, 1 = aging law (-).",
-        name="eps",
-        ge=0.0,
-        le=1.0,
-    )
+    eps: float = FL(limits.EPS)
     f_star: float = F(
-        0.6, "[-10, 10]", "Reference friction f_* at V_* (-).", name="f_star", ge=-10, le=10
+        limits.F_STAR.default,
+        "[-10, 10]",
+        "Reference friction f_* at V_* (-).",
+        name="f_star",
+        ge=-10,
+        le=10,
     )
-    rtol: float = F(
-        1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).", name="rtol", **RTOL
-    )
+    rtol: float = FL(limits.RTOL)
 
 
 class VelocityStepRequest(_Machine):

@@ -21,6 +21,7 @@ import math
 from typing import Annotated, Any, Literal
 
 from pydantic import (
+    AliasChoices,
     ConfigDict,
     Field,
     SerializerFunctionWrapHandler,
@@ -31,6 +32,7 @@ from pydantic import (
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from rsfcore import limits
+from rsfcore.units import SI_SIZE_FIELDS
 
 from ._base import FL, RTOL, SIZE_TEXT, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
@@ -155,12 +157,9 @@ class PhysicalSI(_Model):
     )
 
 
-#: The perturbation stated in SI (alternatives to ``size``; need ``physical``).
-SI_PERTURBATION_FIELDS: tuple[str, ...] = (
-    "factor",
-    "new_slip_rate_m_s",
-    "new_load_point_velocity_m_s",
-)
+#: The perturbation stated in SI (alternatives to ``size``; need ``physical``):
+#: rsfcore.units.SI_SIZE_FIELDS, the one list.
+SI_PERTURBATION_FIELDS: tuple[str, ...] = SI_SIZE_FIELDS
 _DIMLESS = ("ba", "kappa", "vo")
 
 
@@ -325,9 +324,7 @@ class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
         "Explicit start point; overrides perturbation and size.",
         name="start",
     )
-    rtol: float = F(
-        1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).", name="rtol", **RTOL
-    )
+    rtol: float = FL(limits.RTOL)
 
     @model_validator(mode="after")
     def _si_rules(self) -> ClassifyRequest:
@@ -357,7 +354,12 @@ class PhysicalScales(_Model):
     sigma: float = _si(limits.SI_SIGMA_PA, "Effective normal stress [Pa].", name="sigma")
     V_star: float = _si(limits.SI_V_STAR_M_S, "Reference slip rate V_* [m/s].", name="V_star")
     f_star: float = F(
-        0.6, "[-10, 10]", "Reference friction coefficient f_* (-).", name="f_star", ge=-10, le=10
+        limits.F_STAR.default,
+        "[-10, 10]",
+        "Reference friction coefficient f_* (-).",
+        name="f_star",
+        ge=-10,
+        le=10,
     )
 
 
@@ -394,7 +396,7 @@ class TrajectoryRequest(ClassifyRequest):
         name="sampling",
     )
     f_star: float = F(
-        0.6,
+        limits.F_STAR.default,
         "[-10, 10]",
         "Reference friction coefficient f_* for the SI friction column (with physical) (-).",
         name="f_star",
@@ -463,9 +465,7 @@ class CriticalRequest(_SIInput, _Dimless):
         "Kind of perturbation from steady state.",
         name="perturbation",
     )
-    rtol: float = F(
-        1e-10, VALID_RTOL, "Relative tolerance of the integrator (-).", name="rtol", **RTOL
-    )
+    rtol: float = FL(limits.RTOL)
 
     @model_validator(mode="after")
     def _si_rules(self) -> CriticalRequest:
@@ -511,10 +511,12 @@ class AnalyticRequest(_Model):
     function: Literal["kcrit", "vo0"] = F(
         "kcrit", "'kcrit' or 'vo0'", "Which closed form.", name="function"
     )
-    ba: float = F(2.0, "(1, 1e6]", "b/a (-).", name="ba", gt=1.0, le=1e6)
-    eps: float = F(0.0, "[0, 1]", "Evolution-law parameter (-).", name="eps", ge=0, le=1)
-    vo: float = F(1.0, "(0, 1e300]", "v_o (-), used by 'kcrit'.", name="vo", gt=0, le=1e300)
-    kappa: float = F(1.0, "[0, 1e6]", "kappa (-), used by 'vo0'.", name="kappa", ge=0, le=1e6)
+    ba: float = FL(limits.BA)
+    eps: float = FL(limits.EPS)
+    vo: float = F(
+        limits.VO.default, "(0, 1e300]", "v_o (-), used by 'kcrit'.", name="vo", gt=0, le=1e300
+    )
+    kappa: float = FL(limits.KAPPA, description="kappa (-), used by 'vo0'.")
     points: Annotated[list[Point], Field(max_length=10_000)] | None = F(
         None, "null or 1..10000 points", "Points (phi, psi); give points or grid.", name="points"
     )
@@ -536,9 +538,9 @@ class AnalyticRequest(_Model):
 class BoundariesRequest(_Model):
     """Stability boundaries at (ba, kappa, eps) and optionally the acceleration line."""
 
-    ba: float = F(2.0, "(1, 1e6]", "b/a (-).", name="ba", gt=1.0, le=1e6)
-    kappa: float = F(1.0, "[0, 1e6]", "kappa (-).", name="kappa", ge=0, le=1e6)
-    eps: float = F(0.0, "[0, 1]", "Evolution-law parameter (-).", name="eps", ge=0, le=1)
+    ba: float = FL(limits.BA)
+    kappa: float = FL(limits.KAPPA)
+    eps: float = FL(limits.EPS)
     phi: Annotated[list[Annotated[float, Field(ge=-1e3, le=1e3)]], Field(max_length=10_000)] = F(
         [],
         "0..10000 values in [-1e3, 1e3]",
@@ -583,14 +585,28 @@ class StiffnessPhysical(_Model):
     mode_of_slip: Literal["II", "III"] = F(
         "II", "'II' or 'III'", "In-plane (II) or anti-plane (III) slip.", name="mode_of_slip"
     )
-    sigma: float = F(
-        ..., "(0, 1e12] Pa", "Effective normal stress [Pa].", name="sigma", gt=0, le=1e12
+    sigma_Pa: float = F(
+        ...,
+        "(0, 1e12] Pa",
+        "Effective normal stress [Pa] (also accepted as 'sigma').",
+        name="sigma_Pa",
+        gt=0,
+        le=1e12,
+        validation_alias=AliasChoices("sigma_Pa", "sigma"),
     )
     a: float = F(..., "(0, 1]", "Direct-effect coefficient (-).", name="a", gt=0, le=1)
     b: float = F(
         ..., "(a, 1e6 a]", "Evolution-effect coefficient (-), b > a.", name="b", gt=0, le=1e6
     )
-    Dc: float = F(..., "(0, 1e3] m", "Characteristic slip distance [m].", name="Dc", gt=0, le=1e3)
+    Dc_m: float = F(
+        ...,
+        "(0, 1e3] m",
+        "Characteristic slip distance [m] (also accepted as 'Dc').",
+        name="Dc_m",
+        gt=0,
+        le=1e3,
+        validation_alias=AliasChoices("Dc_m", "Dc"),
+    )
     h: float | None = F(
         None,
         "null or (0, 1e7] m",
@@ -640,7 +656,7 @@ class ClassifyPointsRequest(_Dimless):
         name="psi",
     )
     rtol: float = F(
-        1e-10,
+        limits.RTOL.default,
         VALID_RTOL,
         "Relative tolerance of the fallback integrations (-).",
         name="rtol",

@@ -40,9 +40,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field, SerializerFunctionWrapHandler, model_serializer
 
-from rsfcore import limits
+from rsfcore import limits, units
 
-from ._base import FL, RTOL, VALID_RTOL, F, Perturbation
+from ._base import FL, F, Perturbation
 from ._base import Model as _Model
 from .single import PhysicalSI
 
@@ -71,7 +71,7 @@ AxisName = Literal[
 ]
 #: The perturbation size stated in SI (alternatives to ``size``; need ``fixed.physical``),
 #: fixed or swept; the names of the single queries (rsfapp.requests.single).
-SI_SIZE_FIELDS: tuple[str, ...] = ("factor", "new_slip_rate_m_s", "new_load_point_velocity_m_s")
+SI_SIZE_FIELDS: tuple[str, ...] = units.SI_SIZE_FIELDS  # the one list (rsfcore.units)
 #: Valid range of each swept parameter (lo, hi, text); checked per value and reported as
 #: e.g. ``axes[2].stop`` or ``points.eps[17]``.
 AXIS_RANGES: dict[str, tuple[float, float, str]] = {
@@ -285,7 +285,7 @@ class SweepRequest(_Model):
         "Kind of perturbation.",
         name="perturbation",
     )
-    rtol: float = F(1e-10, VALID_RTOL, "Relative tolerance (-).", name="rtol", **RTOL)
+    rtol: float = FL(limits.RTOL)
     chunk_points: int | None = F(
         None,
         "null or [1, 1000000]",

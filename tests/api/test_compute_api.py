@@ -230,7 +230,9 @@ def test_analytic_points_and_grid(c: TestClient) -> None:
     )
     g = r.json()
     assert r.status_code == 200 and g["shape"] == [3, 4] and len(g["U"]) == 3
-    assert g["U"][1][2] == pytest.approx(float(U_vo0(g["phi"][1], g["psi"][2], 2.0, 0.5, 0.0)))
+    # eps omitted: the one default of every door (rsfcore.limits.EPS, 0.25), echoed
+    assert g["params"] == {"ba": 2.0, "kappa": 0.5, "eps": 0.25, "vo": 1.0}
+    assert g["U"][1][2] == pytest.approx(float(U_vo0(g["phi"][1], g["psi"][2], 2.0, 0.5, 0.25)))
 
 
 def test_boundaries_get_and_post(c: TestClient) -> None:

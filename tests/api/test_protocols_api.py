@@ -10,7 +10,7 @@ import math
 import pytest
 from fastapi.testclient import TestClient
 
-from rsfcore import protocols
+from rsfcore import limits, protocols
 from rsfcore.units import PhysicalInputs
 
 pytestmark = pytest.mark.timeout(300)
@@ -25,7 +25,8 @@ PHYS = {
 }
 
 
-def _machine(eps: float = 1.0, f_star: float = 0.6):
+def _machine(eps: float = limits.EPS.default, f_star: float = limits.F_STAR.default):
+    """The machine of PHYS; eps and f_star default to the one default of every door."""
     return PhysicalInputs.from_dict(PHYS).to_physical_params(eps, f_star)
 
 

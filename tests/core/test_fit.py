@@ -143,7 +143,15 @@ def test_forward_model_equals_protocols_load_history() -> None:
     sigma = 1e7
     k = 800.0
     ph = PhysicalParams(
-        a=A, b=B, Dc=DC, sigma=sigma, k=k * sigma, V_star=1e-6, Vo=1e-6, eps=0.5, f_star=MU0
+        a=A,
+        b=B,
+        Dc_m=DC,
+        sigma_Pa=sigma,
+        k_Pa_per_m=k * sigma,
+        V_star_m_s=1e-6,
+        V_load_m_s=1e-6,
+        eps=0.5,
+        f_star=MU0,
     )
     res = load_history(
         ph, [(200.0, 1e-6), (30.0, 1e-5), (300.0, 1e-6)], n_points_per_segment=300, rtol=1e-11

@@ -112,7 +112,16 @@ def test_one_rtol_range_everywhere() -> None:
 
 
 def _phys() -> PhysicalParams:
-    return PhysicalParams(a=0.01, b=0.015, Dc=1e-5, sigma=1e7, k=5e9, V_star=1e-6, Vo=1e-6, eps=0.3)
+    return PhysicalParams(
+        a=0.01,
+        b=0.015,
+        Dc_m=1e-5,
+        sigma_Pa=1e7,
+        k_Pa_per_m=5e9,
+        V_star_m_s=1e-6,
+        V_load_m_s=1e-6,
+        eps=0.3,
+    )
 
 
 def test_sizes_and_starts_use_the_limits() -> None:

@@ -97,7 +97,15 @@ def nagata_run(cN: float, k: float, V1: float, V2: float, t_eval: np.ndarray):
 
 def intermediate_run(m: dict[str, float], k: float, V1: float, V2: float, duration: float):
     p = PhysicalParams(
-        a=m["a"], b=m["b"], Dc=m["Dc"], sigma=SIGMA, k=k, V_star=VS, Vo=V1, eps=m["eps"], f_star=FS
+        a=m["a"],
+        b=m["b"],
+        Dc_m=m["Dc"],
+        sigma_Pa=SIGMA,
+        k_Pa_per_m=k,
+        V_star_m_s=VS,
+        V_load_m_s=V1,
+        eps=m["eps"],
+        f_star=FS,
     )
     return load_history(
         p, [(duration, V2)], n_points_per_segment=300, rtol=1e-12, start=(V1, m["Dc"] / V1)

@@ -30,7 +30,15 @@ KC = B / A - 1.0  # dimensionless critical stiffness
 def phys(kappa: float, eps: float, **kw) -> PhysicalParams:
     """Physical parameters with dimensionless stiffness kappa = k Dc/(a sigma)."""
     return PhysicalParams(
-        a=A, b=B, Dc=DC, sigma=SIGMA, k=kappa * A * SIGMA / DC, V_star=VS, Vo=VS, eps=eps, **kw
+        a=A,
+        b=B,
+        Dc_m=DC,
+        sigma_Pa=SIGMA,
+        k_Pa_per_m=kappa * A * SIGMA / DC,
+        V_star_m_s=VS,
+        V_load_m_s=VS,
+        eps=eps,
+        **kw,
     )
 
 

@@ -169,7 +169,14 @@ def test_sampling_modes_and_t_end() -> None:
 
 def test_physical_units() -> None:
     ph = PhysicalParams(
-        a=0.01, b=0.02, Dc=1e-5, sigma=1e7, k=2 * 0.01 * 1e7 / 1e-5, V_star=1e-6, Vo=1e-6, eps=0.25
+        a=0.01,
+        b=0.02,
+        Dc_m=1e-5,
+        sigma_Pa=1e7,
+        k_Pa_per_m=2 * 0.01 * 1e7 / 1e-5,
+        V_star_m_s=1e-6,
+        V_load_m_s=1e-6,
+        eps=0.25,
     )
     p = ph.to_dimensionless()
     assert p.kappa == pytest.approx(2.0)

@@ -356,7 +356,16 @@ def test_extreme_answers_json_safe() -> None:
 
 
 def test_physical_params_interop() -> None:
-    pp = PhysicalParams(a=0.01, b=0.015, Dc=1e-5, sigma=1e7, k=5e9, V_star=1e-6, Vo=3e-6, eps=0.3)
+    pp = PhysicalParams(
+        a=0.01,
+        b=0.015,
+        Dc_m=1e-5,
+        sigma_Pa=1e7,
+        k_Pa_per_m=5e9,
+        V_star_m_s=1e-6,
+        V_load_m_s=3e-6,
+        eps=0.3,
+    )
     ph = PhysicalInputs.from_physical_params(pp)
     assert ph.to_params(0.3) == pp.to_dimensionless()
     assert ph.to_physical_params(0.3) == pp

@@ -157,3 +157,20 @@ def test_bad_input_exits_2_naming_the_field() -> None:
 def test_figure_list() -> None:
     out = rsf("figure", "--list").stdout
     assert "trajectories-kcrit" in out and "velocity-step" in out
+
+
+def test_dimensionless_commands_are_the_adapters_answers() -> None:
+    """`rsf classify|critical --json` print exactly rsfapp.adapter's answer to the request
+    model built from the options (the HTTP endpoint's answer, without cached/cache_key);
+    an option not given is the model's default (eps 0.25 at every door), and the text
+    output echoes every parameter used."""
+    from rsfapp import adapter
+    from rsfapp.requests import ClassifyRequest, CriticalRequest
+
+    d = json.loads(rsf("classify", "--size", "2.7", "--json").stdout)
+    assert d == adapter.classify(ClassifyRequest(size=2.7), max_steps=None)
+    assert d["params"] == {"ba": 2.0, "kappa": 2.0, "eps": 0.25, "vo": 1.0} and d["rtol"] == 1e-10
+    c = json.loads(rsf("critical", "--ba", "1.4", "--kappa", "4100", "--eps", "0", "--json").stdout)
+    assert c == adapter.critical(CriticalRequest(ba=1.4, kappa=4100, eps=0))
+    text = rsf("critical").stdout
+    assert "ba 2  kappa 2  eps 0.25  vo 1" in text and "rtol 1e-10" in text

@@ -26,6 +26,21 @@ MACHINE = [
     str(A),
     "--b",
     str(B),
+    "--Dc_m",
+    str(DC),
+    "--sigma_Pa",
+    str(SIGMA),
+    "--k_Pa_per_m",
+    str(K),
+    "--V_star_m_s",
+    str(VS),
+]
+#: The same machine with the older kebab-case options (still accepted).
+MACHINE_OLD = [
+    "--a",
+    str(A),
+    "--b",
+    str(B),
     "--dc-m",
     str(DC),
     "--sigma-pa",
@@ -136,6 +151,8 @@ def test_protocol_load_history_csv(tmp_path: Path) -> None:
         "5:1e-5",
         "--segment",
         "20:0",
+        "--eps",
+        "1",  # aging law: this machine stays stable through every segment
         "--n-points-per-segment",
         "20",
         "--out",
@@ -174,3 +191,19 @@ def test_fit_json(tmp_path: Path) -> None:
     assert d["law_comparison"]["best"] == "slip" and "series" not in d
     p = rsf("fit", str(tmp_path / "missing.csv"), check=False)
     assert p.returncode == 2 and "file" in p.stderr
+
+
+def test_si_defaults_and_old_option_names() -> None:
+    """`rsf si critical` without --eps uses the one eps default of every door (0.25, the
+    request model's: the same as POST /v1/critical without eps), says so in its text
+    output, and the older kebab-case options give the identical answer."""
+    from rsfapp import adapter
+    from rsfapp.requests import CriticalRequest
+
+    phys = {"a": A, "b": B, "Dc_m": DC, "sigma_Pa": SIGMA, "k_Pa_per_m": K, "V_star_m_s": VS}
+    ref = adapter.critical(CriticalRequest(physical=phys))
+    new = json.loads(rsf("si", "critical", *MACHINE, "--json").stdout)
+    old = json.loads(rsf("si", "critical", *MACHINE_OLD, "--json").stdout)
+    assert new == old == ref and ref["params"]["eps"] == 0.25 and ref["rtol"] == 1e-10
+    text = rsf("si", "critical", *MACHINE).stdout
+    assert "eps 0.25" in text and "rtol 1e-10" in text and "Dc_m 1e-05" in text
