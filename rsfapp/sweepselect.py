@@ -265,13 +265,17 @@ class Gathered(NamedTuple):
 class BlockReader:
     """Reads a sweep's stored results at any sorted flat indices, one block at a time.
 
-    The block index (chunk number and [i0, i1) of every stored block) is read once; a
+    The block index (chunk number and [i0, i1) of every stored block, or of those
+    overlapping ``span`` = [first, end) flat index) is read once; a
     block is decoded when first needed (only the variables asked for) and the last one
     is kept, so reading slabs in flat order decodes every block about once."""
 
-    def __init__(self, store: SweepStore, sweep_id: str) -> None:
+    def __init__(
+        self, store: SweepStore, sweep_id: str, span: tuple[int, int] | None = None
+    ) -> None:
         self.store, self.sweep_id = store, sweep_id
-        self.idx, self.i0, self.i1 = store.block_index(sweep_id)
+        lo, hi = span if span is not None else (0, None)
+        self.idx, self.i0, self.i1 = store.block_index(sweep_id, lo, hi)
         self._key: tuple[int, tuple[str, ...]] | None = None
         self._block: tuple[dict[str, NDArray[Any]], dict[int, str]] | None = None
 

@@ -79,6 +79,19 @@ class SweepPoints(Answer):
         return need("pandas").DataFrame(self.points)
 
 
+def _subset(
+    fmt: str, sel: str | None, isel: str | None, variables: str | list[str] | None
+) -> dict[str, str]:
+    params = {"format": fmt}
+    if sel:
+        params["sel"] = sel
+    if isel:
+        params["isel"] = isel
+    if variables:
+        params["variables"] = variables if isinstance(variables, str) else ",".join(variables)
+    return params
+
+
 class Sweep:
     """Handle of a submitted sweep.
 
@@ -164,24 +177,40 @@ class Sweep:
             yield from page.points
             offset = page.next_offset
 
-    def data(self, format: str = "netcdf") -> bytes:  # noqa: A002
-        """The whole result (GET .../data) as bytes: 'netcdf', 'csv' or 'json'."""
-        return self._http.request("GET", self._path("/data"), params={"format": format}).content
+    def data(
+        self,
+        format: str = "netcdf",  # noqa: A002
+        sel: str | None = None,
+        isel: str | None = None,
+        variables: str | list[str] | None = None,
+    ) -> bytes:
+        """The result (GET .../data) as bytes: 'netcdf', 'csv' or 'json'; a subset cut on
+        the server with ``sel`` (by value: 'eps:0.1:0.5,ba:2'), ``isel`` (by index:
+        'vo:3', 'point:0:1000') and ``variables`` ('critical_size,kind' or a list)."""
+        return self._http.request(
+            "GET", self._path("/data"), params=_subset(format, sel, isel, variables)
+        ).content
 
     def download(
         self,
         path: str | Path,
         format: str | None = None,  # noqa: A002
         progress: bool = False,
+        sel: str | None = None,
+        isel: str | None = None,
+        variables: str | list[str] | None = None,
     ) -> Path:
-        """Stream the result to ``path`` (format from the suffix: .nc, .csv, .json)."""
+        """Stream the result (or the subset ``sel``/``isel``/``variables``, as
+        :meth:`data`) to ``path`` (format from the suffix: .nc, .csv, .json)."""
         p = Path(path)
         suffixes = {v: k for k, v in DATA_FORMATS.items()}
         fmt = format or suffixes.get(p.suffix.lower(), "netcdf")
         bar = Progress(f"{self.id} -> {p.name}", unit="bytes") if progress else None
         try:
             with (
-                self._http.stream("GET", self._path("/data"), params={"format": fmt}) as r,
+                self._http.stream(
+                    "GET", self._path("/data"), params=_subset(fmt, sel, isel, variables)
+                ) as r,
                 open(p, "wb") as fh,
             ):
                 total = int(r.headers.get("content-length", 0)) or None
@@ -196,13 +225,43 @@ class Sweep:
                 bar.close()
         return p
 
-    def to_xarray(self) -> Any:
-        """The result as an ``xarray.Dataset`` read in memory (GET .../data?format=netcdf;
-        needs xarray and h5netcdf: the ``xarray`` extra): grid axes as named coordinates,
-        or a ``point`` dimension for scattered sweeps; variables critical_size, kind, outcome, rel_accuracy, failed,
-        method, outcome_uncertain (and the SI critical velocity of an SI sweep)."""
+    def to_xarray(
+        self,
+        lazy: bool = False,
+        sel: str | None = None,
+        isel: str | None = None,
+        variables: str | list[str] | None = None,
+    ) -> Any:
+        """The result as an ``xarray.Dataset``: grid axes as named coordinates, or a
+        ``point`` dimension for scattered sweeps; variables critical_size, kind, outcome,
+        rel_accuracy, failed, method, outcome_uncertain, computed (and the SI critical
+        velocity of an SI sweep), with CF attributes.  Missing points (a running sweep)
+        are NaN.
+
+        ``lazy=False`` (default): the NetCDF file (or the subset ``sel``/``isel``/
+        ``variables``, cut on the server) read into memory (needs xarray, h5netcdf).
+        ``lazy=True``: opened from the sweep's Zarr store over HTTP (GET .../zarr/...):
+        nothing but the metadata is read until a computation touches data, and then only
+        the chunks it touches, e.g. ``ds.critical_size.sel(ba=2.0).mean().compute()``
+        (needs xarray, zarr, fsspec, aiohttp: ``pip install 'rsf-stability[xarray]'``);
+        ``sel``/``isel``/``variables`` do not apply (index the Dataset instead)."""
         xr = need("xarray")
-        return xr.open_dataset(io.BytesIO(self.data("netcdf")), engine="h5netcdf").load()
+        if lazy:
+            need("zarr")
+            need("fsspec")
+            need("aiohttp")
+            headers = {
+                k: v for k, v in self._http.client.headers.items() if k.lower() == "authorization"
+            }
+            return xr.open_zarr(
+                f"{self._http.base_url}{self._path('/zarr')}",
+                storage_options={"headers": headers},
+                consolidated=True,
+                zarr_format=2,
+            )
+        need("h5netcdf")
+        data = self.data("netcdf", sel, isel, variables)
+        return xr.open_dataset(io.BytesIO(data), engine="h5netcdf").load()
 
     def to_pandas(self) -> Any:
         """The result as a pandas.DataFrame, one row per point (GET .../data?format=csv)."""

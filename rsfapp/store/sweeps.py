@@ -552,16 +552,28 @@ class SweepStore:
             errs = {int(a): str(b) for a, b in json.loads(r.errors or "{}").items()}
             yield Block(int(r.i0), int(r.i1), decode_block(r.data), errs)
 
-    def block_index(self, sweep_id: str) -> tuple[NDArray[np.int64], ...]:
-        """(chunk numbers, i0, i1) of the stored blocks, in index order (int64 arrays)."""
+    def block_index(
+        self, sweep_id: str, i0: int = 0, i1: int | None = None
+    ) -> tuple[NDArray[np.int64], ...]:
+        """(chunk numbers, i0, i1) of the stored blocks overlapping [i0, i1), in index
+        order (int64 arrays)."""
+        cond = [sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.i1 > i0]
+        if i1 is not None:
+            cond.append(sweep_blocks.c.i0 < i1)
         with self.db.read() as conn:
             rows = conn.execute(
                 select(sweep_blocks.c.idx, sweep_blocks.c.i0, sweep_blocks.c.i1)
-                .where(sweep_blocks.c.sweep_id == sweep_id)
+                .where(and_(*cond))
                 .order_by(sweep_blocks.c.i0)
             ).all()
         a = np.array(rows, dtype=np.int64).reshape(-1, 3)
         return a[:, 0].copy(), a[:, 1].copy(), a[:, 2].copy()
+
+    def block_points(self, sweep_id: str) -> int | None:
+        """Points of the sweep's first chunk (every chunk but the last has as many)."""
+        with self.db.read() as conn:
+            r = conn.execute(select(chunks.c.i0, chunks.c.i1).where(_chunk(sweep_id, 0))).first()
+        return None if r is None else int(r.i1) - int(r.i0)
 
     def read_block(
         self, sweep_id: str, idx: int, names: tuple[str, ...] | None = None

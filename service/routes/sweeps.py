@@ -432,6 +432,47 @@ async def get_data(
         raise
 
 
+@router.head("/{sweep_id}/zarr/{key:path}", include_in_schema=False)
+@router.get(
+    "/{sweep_id}/zarr/{key:path}",
+    summary="The sweep as a read-only Zarr store (lazy xarray access)",
+    responses={
+        **_N,
+        200: {
+            "description": "A Zarr (format 2) key: JSON metadata (.zmetadata, .zgroup, "
+            ".zattrs, <var>/.zarray, <var>/.zattrs) or a zlib-compressed chunk.",
+            "content": {"application/json": {}, "application/octet-stream": {}},
+        },
+    },
+)
+async def get_zarr(sweep_id: SweepId, key: str, stores: StoresDep) -> Response:
+    """The sweep as a read-only Zarr store, for lazy access from xarray: only the
+    chunks a computation touches are fetched, each one stored block where the sweep's
+    chunking allows (rsfapp.sweepzarr).  Open it in a notebook with
+    ``xr.open_zarr("<url>/v1/sweeps/<id>/zarr", storage_options={"headers":
+    {"Authorization": "Bearer <key>"}}, consolidated=True, zarr_format=2)`` (needs zarr,
+    fsspec and aiohttp), or ``rsfclient`` ``sweep.to_xarray(lazy=True)``.  Points not
+    computed yet (a running sweep) are fill values (NaN after decoding).  Keys:
+    ``.zmetadata`` (consolidated metadata), ``.zgroup``, ``.zattrs``, ``<var>/.zarray``,
+    ``<var>/.zattrs`` and chunks ``<var>/<i>.<j>...``; any other key is 404."""
+    from rsfapp.sweepzarr import ZarrSweep
+
+    key = key.strip("/")
+    if await run_in_threadpool(stores.sweeps.get_spec, sweep_id) is None:
+        await _status(stores, sweep_id)  # 404 if unknown
+    spec = await _spec(stores, sweep_id)  # 410 if stored in the pre-array layout
+    name, _, tail = key.rpartition("/")
+    meta_key = not tail[:1].isdigit()
+    st = await _status(stores, sweep_id) if meta_key else {"id": sweep_id}
+    k = await run_in_threadpool(stores.sweeps.block_points, sweep_id)
+    z = ZarrSweep(stores.sweeps, spec, st, k or spec.n_total)
+    data = await run_in_threadpool(z.get, key)
+    if data is None:
+        raise ProblemError(404, "Not found", f"sweep {sweep_id} has no Zarr key {key!r}")
+    media = "application/json" if meta_key else "application/octet-stream"
+    return Response(data, media_type=media, headers={"Cache-Control": "no-cache"})
+
+
 _JSON_OR_PNG = ("json", "png")
 
 

@@ -212,3 +212,74 @@ def test_diagram_window(done: tuple[TestClient, str]) -> None:
     keep = [k for k, e in enumerate(whole["y"]) if 0.2 <= e <= 0.7]
     assert win["x"] == whole["x"][1:4] and win["y"] == [whole["y"][k] for k in keep]
     assert win["critical_size"] == [[whole["critical_size"][i][k] for k in keep] for i in (1, 2, 3)]
+
+
+def _zarr_copy(c: TestClient, sid: str, root: Any) -> None:
+    """Every key of the sweep's Zarr store fetched over HTTP into a directory (a Zarr
+    format-2 directory store has the same key names as files)."""
+    import itertools
+
+    meta = c.get(f"/v1/sweeps/{sid}/zarr/.zmetadata")
+    assert meta.status_code == 200
+    (root / ".zmetadata").write_bytes(meta.content)
+    for key, m in meta.json()["metadata"].items():
+        r = c.get(f"/v1/sweeps/{sid}/zarr/{key}")
+        assert r.status_code == 200 and r.json() == m, key
+        (root / key).parent.mkdir(parents=True, exist_ok=True)
+        (root / key).write_bytes(r.content)
+        if key.endswith(".zarray"):
+            grid = [range(-(-n // ch)) for n, ch in zip(m["shape"], m["chunks"], strict=True)]
+            for pos in itertools.product(*grid):
+                ck = key.rsplit("/", 1)[0] + "/" + ".".join(map(str, pos))
+                r = c.get(f"/v1/sweeps/{sid}/zarr/{ck}")
+                assert r.status_code == 200, ck
+                (root / ck).write_bytes(r.content)
+
+
+def test_zarr_store_equals_the_netcdf(done: tuple[TestClient, str], tmp_path: Any) -> None:
+    import xarray as xr
+
+    c, sid = done
+    _zarr_copy(c, sid, tmp_path)
+    z = xr.open_zarr(tmp_path, consolidated=True, zarr_format=2)
+    nc = _nc(c, sid)
+    assert z["critical_size"].dims == ("ba", "kappa_ratio", "eps")
+    for v in nc.data_vars:
+        np.testing.assert_array_equal(z[v].values, nc[v].values)
+    assert z.attrs["Conventions"] == "CF-1.10"
+    assert z["kind"].attrs["flag_meanings"] == "zero finite infinite"
+    assert c.get(f"/v1/sweeps/{sid}/zarr/critical_size/9.9.9").status_code == 404
+    assert c.get(f"/v1/sweeps/{sid}/zarr/nope/.zarray").status_code == 404
+    assert c.get(f"/v1/sweeps/{'0' * 32}/zarr/.zmetadata").status_code == 404
+
+
+def test_zarr_chunks_follow_the_blocks(api_stack: tuple[TestClient, Any], tmp_path: Any) -> None:
+    """Chunk size 12 on a 3 x 4 x 6 grid is two rows of 6: Zarr chunks (1, 2, 6), one block
+    each; a running sweep (one chunk of six computed) shows the rest as NaN."""
+    import xarray as xr
+
+    from worker.tasks import run_chunk_body
+
+    c = api_stack[0]
+    body = {
+        "axes": [
+            {"name": "ba", "values": [2.0, 3.0, 4.0]},
+            {"name": "kappa_ratio", "start": 0.5, "stop": 3.0, "n": 4},
+            {"name": "eps", "start": 0.0, "stop": 0.9, "n": 6},
+        ],
+        "fixed": {"vo": 0.5},
+        "chunk_points": 12,
+    }
+    sid = submit(c, body)["id"]
+    m = c.get(f"/v1/sweeps/{sid}/zarr/critical_size/.zarray").json()
+    assert m["chunks"] == [1, 2, 6] and m["shape"] == [3, 4, 6]
+    run_chunk_body(sid, 1)  # flat points 12..23: ba index 0, kappa_ratio rows 2 and 3
+    _zarr_copy(c, sid, tmp_path)
+    z = xr.open_zarr(tmp_path, consolidated=True, zarr_format=2)
+    cs = z["critical_size"].values
+    done_mask = np.zeros((3, 4, 6), bool)
+    done_mask[0, 2:4, :] = True
+    assert not np.isnan(cs[done_mask]).any()
+    assert np.isnan(cs[~done_mask]).all()
+    assert (z["computed"].values == done_mask).all()
+    assert np.isnan(z["kind"].values[~done_mask]).all()

@@ -122,3 +122,15 @@ def test_gather_equals_numpy_indexing(tmp_path: Path) -> None:
         }
         assert g.errors == want_err
     db.dispose()
+
+
+def test_zarr_chunk_shape_follows_blocks() -> None:
+    from rsfapp.sweepzarr import chunk_shape
+
+    assert chunk_shape((3, 4, 6), 12) == (1, 2, 6)  # two rows: one block per chunk
+    assert chunk_shape((3, 4, 6), 24) == (1, 4, 6)
+    assert chunk_shape((3, 4, 6), 48) == (2, 4, 6)  # leading axis: any m
+    assert chunk_shape((10, 10), 30) == (3, 10)
+    assert chunk_shape((3, 4, 6), 3) == (1, 1, 3)
+    assert chunk_shape((4, 10), 25) == (2, 10)  # no exact fit: rows of at most 25
+    assert chunk_shape((1000,), 10**6) == (1000,)
