@@ -88,7 +88,8 @@ const RsfPlot = (() => {
   function range(vals, log) {
     const v = vals.filter(x => Number.isFinite(x) && (!log || x > 0));
     if (!v.length) return [log ? 1 : 0, log ? 10 : 1];
-    let lo = Math.min(...v), hi = Math.max(...v);
+    let lo = Infinity, hi = -Infinity;
+    for (const x of v) { if (x < lo) lo = x; if (x > hi) hi = x; }
     if (lo === hi) { lo = log ? lo / 2 : lo - (Math.abs(lo) || 1) * 0.5; hi = log ? hi * 2 : hi + (Math.abs(hi) || 1) * 0.5; }
     return [lo, hi];
   }

@@ -15,7 +15,8 @@ const LIST_MS = 1000;            // sweep list refresh while all is well
 const VIEW_MS = 2000;            // partial view refresh while the selected sweep runs
 const BACKOFF_MAX_MS = 60000;
 const ETA_WINDOW_MS = 60000;     // the ETA's rate is measured over at most this window
-const VIEW_MAX_POINTS = 200000;  // 1-D and scattered views fetch the whole sweep up to this
+const VIEW_MAX_POINTS = 50000;   // 1-D and scattered views: every k-th point beyond this
+const GRID_MAX_N = 400;          // a shown grid axis: every k-th value beyond this
 const MAX_AXES = 5;
 const SIZE_NAMES = ["size", "factor", "new_slip_rate_m_s", "new_load_point_velocity_m_s"];
 const DIMLESS_AXES = ["kappa_ratio", "eps", "ba", "vo", "size", "kappa"];
@@ -65,6 +66,12 @@ function machineText(p) {
   const v = k => fmt(p[k]);
   return `a = ${v("a")}, b = ${v("b")}, D_c = ${v("Dc_m")} m, \u03c3 = ${v("sigma_Pa")} Pa, ` +
     `k = ${v("k_Pa_per_m")} Pa/m, V* = ${v("V_star_m_s")} m/s, V_load = ${p.V_load_m_s === null || p.V_load_m_s === undefined ? "V*" : v("V_load_m_s") + " m/s"}`;
+}
+/** [min, max] of an array (a loop: spreading 10^5 values overflows the stack). */
+function extent(a) {
+  let lo = Infinity, hi = -Infinity;
+  for (const x of a) { if (x < lo) lo = x; if (x > hi) hi = x; }
+  return [lo, hi];
 }
 function num12(v) { return String(+Number(v).toPrecision(12)); }
 
@@ -609,13 +616,30 @@ function changeView(now) {
 function viewRequest(v) {
   const spec = v.spec, id = v.id;
   if (spec.mode === "grid" && spec.axes.length >= 2) {
+    // the slice and, on a long shown axis, every k-th value (the server reads only those)
     const names = spec.axes.map(a => a.name);
     const parts = Object.entries(v.slice).map(([n, k]) => `${n}:${num12(axisValues(spec, n)[k])}`);
     const q = v.badSlice !== null && v.badSlice !== undefined ? v.badSlice : parts.join(",");
-    return { kind: "diagram", url: `/v1/sweeps/${id}/diagram${q || names.length > 2 ? `?slice=${encodeURIComponent(q)}` : ""}` };
+    const params = new URLSearchParams();
+    if (q || names.length > 2) params.set("slice", q);
+    const strided = (v.axes || []).map(n => spec.axes.find(a => a.name === n))
+      .filter(a => a && a.n > GRID_MAX_N).map(a => `${a.name}:0:${a.n}:${Math.ceil(a.n / GRID_MAX_N)}`);
+    if (strided.length) params.set("isel", strided.join(","));
+    const qs = params.toString();
+    return { kind: "diagram", url: `/v1/sweeps/${id}/diagram${qs ? "?" + qs : ""}` };
   }
-  if (spec.n_total > VIEW_MAX_POINTS) return { kind: "too-big" };
-  return { kind: "data", url: `/v1/sweeps/${id}/data?format=json` };
+  // a 1-D grid or scattered points: the variables drawn, every k-th point of a large sweep
+  const dim = spec.mode === "grid" ? spec.axes[0].name : "point";
+  const vars = ["critical_size", "kind", "outcome", "computed", "failed"];
+  const si = spec.physical ? siVariable(spec.perturbation) : null;
+  if (si && spec.mode === "grid") vars.push(si);
+  const params = new URLSearchParams({ format: "json", variables: vars.join(",") });
+  if (spec.n_total > VIEW_MAX_POINTS) params.set("isel", `${dim}:0:${spec.n_total}:${Math.ceil(spec.n_total / VIEW_MAX_POINTS)}`);
+  return { kind: "data", url: `/v1/sweeps/${id}/data?${params}` };
+}
+/** The SI variable of an SI sweep's data (rsfapp.sweepdata.SI_VARIABLES). */
+function siVariable(perturbation) {
+  return perturbation === "load-point-jump" ? "critical_load_point_velocity_m_s" : "critical_slip_rate_m_s";
 }
 
 async function updateView(force = false) {
@@ -677,11 +701,6 @@ async function stepView(v, force) {
   links(v);
   // 2. the data of the view, asked again only when the sweep made progress
   const req = viewRequest(v);
-  if (req.kind === "too-big") {
-    placeholder(`${s.n_total.toLocaleString("en")} points: too many to draw in the page; ` +
-      "download the data (links below) or open it lazily from xarray.");
-    return;
-  }
   const final = s.status === "done" || s.status === "cancelled";
   const shape = (v.axes || v.params || []).join(",");  // a scatter's axes change no request
   const key = `${req.url}|${s.status}|${s.n_done}|${shape}`;
@@ -765,13 +784,16 @@ function render(v, req, ans) {
     }
     if (spec.mode === "grid") {  // a 1-D sweep: the critical size (or outcome) along its axis
       const fin = pts.filter(p => p.state === "finite").map(p => p.y);
-      const ylog = fin.length > 0 && fin.every(y => y > 0) && Math.max(...fin) / Math.min(...fin) > 20;
-      const lo = fin.length ? Math.min(...fin) : 1;
+      const ylog = fin.length > 0 && fin.every(y => y > 0) && extent(fin)[1] / extent(fin)[0] > 20;
+      const lo = fin.length ? extent(fin)[0] : 1;
       pts.forEach(p => { if (p.state !== "finite") p.y = lo; });  // the plot puts them on an edge
       fig = { type: "line", x: { label: paramLabel(xn, pert), log: logOf(xn) },
               y: { label: outcome ? "outcome" : colour.label, log: ylog }, points: pts };
     } else {
-      const auto = n2 => { const vals = coords[n2].filter(Number.isFinite); return vals.length > 1 && vals.every(x => x > 0) && Math.max(...vals) / Math.min(...vals) > 100; };
+      const auto = n2 => {  // log for positive values over two decades or more (eps: never)
+        const vals = coords[n2].filter(Number.isFinite);
+        return n2 !== "eps" && vals.length > 1 && vals.every(x => x > 0) && extent(vals)[1] / extent(vals)[0] >= 100;
+      };
       fig = { type: "scatter", x: { label: paramLabel(xn, pert), log: auto(xn) },
               y: { label: paramLabel(yn, pert), log: auto(yn) }, points: pts };
     }
@@ -790,12 +812,16 @@ function render(v, req, ans) {
         const c = fig.cell(i, j); if (c.state === "finite") vals.push(c.v);
       }
     } else fig.points.forEach(p => { if (p.state === "finite") vals.push(p.v); });
-    const lo = vals.length ? Math.min(...vals) : 0, hi = vals.length ? Math.max(...vals) : 1;
+    const [lo, hi] = vals.length ? extent(vals) : [0, 1];
     colour.lo = lo; colour.hi = hi; colour.log = lo > 0 && hi / lo > 3;
   }
-  if (fig.type === "line" && colour.si) {  // SI sweeps: the curve in m/s
+  if (fig.type === "line" && colour.si) {  // SI sweeps: the curve in m/s, the server's values
     fig.y.label = colour.si.label;
-    fig.points.forEach(p => { p.y = colour.si.of(p.y); });
+    const siv = ans.data[siVariable(pert)];
+    fig.points.forEach((p, k) => {
+      const x = siv ? siv[k] : null;
+      p.y = x !== null && x !== undefined ? x : colour.si.of(p.y);
+    });
     fig.y.log = fig.points.some(p => p.state === "finite");
   }
   fig.colour = fig.type === "line" && !outcome ? { plain: true, label: colour.label, si: null } : colour;
@@ -831,11 +857,23 @@ function caption(v, ans) {
     .filter(([k]) => !(spec.physical && ["ba", "kappa", "vo"].includes(k)) && !(ans.slice && k in ans.slice))
     .map(([k, x]) => `${paramSymbol(k, pert)} = ${fmt(x)}`);
   const slice = Object.entries(ans.slice || {}).map(([k, x]) => `${paramSymbol(k, pert)} = ${fmt(x)}`);
+  // what part of a long axis or a large sweep is drawn (the server sent every k-th value)
+  const thin = [];
+  if (ans.x_name) {
+    for (const [n, vals] of [[ans.x_name, ans.x], [ans.y_name, ans.y]]) {
+      const a = spec.axes.find(x => x.name === n);
+      if (a && vals.length < a.n) thin.push(`${paramSymbol(n, pert)}: ${vals.length} of ${a.n} values`);
+    }
+  } else if (ans.shape && ans.shape[0] < spec.n_total) {
+    thin.push(`${ans.shape[0].toLocaleString("en")} of ${spec.n_total.toLocaleString("en")} points (one in ` +
+      `${Math.ceil(spec.n_total / VIEW_MAX_POINTS)})`);
+  }
   $("#diagram-caption").innerHTML =
     `${esc(describe(s).mode)} \u00b7 ${esc(`${ans.n_done}/${ans.n_total}`)} points \u00b7 ` +
     `<span class="badge ${esc(st)}">${esc(st)}</span> ` +
     (st === "done" || st === "cancelled" ? "" : "(blank: not computed yet) ") +
     (slice.length ? `<br>slice: <b>${esc(slice.join(", "))}</b>` : "") +
+    (thin.length ? `<br>drawn: ${esc(thin.join("; "))} (the downloads have all)` : "") +
     (fixed.length ? `<br>fixed: ${esc(fixed.join(", "))}` : "") +
     (spec.physical ? `<br>machine (SI): ${esc(machineText(spec.physical))}` : "");
 }
@@ -844,10 +882,16 @@ function links(v) {
   const q = spec.mode === "grid" && spec.axes.length >= 2
     ? Object.entries(v.slice).map(([n, k]) => `${n}:${num12(axisValues(spec, n)[k])}`).join(",") : "";
   const png = `/v1/sweeps/${id}/diagram?format=png${q ? "&slice=" + encodeURIComponent(q) : ""}`;
+  // the slice alone: the other axes at their slice index (the server reads only those)
+  const isel = spec.mode === "grid" && spec.axes.length > 2
+    ? Object.entries(v.slice).map(([n, k]) => `${n}:${k}`).join(",") : "";
+  const sub = isel ? `&isel=${encodeURIComponent(isel)}` : "";
   const items = [
     ["NetCDF", `/v1/sweeps/${id}/data?format=netcdf`, "the whole result, for xarray.open_dataset"],
     ["CSV", `/v1/sweeps/${id}/data?format=csv`, "one row per point"],
     ["JSON", `/v1/sweeps/${id}/data?format=json`, "flat arrays"],
+    ...(sub ? [["slice NetCDF", `/v1/sweeps/${id}/data?format=netcdf${sub}`, "this slice only"],
+               ["slice CSV", `/v1/sweeps/${id}/data?format=csv${sub}`, "this slice only"]] : []),
     ...(spec.mode === "grid" && spec.axes.length >= 2 ? [["PNG", png, "this slice as the server renders it"]] : []),
     ["points", `/v1/sweeps/${id}/points`, "paged points with their errors"],
     ["Python (xarray)", "#lazy", "open the sweep from Python"],
@@ -895,6 +939,21 @@ function hover(ev) {
   $("#diagram-readout").textContent = h ? v.readout(h) : "";
 }
 
+/** Placeholders of the fixed fields: the API's own defaults (from its OpenAPI schema),
+    so an empty field means what it means at every door (it is not sent). */
+async function apiDefaults() {
+  try {
+    const { body } = await getJSON("/openapi.json");
+    const props = ((body.components || {}).schemas || {}).SweepFixed.properties || {};
+    sweepForm().querySelectorAll("[data-default]").forEach(el => {
+      const p = props[el.dataset.default] || {};
+      const m = /default (-?[\d.]+(?:e[-+]?\d+)?)/.exec(p.description || "");
+      const d = p.default !== null && p.default !== undefined ? p.default : m ? Number(m[1]) : null;
+      if (d !== null) { el.placeholder = `${fmt(d)} (default)`; el.dataset.api = d; }
+    });
+  } catch (e) { /* placeholders stay "default" */ }
+}
+
 /* ------------------------------------------------------------------ wiring */
 document.addEventListener("DOMContentLoaded", () => {
   const f = sweepForm();
@@ -913,6 +972,7 @@ document.addEventListener("DOMContentLoaded", () => {
   });
   $("#axis-add").addEventListener("click", addAxis);
   renderAxes([{ name: "kappa_ratio" }, { name: "eps" }]);
+  apiDefaults();
   $("#sweeps-table").addEventListener("click", ev => {
     const cancel = ev.target.closest("[data-cancel]");
     if (cancel) { ev.stopPropagation(); cancelSweep(cancel.dataset.cancel); return; }

@@ -559,6 +559,17 @@ def test_3d_sweep_deep_link_and_slices(ui: UI) -> None:
         "[...document.querySelectorAll('#view-controls [data-slice]')].map(e => e.dataset.slice)"
     )
     assert ctl == ["ba"], ctl
+    # the slice's own download: the server's subset of this slice, the same numbers
+    link = ui.b.js(
+        "[...document.querySelectorAll('#diagram-links a')]"
+        ".find(a => a.textContent === 'slice CSV').getAttribute('href')"
+    )
+    assert link == f"/v1/sweeps/{sid}/data?format=csv&isel=ba%3A0", link
+    rows = httpx.get(srv + link, timeout=30).text.strip().splitlines()
+    head = rows[0].split(",")
+    got = sorted(float(r.split(",")[head.index("critical_size")] or "inf") for r in rows[1:])
+    want = sorted(x if x is not None else float("inf") for row in d14["critical_size"] for x in row)
+    assert got == want, (got, want)
     shoot(ui.b, ui.tmp, "slice")
 
     # -- the other slice: new image, new address
