@@ -894,7 +894,8 @@ function links(v) {
                ["slice CSV", `/v1/sweeps/${id}/data?format=csv${sub}`, "this slice only"]] : []),
     ...(spec.mode === "grid" && spec.axes.length >= 2 ? [["PNG", png, "this slice as the server renders it"]] : []),
     ["points", `/v1/sweeps/${id}/points`, "paged points with their errors"],
-    ["Python (xarray)", "#lazy", "open the sweep from Python"],
+    ["Zarr (lazy)", `/v1/sweeps/${id}/zarr/.zmetadata`, "the sweep as a read-only Zarr store: xarray reads only the chunks it touches"],
+    ["Python (xarray)", "#lazy", "open the sweep lazily from Python"],
   ];
   const html = items.map(([t, href, title]) =>
     `<a href="${esc(href)}" title="${esc(title)}"${href.startsWith("#") ? "" : " data-download"} target="_blank">${esc(t)}</a>`).join(" \u00b7 ");
@@ -902,10 +903,14 @@ function links(v) {
     $("#diagram-links").innerHTML = "download: " + html;
     $("#diagram-links").dataset.html = html;
   }
+  const sel = sliceSel(v);
   $("#lazy-code").textContent =
     `from rsfclient import Client  # API key: RSF_API_KEY or Client(..., api_key=...)\n` +
-    `ds = Client("${location.origin}").get_sweep("${id}").to_xarray()  # xarray.Dataset\n` +
-    (sliceSel(v) ? `ds.critical_size.sel(${sliceSel(v)}, method="nearest")  # this slice` : "");
+    `ds = Client("${location.origin}").get_sweep("${id}").to_xarray(lazy=True)  # Zarr over HTTP\n` +
+    (sel ? `ds.critical_size.sel(${sel}, method="nearest").load()  # reads this slice's chunks only\n`
+         : `ds.critical_size.load()\n`) +
+    `# or: xarray.open_zarr("${location.origin}/v1/sweeps/${id}/zarr", consolidated=True, zarr_format=2)\n` +
+    `# whole file: xarray.open_dataset(<the NetCDF link>)`;
 }
 /** The view's slice as xarray .sel() arguments (grid sweeps), e.g. ba=1.4. */
 function sliceSel(v) {

@@ -570,6 +570,13 @@ def test_3d_sweep_deep_link_and_slices(ui: UI) -> None:
     got = sorted(float(r.split(",")[head.index("critical_size")] or "inf") for r in rows[1:])
     want = sorted(x if x is not None else float("inf") for row in d14["critical_size"] for x in row)
     assert got == want, (got, want)
+    # the lazy (Zarr) access: the store's consolidated metadata names the sweep's variables
+    zlink = ui.b.js(
+        "[...document.querySelectorAll('#diagram-links a')]"
+        ".find(a => a.textContent === 'Zarr (lazy)').getAttribute('href')"
+    )
+    meta = httpx.get(srv + zlink, timeout=30)
+    assert meta.status_code == 200 and "critical_size/.zarray" in meta.json()["metadata"], zlink
     shoot(ui.b, ui.tmp, "slice")
 
     # -- the other slice: new image, new address
