@@ -22,27 +22,78 @@ raises :class:`NeedsQueue`.  Nothing here does I/O or knows about HTTP.  Sweep c
 computed by :func:`rsfapp.sweepdata.compute_chunk` (rsfcore.batch).
 """
 
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from ._common import QUICK_STEPS, ComputeError, NeedsQueue, guard, numerics_version
-from ._si import resolve_params, resolve_size, si_inputs
-from .batch import classify_batch, critical_batch, item_error, validate_items
-from .fits import FIT_COLUMNS, fit, fit_key_request, fit_record_of, fit_table
-from .protocols import (
-    PROTOCOL_COLUMNS,
-    protocol_load_history,
-    protocol_slide_hold_slide,
-    protocol_table,
-    protocol_velocity_step,
-)
-from .single import (
-    SAMPLING_NOTE,
-    analytic_u,
-    boundaries,
-    classify,
-    classify_points,
-    critical,
-    stiffness,
-    trajectory,
-)
+
+if TYPE_CHECKING:  # imported on first use (a CLI command loads only its question's module)
+    from ._si import resolve_params, resolve_size, si_inputs
+    from .batch import classify_batch, critical_batch, item_error, validate_items
+    from .fits import FIT_COLUMNS, fit, fit_key_request, fit_record_of, fit_table
+    from .protocols import (
+        PROTOCOL_COLUMNS,
+        protocol_load_history,
+        protocol_slide_hold_slide,
+        protocol_table,
+        protocol_velocity_step,
+    )
+    from .single import (
+        SAMPLING_NOTE,
+        analytic_u,
+        boundaries,
+        classify,
+        classify_points,
+        critical,
+        stiffness,
+        trajectory,
+    )
+
+#: Where each name lives (PEP 562: imported on first access, so that importing one
+#: question's module does not load every rsfcore module and scipy).
+_WHERE: dict[str, str] = {
+    **dict.fromkeys(("resolve_params", "resolve_size", "si_inputs"), "_si"),
+    **dict.fromkeys(("classify_batch", "critical_batch", "item_error", "validate_items"), "batch"),
+    **dict.fromkeys(
+        ("FIT_COLUMNS", "fit", "fit_key_request", "fit_record_of", "fit_table"), "fits"
+    ),
+    **dict.fromkeys(
+        (
+            "PROTOCOL_COLUMNS",
+            "protocol_load_history",
+            "protocol_slide_hold_slide",
+            "protocol_table",
+            "protocol_velocity_step",
+        ),
+        "protocols",
+    ),
+    **dict.fromkeys(
+        (
+            "SAMPLING_NOTE",
+            "analytic_u",
+            "boundaries",
+            "classify",
+            "classify_points",
+            "critical",
+            "stiffness",
+            "trajectory",
+        ),
+        "single",
+    ),
+}
+_MODULES = frozenset(("single", "batch", "protocols", "fits", "sweeps"))
+
+
+def __getattr__(name: str) -> Any:
+    if name in _MODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{where}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "ComputeError",

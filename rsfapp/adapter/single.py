@@ -13,7 +13,6 @@ from rsfcore import analytic
 from rsfcore import boundaries as _bounds
 from rsfcore import critical as _critical
 from rsfcore import phase as _phase
-from rsfcore import stiffness as _stiff
 from rsfcore import trajectory as _traj
 from rsfcore.jsonsafe import jsonsafe
 from rsfcore.params import Params, PhysicalParams
@@ -214,7 +213,9 @@ def stiffness(req: StiffnessRequest) -> dict[str, Any]:
         }
         if ph.h is not None:
             phys["h"] = ph.h
-    out = json_dict(guard(_stiff.stiffness_summary, req.case, req.mode, **phys))
+    from rsfcore.stiffness import stiffness_summary  # lazily: it loads scipy.integrate
+
+    out = json_dict(guard(stiffness_summary, req.case, req.mode, **phys))
     if req.physical is not None:  # every answer echoes the parameters it used
         out["physical"] = req.physical.model_dump()
     return out

@@ -13,7 +13,6 @@ import numpy as np
 from rsfcore import diagram as _diagram
 from rsfcore.params import ParameterError
 
-from ..grid import expand
 from ..requests import SweepRequest
 from ._common import guard
 
@@ -29,6 +28,8 @@ def diagram(req: SweepRequest) -> _diagram.DiagramResult:
     (x[i], y[j]), outcomes when a size is fixed or swept).  The axis values and the
     fixed parameters are the sweep's (:func:`rsfapp.grid.expand`: end points exact, the
     request model's defaults); ParameterError names the request's field."""
+    from ..grid import expand  # lazily: it loads the service settings (pydantic-settings)
+
     spec = expand(req, LOCAL_DIAGRAM_MAX_POINTS)
     if spec.mode != "grid" or len(spec.axes) != 2:
         raise ParameterError("axes", len(spec.axes), "exactly two axes (x and y) for a diagram")

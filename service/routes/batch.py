@@ -23,7 +23,7 @@ from fastapi import APIRouter
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
-from rsfapp import adapter
+from rsfapp.adapter import batch as batch_adapter
 from rsfapp.requests.batch import BatchRequest, ClassifyBatchRequest, CriticalBatchRequest
 
 from ..context import CtxDep
@@ -57,7 +57,7 @@ async def critical_batch(req: CriticalBatchRequest, ctx: CtxDep) -> Response:
     vectorised core; per-item errors name the item's index and field."""
     _check_size(req, ctx.settings.batch_max_items)
     async with ctx.inflight.limiter:
-        result = await run_in_threadpool(adapter.critical_batch, req.items)
+        result = await run_in_threadpool(batch_adapter.critical_batch, req.items)
         text = await run_in_threadpool(_dumps, result)
     return Response(text, media_type="application/json")
 
@@ -73,7 +73,7 @@ async def classify_batch(req: ClassifyBatchRequest, ctx: CtxDep) -> Response:
 
 
 def _classify_items(req: ClassifyBatchRequest, quick_steps: int) -> dict[str, object]:
-    return adapter.classify_batch(req.items, max_steps=quick_steps)
+    return batch_adapter.classify_batch(req.items, max_steps=quick_steps)
 
 
 def _dumps(result: dict[str, Any]) -> bytes:

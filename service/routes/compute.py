@@ -14,7 +14,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query
 from starlette.responses import Response
 
-from rsfapp import adapter
+from rsfapp.adapter import single
 from rsfapp.requests import (
     AnalyticRequest,
     BoundariesQueryRequest,
@@ -52,7 +52,7 @@ _R: dict[int | str, dict[str, Any]] = {
 async def classify(req: ClassifyRequest, ctx: CtxDep) -> Response:
     """Certified outcome of one perturbation (outcome, certificate, peak_phi, blow-up or
     return time T = V_* t/Dc, rel_accuracy). Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer("classify", req, partial(adapter.classify, max_steps=ctx.quick_steps))
+    return await ctx.answer("classify", req, partial(single.classify, max_steps=ctx.quick_steps))
 
 
 @router.post(
@@ -66,7 +66,7 @@ async def classify_points(req: ClassifyPointsRequest, ctx: CtxDep) -> Response:
     points within a safety margin of the separatrix are integrated, so each outcome is
     the one /v1/classify gives with that ``start``.  10^5 points take milliseconds.
     Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer("classify_points", req, adapter.classify_points)
+    return await ctx.answer("classify_points", req, single.classify_points)
 
 
 _JSON_OR_PNG = ("json", "png")
@@ -124,7 +124,7 @@ async def trajectory(
     ``?format=csv``: the samples as CSV."""
     fmt = choice(format, _TRAJ_FORMATS, "format")
     resp = await ctx.answer(
-        "trajectory", req, partial(adapter.trajectory, max_steps=ctx.quick_steps)
+        "trajectory", req, partial(single.trajectory, max_steps=ctx.quick_steps)
     )
     if fmt == "csv":
         return _as_csv(resp)
@@ -158,7 +158,7 @@ def _as_csv(resp: Response) -> Response:
 async def critical(req: CriticalRequest, ctx: CtxDep) -> Response:
     """Same fields as `rsf critical --json`: kind (zero|finite|infinite), critical_size,
     rel_accuracy, method, perturbation, params. Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer("critical", req, adapter.critical)
+    return await ctx.answer("critical", req, single.critical)
 
 
 @router.post(
@@ -204,7 +204,7 @@ async def analytic_u(
                     field=f"grid.{f}",
                     valid="[2, 500] with format=png",
                 )
-    resp = await ctx.answer("analytic_u", req, adapter.analytic_u)
+    resp = await ctx.answer("analytic_u", req, single.analytic_u)
     return resp if fmt == "json" else await _as_png(resp, images.analytic_u_png)
 
 
@@ -212,7 +212,7 @@ async def analytic_u(
 async def boundaries_get(req: Annotated[BoundariesQueryRequest, Query()], ctx: CtxDep) -> Response:
     """kappa_crit, eps_crit, (a/b)_crit, acceleration line at the given phi values.
     Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer("boundaries", req, adapter.boundaries)
+    return await ctx.answer("boundaries", req, single.boundaries)
 
 
 @router.post("/boundaries", responses=_R, summary="Stability boundaries")
@@ -221,11 +221,11 @@ async def boundaries_post(req: BoundariesSIRequest, ctx: CtxDep) -> Response:
     dimensionless (ba, kappa) or with the machine in SI (``physical``; then also an
     ``si`` block: k_crit [Pa/m], kappa/kappa_crit). Cached (field `cached`, header
     `X-Cache: hit|miss`)."""
-    return await ctx.answer("boundaries", req, adapter.boundaries)
+    return await ctx.answer("boundaries", req, single.boundaries)
 
 
 @router.post("/stiffness", responses=_R, summary="Continuum stiffness, critical dimension")
 async def stiffness(req: StiffnessRequest, ctx: CtxDep) -> Response:
     """Eigenvalue k/k_* of case A-E and, given physical parameters, the critical
     dimension in metres (lambda_c, L_c or R_c). Cached (field `cached`, header `X-Cache: hit|miss`)."""
-    return await ctx.answer("stiffness", req, adapter.stiffness)
+    return await ctx.answer("stiffness", req, single.stiffness)

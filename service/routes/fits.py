@@ -26,7 +26,8 @@ from fastapi import APIRouter, Path
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
-from rsfapp import adapter
+from rsfapp.adapter import fits as fits_adapter
+from rsfapp.adapter import numerics_version
 from rsfapp.keys import cache_key
 from rsfapp.requests.fits import FitRequest
 from rsfapp.store import JobState
@@ -79,8 +80,8 @@ async def submit_fit(req: FitRequest, ctx: CtxDep) -> Response:
     laws (AIC/BIC); answer the stability consequences in SI with uncertainty.  The
     stiffness is k_Pa_per_m with sigma_Pa, or k_friction_per_m [1/m]; with neither it is
     fitted.  Any lab CSV is read with ``columns`` (units), a units row and ``decimal``."""
-    summary = await run_in_threadpool(adapter.fit_key_request, req)
-    version = adapter.numerics_version()
+    summary = await run_in_threadpool(fits_adapter.fit_key_request, req)
+    version = numerics_version()
     key = cache_key("fit", summary, version)
     hit = await run_in_threadpool(ctx.stores.results.get_text, key)
     if hit is not None:
@@ -150,7 +151,7 @@ async def get_fit(
     result: dict[str, Any] = json.loads(text)
     if fmt == "csv":
         return Response(
-            csv_table(adapter.fit_table(result)),
+            csv_table(fits_adapter.fit_table(result)),
             media_type="text/csv",
             headers={"Content-Disposition": 'attachment; filename="fit.csv"'},
         )

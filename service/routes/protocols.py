@@ -20,7 +20,7 @@ from fastapi import APIRouter
 from pydantic import BaseModel
 from starlette.responses import Response
 
-from rsfapp import adapter
+from rsfapp.adapter import protocols as protocols_adapter
 from rsfapp.requests.protocols import LoadHistoryRequest, SlideHoldSlideRequest, VelocityStepRequest
 
 from .. import images
@@ -66,7 +66,7 @@ async def _answer(
     key = result["cache_key"]
     if fmt == "csv":
         return Response(
-            csv_table(adapter.protocol_table(result)),
+            csv_table(protocols_adapter.protocol_table(result)),
             media_type="text/csv",
             headers={
                 "X-Cache-Key": key,
@@ -92,7 +92,9 @@ async def velocity_step(
     """Load-point velocity step from steady state at V1: the response against slip and
     time, the true peak, steady-state and peak friction changes (also in Pa), and the
     deviation from the infinitely stiff closed form `eq: delta tau`."""
-    return await _answer("protocol_velocity_step", req, adapter.protocol_velocity_step, ctx, format)
+    return await _answer(
+        "protocol_velocity_step", req, protocols_adapter.protocol_velocity_step, ctx, format
+    )
 
 
 @router.post("/slide-hold-slide", responses=_R, summary="Slide-hold-slide test (SI)")
@@ -109,7 +111,7 @@ async def slide_hold_slide(
     """Slide at V, hold, reslide at V: healing (true peak on reslide minus f_ss) and
     relaxation during the hold, as friction and in Pa."""
     return await _answer(
-        "protocol_slide_hold_slide", req, adapter.protocol_slide_hold_slide, ctx, format
+        "protocol_slide_hold_slide", req, protocols_adapter.protocol_slide_hold_slide, ctx, format
     )
 
 
@@ -126,4 +128,6 @@ async def load_history(
 ) -> Response:
     """Any piecewise-constant load-point velocity history (velocity steps, holds): true
     per-segment peaks, per-segment steady-state and peak friction changes, runaway."""
-    return await _answer("protocol_load_history", req, adapter.protocol_load_history, ctx, format)
+    return await _answer(
+        "protocol_load_history", req, protocols_adapter.protocol_load_history, ctx, format
+    )

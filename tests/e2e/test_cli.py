@@ -174,3 +174,20 @@ def test_dimensionless_commands_are_the_adapters_answers() -> None:
     assert c == adapter.critical(CriticalRequest(ba=1.4, kappa=4100, eps=0))
     text = rsf("critical").stdout
     assert "ba 2  kappa 2  eps 0.25  vo 1" in text and "rtol 1e-10" in text
+
+
+@pytest.mark.parametrize("command", [["status", "abc"], ["download", "abc", "-o", "x.nc"]])
+def test_sweep_commands_fail_at_once_on_a_refused_connection(
+    command: list[str], tmp_path: Path
+) -> None:
+    """`rsf sweep ...` against a port where nothing listens: exit 2 with a message that
+    names the URL and says how to start or name a service (the client does not retry a
+    refused connection: only 503, 429 with Retry-After and resets are retried)."""
+    from tests.conftest import free_port
+
+    url = f"http://127.0.0.1:{free_port()}"
+    if command[0] == "download":
+        command = [*command[:-1], str(tmp_path / "x.nc")]
+    p = rsf("sweep", *command, "--url", url, check=False)
+    assert p.returncode == 2, p.stderr
+    assert url in p.stderr and "cannot connect" in p.stderr and "rsf serve" in p.stderr
