@@ -15,7 +15,9 @@
 
 const RsfPlot = (() => {
   const COLOURS = {
-    zero: "#d62728", infinite: "#1f77b4", stable: "#9ecae1", unstable: "#de2d26",
+    // zero: unstable to any jump (red); infinite: stable to any jump (the light blue of
+    // "stable"), both apart from viridis's hues
+    zero: "#d62728", infinite: "#9ecae1", stable: "#9ecae1", unstable: "#de2d26",
     missing: "#eef0f4",
   };
   // viridis, 9 anchors (matplotlib's table at 0, 1/8, ..., 1), interpolated linearly
@@ -169,8 +171,8 @@ const RsfPlot = (() => {
       y += h + 10;
     }
     const line = c.plain;
-  const legend = [["zero", line ? "zero (bottom edge)" : "zero (any jump)"],
-    ["infinite", line ? "infinite (top edge)" : "infinite (never)"], ["missing", "not computed"]];
+  const legend = [["zero", line ? "zero (bottom edge)" : "zero: unstable"],
+    ["infinite", line ? "infinite (top edge)" : "infinite: stable"], ["missing", "not computed"]];
     ctx.textAlign = "left"; ctx.textBaseline = "middle";
     for (const [st, text] of legend) {
       if (!present[st]) continue;
@@ -201,7 +203,10 @@ const RsfPlot = (() => {
           present[c.state] = true;
           ctx.fillStyle = colourOf(fig.colour, c.state, c.v);
           const x0 = sx(ex[i]), x1 = sx(ex[i + 1]), y0 = sy(ey[j]), y1 = sy(ey[j + 1]);
-          ctx.fillRect(Math.min(x0, x1), Math.min(y0, y1), Math.abs(x1 - x0) + 0.6, Math.abs(y1 - y0) + 0.6);
+          // whole device pixels: no seams between neighbouring cells
+          const l = Math.floor(Math.min(x0, x1) * dpr) / dpr, r = Math.ceil(Math.max(x0, x1) * dpr) / dpr;
+          const t = Math.floor(Math.min(y0, y1) * dpr) / dpr, b = Math.ceil(Math.max(y0, y1) * dpr) / dpr;
+          ctx.fillRect(l, t, r - l, b - t);
         }
       }
       hit = (px, py) => {
