@@ -6,12 +6,15 @@ so ``rsf si critical ... --json`` prints exactly what POST /v1/critical answers 
 ``cached``/``cache_key``).  Invalid input exits with status 2 and a message naming the
 field and its valid range.
 
-SI machine options (all commands of ``si`` and ``protocol``): --a, --b, --dc-m,
---sigma-pa, --k-pa-per-m, --v-star-m-s, --v-load-m-s (default V_*; ``si`` only), --eps,
-and --f-star (``protocol``); ``si`` also --perturbation and (classify, trajectory) the
-size as --size, --factor, --new-slip-rate-m-s or --new-load-point-velocity-m-s.  They are
-declared once (:func:`_machine_command` puts them first in each command's signature, in
-this order) and reach the command as one :class:`Machine`.
+SI machine options (all commands of ``si`` and ``protocol``), spelled as the JSON fields:
+--a, --b, --Dc_m, --sigma_Pa, --k_Pa_per_m, --V_star_m_s, --V_load_m_s (default V_*;
+``si`` only), --eps, and --f_star (``protocol``); ``si`` also --perturbation and (classify,
+trajectory) the size as --size, --factor, --new_slip_rate_m_s or
+--new_load_point_velocity_m_s.  The older kebab-case names (--dc-m, --sigma-pa, ...) are
+accepted too.  An option not given is left out of the request: its default is the request
+model's (rsfcli.common), the same as over HTTP.  They are declared once
+(:func:`_machine_command` puts them first in each command's signature, in this order)
+and reach the command as one :class:`Machine`.
 """
 
 from __future__ import annotations

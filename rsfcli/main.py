@@ -5,6 +5,11 @@ Invalid input exits with status 2 and a message naming the field and its valid r
 Dimensionless parameters follow the paper: --ba = b/a (> 1), --kappa = k Dc/(a sigma)
 (absolute, kappa_crit = b/a - 1), --eps in [0, 1] (0 slip law, 1 aging law),
 --vo = V_o/V_* (0 = stationary load point).
+
+Every computing command builds the HTTP endpoint's request model (:mod:`rsfapp.requests`)
+from the options given and answers through :mod:`rsfapp.adapter`, so ``--json`` prints the
+endpoint's answer; an option not given takes the model's default (eps = 0.25 at every
+door) and the text output ends with the parameters used (rsfcli.common).
 """
 
 from __future__ import annotations
