@@ -84,10 +84,13 @@ def _floats(v: Any) -> Any:
     return [float(x) for x in v]
 
 
-def body(fields: Mapping[str, Any]) -> dict[str, Any]:
-    """The JSON body of keyword arguments: None left out, the flat SI machine fields
-    nested into ``physical`` (ValueError if ``physical`` is given as well)."""
+def body(fields: Mapping[str, Any], nest_machine: bool = True) -> dict[str, Any]:
+    """The JSON body of keyword arguments: None left out; with ``nest_machine`` the flat SI
+    machine fields nested into ``physical`` (ValueError if ``physical`` is given as well),
+    without it (fits: k_Pa_per_m and sigma_Pa are top-level fields there) sent as given."""
     out = {k: v for k, v in fields.items() if v is not None and k != "self"}
+    if not nest_machine:
+        return out
     machine = {k: out.pop(k) for k in MACHINE_FIELDS if k in out}
     if machine:
         if "physical" in out:
@@ -447,7 +450,7 @@ class Client:
         a mapping of columns (t_s, v_lp_m_s, mu) or a pandas.DataFrame."""
         f = dict(locals())
         f["record"] = record_text(record)
-        r = self.http.request("POST", "/v1/fits", json=body(f))
+        r = self.http.request("POST", "/v1/fits", json=body(f, nest_machine=False))
         d = r.json()
         key = str(d["cache_key"])
         return Fit(self.http, key, d if r.status_code == 200 else None)

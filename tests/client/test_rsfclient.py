@@ -363,3 +363,24 @@ def test_client_modules_import_none_of_the_service_packages() -> None:
                 if top in ours or (top not in optional and top not in sys.stdlib_module_names):
                     bad.append(f"{f.name}:{node.lineno} imports {n}")
     assert not bad, bad
+
+
+def test_fit_stiffness_in_pa_per_m_is_sent_top_level() -> None:
+    """k_Pa_per_m and sigma_Pa are fields of the fit request itself (not a ``physical``
+    machine as in the single queries)."""
+    seen: list[dict[str, Any]] = []
+
+    def handler(req: httpx.Request) -> httpx.Response:
+        seen.append(json.loads(req.content))
+        return httpx.Response(202, json={"status": "queued", "cache_key": "d" * 64})
+
+    with mock(handler) as c:
+        c.submit_fit("t_s,v_lp_m_s,mu\n", k_Pa_per_m=2e10, sigma_Pa=1e7, windows=[(0.0, 60.0)])
+    assert seen == [
+        {
+            "record": "t_s,v_lp_m_s,mu\n",
+            "k_Pa_per_m": 2e10,
+            "sigma_Pa": 1e7,
+            "windows": [[0.0, 60.0]],
+        }
+    ]
