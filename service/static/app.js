@@ -44,6 +44,7 @@ function useKey(ev) {
   try { if (v) sessionStorage.setItem(KEY_ITEM, v); else sessionStorage.removeItem(KEY_ITEM); } catch (e) { /* private mode */ }
   $("#key-input").value = "";
   $("#key-form").hidden = true;
+  if (typeof forgetAuthFailures === "function") forgetAuthFailures();  // sweeps.js
   health(); loadFigures(); refreshSweeps();
 }
 

@@ -91,6 +91,11 @@ function noteFailure(key, err) {
   failures.set(key, f);
   return f;
 }
+/** A new API key: what was refused for want of one (401/403) may be asked again. */
+function forgetAuthFailures() {
+  for (const [k, f] of failures) if (f.status === 401 || f.status === 403) failures.delete(k);
+  if (state.view) { state.view.shownKey = null; updateView(true); }
+}
 function mayAsk(key) {
   const f = failures.get(key);
   return !f || (!f.final && Date.now() >= f.nextAt);

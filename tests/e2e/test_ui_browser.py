@@ -350,7 +350,8 @@ ROW_STATE = """(() => {
           badge: tr.querySelector('.badge').textContent,
           eta: eta.querySelector('.eta-text').textContent, cancel: !!cancel,
           visible: inView(p) && inView(eta.querySelector('.eta-text')) && (!cancel || inView(cancel)),
-          hscroll: document.scrollingElement.scrollWidth > innerWidth};
+          hscroll: document.scrollingElement.scrollWidth > innerWidth,
+          shown: document.querySelector('#diagram-canvas').dataset.progress || ''};
 })()"""
 
 GRID_3D = {
@@ -457,7 +458,14 @@ def test_dashboard_in_headless_chromium(ui: UI) -> None:
         row = browser.js(ROW_STATE)
         if row and (not seen or row != seen[-1]):
             seen.append(row)
-        if row and row["status"] == "running" and not (tmp_path / "ui-running.png").exists():
+        if (  # a screenshot of the running sweep once it shows progress and an ETA
+            row
+            and row["status"] == "running"
+            and 0 < row["done"] < row["total"]
+            and row["eta"][:1].isdigit()
+            and row["shown"] == f"{row['done']}/{row['total']}"  # the view has caught up
+            and not (tmp_path / "ui-running.png").exists()
+        ):
             shoot(browser, tmp_path, "running", width=1280, height=800)
             browser.call(
                 "Emulation.setDeviceMetricsOverride",
@@ -559,6 +567,15 @@ def test_3d_sweep_deep_link_and_slices(ui: UI) -> None:
         "[...document.querySelectorAll('#view-controls [data-slice]')].map(e => e.dataset.slice)"
     )
     assert ctl == ["ba"], ctl
+    # a pointer over the map reads the cell out: its coordinates and its value
+    readout = ui.b.js(
+        "(() => { const c = document.querySelector('#diagram-canvas'), r = c.getBoundingClientRect();"
+        " c.dispatchEvent(new MouseEvent('mousemove', {clientX: r.left + r.width * 0.4,"
+        " clientY: r.top + r.height * 0.5, bubbles: true}));"
+        " return document.querySelector('#diagram-readout').textContent; })()"
+    )
+    assert readout.startswith("\u03ba/\u03ba_crit = ") and ", \u03b5 = " in readout, readout
+    assert any(w in readout for w in ("critical", "zero", "infinite")), readout
     # the slice's own download: the server's subset of this slice, the same numbers
     link = ui.b.js(
         "[...document.querySelectorAll('#diagram-links a')]"
