@@ -28,6 +28,7 @@ are not limited.  The stores are those of the request's database bundle
 from __future__ import annotations
 
 import asyncio
+import hashlib
 import logging
 import math
 from typing import Annotated
@@ -309,6 +310,21 @@ class Admission:
             log.warning("could not charge a fresh computation to its key", exc_info=True)
         finally:
             await gate.release()
+
+    @classmethod
+    def begin(cls, scope: AsgiScope) -> Admission:
+        """The admission of a new request to a computing endpoint, kept in its ``scope``:
+        its key id is the SHA-256 of the bearer token it carries (the id
+        :func:`rsfapp.store.keys.hash_key` gives the key: Starlette decodes headers as
+        latin-1, the key is hashed as UTF-8)."""
+        key_id = None
+        for k, v in scope.get("headers", ()):
+            if k == b"authorization":
+                scheme, _, token = bytes(v).partition(b" ")
+                if scheme.lower() == b"bearer" and token.strip():
+                    key_id = hashlib.sha256(token.strip().decode("latin-1").encode()).hexdigest()
+                break
+        return cls(key_id).install(scope)
 
     def install(self, scope: AsgiScope) -> Admission:
         """Keep this admission in ``scope`` (read by :func:`get_admission`); returns self."""

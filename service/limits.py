@@ -57,7 +57,6 @@ CORS (:func:`install`) is off unless ``RSF_CORS_ORIGINS`` lists allowed origins.
 
 from __future__ import annotations
 
-import hashlib
 import logging
 import re
 from collections.abc import Callable
@@ -100,18 +99,6 @@ def _header(scope: Scope, name: bytes) -> bytes | None:
         if k == name:
             return bytes(v)
     return None
-
-
-def _key_id(scope: Scope) -> str | None:
-    """SHA-256 of the bearer token, if any (the same id :mod:`service.auth` records)."""
-    auth = _header(scope, b"authorization")
-    if not auth:
-        return None
-    scheme, _, token = auth.partition(b" ")
-    if scheme.lower() != b"bearer" or not token.strip():
-        return None
-    # as service.auth sees it: Starlette decodes headers as latin-1, hash_key encodes UTF-8
-    return hashlib.sha256(token.strip().decode("latin-1").encode("utf-8")).hexdigest()
 
 
 async def _buffer(receive: Receive) -> tuple[list[Message], bytes | None]:
@@ -210,10 +197,10 @@ class Limits:
         if not is_computing(path):
             await self.app(scope, receive, _allow_fixed(scope, send))
             return
-        await self._computing(scope, receive, _allow_fixed(scope, send), _key_id(scope), cl)
+        await self._computing(scope, receive, _allow_fixed(scope, send), cl)
 
     async def _computing(
-        self, scope: Scope, receive: Receive, send: Send, kid: str | None, cl: bytes | None
+        self, scope: Scope, receive: Receive, send: Send, cl: bytes | None
     ) -> None:
         """A request to a computing endpoint: a cached lookup answered from memory, or
         the app, with the request's :class:`~service.admission.Admission` (made here,
@@ -237,7 +224,7 @@ class Limits:
                     await resp(scope, receive, send)
                     return
         seen: dict[str, Any] = {"status": 0, "fresh": False, "json": False}
-        adm = Admission(kid).install(scope)
+        adm = Admission.begin(scope)
 
         async def watch(msg: Message) -> None:
             if msg["type"] == "http.response.start":
