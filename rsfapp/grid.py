@@ -261,7 +261,10 @@ class SweepSpec:
             idx = np.arange(i0, i1, dtype=np.int64)
             multi = np.unravel_index(idx, self.shape)
             for ax, k in zip(self.axes, multi, strict=True):
-                vals[ax.name] = ax.at(np.asarray(k, dtype=np.int64))
+                k64 = np.asarray(k, dtype=np.int64)
+                # an axis shorter than the range: its values once, then gathered (same
+                # numbers as at(k), elementwise; 3x less work than at() per point)
+                vals[ax.name] = ax.all()[k64] if ax.n < k64.size else ax.at(k64)
         else:
             assert self.points is not None
             for name, arr in self.points.items():

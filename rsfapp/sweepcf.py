@@ -1,10 +1,10 @@
 """CF metadata of a sweep's files (NetCDF and Zarr): what every variable is, in the
 Climate and Forecast conventions (CF-1.10) that xarray, cf-xarray, Panoply and ncview read.
 
-* global: ``Conventions``, ``title``, ``institution``-free ``source`` (software and
-  numerics version), ``history`` (when and how the file was made), ``references``,
-  ``request`` (the sweep's canonical spec, JSON), ``selection`` (the subset, JSON), plus
-  the sweep's status, fixed parameters and SI scales;
+* global: ``Conventions``, ``title``, ``source`` (software and numerics version),
+  ``history`` (when and how the file was made), ``references``, ``request`` (the sweep's
+  canonical spec, JSON), ``selection`` (the subset, JSON), plus the sweep's status, fixed
+  parameters and SI scales;
 * every coordinate and variable: ``long_name`` and ``units`` ("1" for dimensionless);
 * the codes (``kind``, ``outcome``, ``method``, and the 0/1 flags ``failed``,
   ``outcome_uncertain``, ``computed``): ``flag_values`` and ``flag_meanings`` with one
@@ -148,12 +148,14 @@ def global_attrs(
     status: dict[str, Any],
     selection: dict[str, Any] | None,
     how: str,
+    when: str | None = None,
 ) -> dict[str, Any]:
     """Global attributes: CF identification, the request and the sweep's state.
-    ``how`` says how the file was made (e.g. the request path), for ``history``."""
+    ``how`` says how the file was made (e.g. the request path), for ``history``, at
+    ``when`` (ISO 8601; default now)."""
     from rsfcore import NUMERICS_VERSION
 
-    now = datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
+    now = when or datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
     attrs: dict[str, Any] = {
         "Conventions": CONVENTIONS,
         "title": "Critical perturbation sizes of a rate-and-state spring-slider "

@@ -420,30 +420,54 @@ def csv_rows(
         sizes = si_sizes(spec, vals)
         g = _slab_values(reader, spec, slab, need, errors="failed" in cols)
         a = g.arrays
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        blank = [""] * (len(cols) + ("failed" in cols))
-        for k in range(flat.size):
-            row: list[Any] = [int(flat[k]), *(repr(float(vals[m][k])) for m in names)]
-            if sizes is not None:
-                row.append(_fmt(sizes[k]))
-            if not a["computed"][k]:
-                row += blank
+        done = a["computed"].astype(bool)
+        columns: list[list[str]] = [[str(i) for i in flat.tolist()]]
+        columns += [_reprs(vals[m]) for m in names]
+        if sizes is not None:
+            columns.append(_reprs(sizes, nan=""))
+        for c in cols:
+            x = a[c]
+            if c == "kind":
+                col = _KIND_TEXT[np.where(x >= 0, x + 1, 0)].tolist()
+            elif c == "outcome":
+                col = _OUTCOME_TEXT[np.where(x >= 0, x + 1, 0)].tolist()
+            elif c == "method":
+                col = _METHOD_TEXT[np.where(x >= 0, x + 1, 0)].tolist()
+            elif c == "failed":
+                col = [str(int(v)) for v in x.tolist()]
             else:
-                for c in cols:
-                    x = a[c][k]
-                    if c == "kind":
-                        row.append(KINDS[int(x)] if x >= 0 else "")
-                    elif c == "outcome":
-                        row.append(_OUTCOMES[int(x)] if x >= 0 else "")
-                    elif c == "method":
-                        row.append(_method(int(x)))
-                    elif c == "failed":
-                        row += [int(x), g.errors.get(k, "")]
-                    else:
-                        row.append(_fmt(x))
-            w.writerow(row)
-        yield buf.getvalue()
+                col = _reprs(x, nan="")
+            columns.append(_blank(col, done))
+            if c == "failed":
+                errs = [""] * flat.size
+                for k, msg in g.errors.items():
+                    errs[k] = _quote(msg)
+                columns.append(errs)
+        yield "".join(",".join(row) + "\n" for row in zip(*columns, strict=True))
+
+
+_KIND_TEXT = np.array(["", *KINDS])
+_OUTCOME_TEXT = np.array(["", *_OUTCOMES])
+_METHOD_TEXT = np.array(["", *(m.split(":")[0] for m in METHODS)])
+
+
+def _reprs(x: NDArray[Any], nan: str = "") -> list[str]:
+    """Shortest round-trip text of each float ('inf' kept; NaN -> ``nan``)."""
+    return [nan if v != v else repr(v) for v in x.astype(np.float64).tolist()]
+
+
+def _blank(col: list[str], done: NDArray[np.bool_]) -> list[str]:
+    """Empty where the point is not computed."""
+    if done.all():
+        return col
+    return [v if d else "" for v, d in zip(col, done.tolist(), strict=True)]
+
+
+def _quote(text: str) -> str:
+    """A CSV field (RFC 4180 quoting when needed)."""
+    if any(ch in text for ch in ',"\n\r'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
 
 
 def swept_at(spec: SweepSpec, flat: NDArray[np.int64]) -> dict[str, NDArray[np.float64]]:

@@ -87,7 +87,13 @@ class ZarrSweep:
         self.chunks = chunk_shape(self.shape, max(1, block_points))
         meta: dict[str, Any] = {".zgroup": {"zarr_format": 2}}
         meta[".zattrs"] = _jsonable(
-            global_attrs(spec, status, None, f"GET /v1/sweeps/{self.sweep_id}/zarr")
+            global_attrs(
+                spec,
+                status,
+                None,
+                f"served as Zarr by GET /v1/sweeps/{self.sweep_id}/zarr",
+                when=str(status.get("created_at") or ""),  # stable across requests
+            )
         )
         self.coords: dict[str, NDArray[Any]] = {}
         if spec.mode == "grid":

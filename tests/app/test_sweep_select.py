@@ -134,3 +134,27 @@ def test_zarr_chunk_shape_follows_blocks() -> None:
     assert chunk_shape((3, 4, 6), 3) == (1, 1, 3)
     assert chunk_shape((4, 10), 25) == (2, 10)  # no exact fit: rows of at most 25
     assert chunk_shape((1000,), 10**6) == (1000,)
+
+
+def test_swept_values_gather_equals_at() -> None:
+    """SweepSpec.swept_values gathers each short axis's values once: bit-equal to
+    Axis.at at every point (linear, geometric and explicit axes, ranges of any length)."""
+    spec = SweepSpec(
+        "grid",
+        [
+            Axis("ba", 3, (2.0, 3.0, 4.0)),
+            Axis("eps", 7, None, 0.013, 0.77),
+            Axis("vo", 11, None, 1e-3, 17.0, True),
+        ],
+        None,
+        {"kappa_ratio": 0.5},
+        "kappa_ratio",
+        "velocity-jump",
+        1e-10,
+        "critical",
+    )
+    for i0, i1 in [(0, spec.n_total), (5, 9), (100, 231), (0, 2)]:
+        got = spec.swept_values(i0, i1)
+        multi = np.unravel_index(np.arange(i0, i1), spec.shape)
+        for ax, k in zip(spec.axes, multi, strict=True):
+            assert np.array_equal(got[ax.name], ax.at(np.asarray(k, dtype=np.int64))), ax.name
