@@ -28,4 +28,14 @@ __all__ = ["NUMERICS_VERSION"]
 #:    Separatrix: a load-point run skips the frozen tail (phi < -60) and starts near L*
 #:    (values moved <= 0.12 of their claims), and its error carries a rounding floor of
 #:    2 sqrt(steps) ulp(l); the asymptote's 1/r^2 term is derived (errors 5 .. 1000x smaller).
-NUMERICS_VERSION = "4"
+#: 5: the engine carries L = phi + ln theta itself instead of ln theta (its local error
+#:    is rtol |L|, not rtol |phi|, and phi + ln theta no longer rounds at phi ~ 1e14):
+#:    every integrated time and peak moves at the level of its tolerance, and near
+#:    b/a -> 1 with x -> 1 false runaway certificates are gone (issue 22).  classify
+#:    certifies an integrated outcome by runs at tolerances 10x apart (tightening to 1e-13
+#:    when they differ, else UndecidedError "not_certified"), and a velocity jump d > 0 is
+#:    decided by the side of the traced separatrix where the integration disagrees.  The
+#:    kind of a critical size follows the exact signs of kappa - kappa_crit and 1 - x of
+#:    the input doubles (x = 1 - 5.6e-17 is finite, was infinite); kappa = 0 load-point
+#:    jumps are "infinite"; v_o in (0, 1e-300) is rejected.
+NUMERICS_VERSION = "5"

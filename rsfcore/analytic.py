@@ -24,6 +24,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+# (numba's cache does not track callees in other modules: this file was touched when
+# rsfcore.laws.L_star began deciding x >= 1 on the exact 1 - x, NUMERICS_VERSION 5)
 from .laws import L_star
 from .params import ParameterError, Params, check_range
 

@@ -23,6 +23,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .critical import BOUNDARY_RTOL
 from .jsonsafe import finite_or_none
+
+# (numba's cache does not track callees in other modules: this file was touched when
+# rsfcore.laws.L_star began deciding x >= 1 on the exact 1 - x, NUMERICS_VERSION 5)
 from .laws import L_star
 from .params import BA_MAX, KAPPA_MAX, ParameterError, Params, check_range
 

@@ -82,19 +82,50 @@ import numba as nb
 import numpy as np
 
 from . import limits as lim
-from .analytic import L_star_acc, _ljump_kcrit_acc, _vjump_kcrit_acc
+from .asymptote import (
+    ASYM_B_MAX,
+    ASYM_DIRECT_LSTAR,
+    ASYM_LSTAR_MIN,
+    ASYM_R_MIN,
+    load_jump_asymptote,
+)
+from .decision import (
+    BOUNDARY_RTOL,
+    FLAG_FALLBACK,
+    FLAG_LOG_VALUE,
+    FLAG_ON_KCRIT,
+    FLAG_ON_X1,
+    KIND_FINITE,
+    KIND_INFINITE,
+    KIND_ZERO,
+    KINDS,
+    M_ASYMPTOTE,
+    M_BISECTION,
+    M_CF_LJUMP_KCRIT,
+    M_CF_VJUMP_KCRIT,
+    M_CF_VO0,
+    M_FINITE_BEYOND_RANGE,
+    M_INF_NO_RUNAWAY,
+    M_INF_NO_SPRING,
+    M_SEPARATRIX,
+    M_ZERO_LINEAR,
+    M_ZERO_VO0,
+    METHODS,
+    PERTURBATIONS,
+    Decision,
+    DecisionFlag,
+    Kind,
+    Method,
+    boundary_gaps,
+    critical_point,
+    first_decision,
+    pert_code,
+)
 from .errors import UndecidedError
 from .laws import L_star
 from .limits import DEFAULT_RTOL, RTOL_RANGE
 from .params import ParameterError, Params
-from .separatrix import (
-    N_WORK,
-    S_OK,
-    S_OVERFLOW,
-    _asym_coeffs,
-    _separatrix,
-    _separatrix_explicit,
-)
+from .separatrix import N_WORK, _asym_coeffs, _separatrix, _separatrix_explicit
 
 __all__ = [
     "CriticalResult",
@@ -113,102 +144,32 @@ __all__ = [
     "ASYM_R_MIN",
     "ASYM_B_MAX",
     "ASYM_LSTAR_MIN",
+    "ASYM_DIRECT_LSTAR",
+    "Decision",
+    "DecisionFlag",
+    "Kind",
+    "Method",
+    "first_decision",
+    "KIND_ZERO",
+    "KIND_FINITE",
+    "KIND_INFINITE",
+    "FLAG_ON_X1",
+    "FLAG_ON_KCRIT",
+    "FLAG_FALLBACK",
+    "FLAG_LOG_VALUE",
+    "M_ZERO_LINEAR",
+    "M_INF_NO_RUNAWAY",
+    "M_INF_NO_SPRING",
+    "M_CF_VJUMP_KCRIT",
+    "M_CF_LJUMP_KCRIT",
+    "M_CF_VO0",
+    "M_SEPARATRIX",
+    "M_BISECTION",
+    "M_ZERO_VO0",
+    "M_FINITE_BEYOND_RANGE",
+    "M_ASYMPTOTE",
+    "critical_batch",
 ]
-
-PERTURBATIONS: tuple[str, ...] = ("velocity-jump", "load-point-jump")
-#: kind codes used by the compiled kernels and by rsfcore.diagram
-KIND_ZERO, KIND_FINITE, KIND_INFINITE = 0, 1, 2
-KINDS: tuple[str, ...] = ("zero", "finite", "infinite")
-
-# method codes (index into METHODS)
-M_ZERO_LINEAR = 0
-M_INF_NO_RUNAWAY = 1
-M_CF_VJUMP_KCRIT = 2
-M_CF_LJUMP_KCRIT = 3
-M_CF_VO0 = 4
-M_SEPARATRIX = 5
-M_BISECTION = 6
-M_ZERO_VO0 = 7
-M_FINITE_BEYOND_RANGE = 8
-METHODS: tuple[str, ...] = (
-    "zero: kappa < kappa_crit with a moving load point (linear instability)",
-    "infinite: eps*kappa >= kappa_crit, no runaway possible (eq: critical trajectory condition)",
-    "closed form: eq: limiting trajectory 1 with psi = phi (kappa = kappa_crit)",
-    "closed form: load-point jump at kappa = kappa_crit, dv = 1/(kappa_crit (1 - eps))"
-    " (eq: trajectories 1)",
-    "closed form: eq: analytical phi crit (v_o = 0), d_crit = L*",
-    "separatrix: backward integration of the separatrix from its asymptote (compiled DOP853,"
-    " RODAS4 where stiff)",
-    "bisection on certified classify() outcomes",
-    "zero: kappa = 0 with a stationary load point (L* = 0)",
-    "separatrix: finite beyond the double range, ln(1 + dv) > 709 (dv > 8e307): reported by"
-    " log_critical_size = ln(1 + dv)",
-    "asymptote: ln(1 + dv) = L* - ln(kappa_crit) + ln((r - 1)/(r - x)) + O(kappa_crit/r) for"
-    " r = kappa/kappa_crit >> 1 (derived in docs/derivations/load_jump_asymptote.md)",
-)
-M_ASYMPTOTE = 9
-
-# flag bits of the compiled kernel (_critical_point, critical_batch; they call the separatrix
-# driver, whose shared rk kernels numba's cache does not track: touch this file after
-# editing rsfcore/separatrix.py or rsfcore/ode/rk.py, or clear NUMBA_CACHE_DIR)
-FLAG_ON_X1 = 1  # eps*kappa/kappa_crit = 1 up to rounding
-FLAG_ON_KCRIT = 2  # kappa = kappa_crit up to rounding
-FLAG_FALLBACK = 4  # separatrix method failed: use bisection
-#: _critical_point only: value is l = ln(1 + dv) (dv beyond the double range); critical_batch
-#: writes inf (kind finite) there
-FLAG_LOG_VALUE = 8
-
-#: Relative band within which x = eps kappa/kappa_crit = 1 or kappa = kappa_crit are taken
-#: as exact (rounding of the inputs: ~450 ulp).  Points inside are flagged ``on_boundary``.
-BOUNDARY_RTOL = 1.0e-13
-# DEFAULT_RTOL and RTOL_RANGE: rsfcore.limits (re-exported here for old import paths)
-
-
-@nb.njit(cache=True, nogil=True)
-def _critical_point(ba, kappa, eps, vo, pert, rtol, K):
-    """Decision logic for one point.  Returns (kind, value, rel_acc, method, flags, n_rhs).
-
-    value is 0 for zero, inf for infinite; on FLAG_FALLBACK value is nan.
-    """
-    kc = ba - 1.0
-    r = kappa / kc
-    x = eps * r
-    flags = 0
-    if abs(r - 1.0) <= BOUNDARY_RTOL:
-        flags |= FLAG_ON_KCRIT
-    if abs(x - 1.0) <= BOUNDARY_RTOL:
-        flags |= FLAG_ON_X1
-    on_kc = (flags & FLAG_ON_KCRIT) != 0
-    if vo > 0.0 and r < 1.0 and not on_kc:
-        return KIND_ZERO, 0.0, 0.0, M_ZERO_LINEAR, flags, 0
-    if x >= 1.0 - BOUNDARY_RTOL:
-        return KIND_INFINITE, math.inf, 0.0, M_INF_NO_RUNAWAY, flags, 0
-    if vo == 0.0:
-        # velocity jump only (the caller rejects load-point jumps with v_o = 0)
-        Ls, acc = L_star_acc(kappa, kc, eps)
-        if Ls == 0.0:
-            return KIND_ZERO, 0.0, 0.0, M_ZERO_VO0, flags, 0
-        return KIND_FINITE, Ls, acc, M_CF_VO0, flags, 0
-    if on_kc:
-        # closed forms evaluated at kappa = kappa_crit, with their tested rounding bounds
-        # (rsfcore.analytic, derived from each formula's conditioning); inside the rounding
-        # band add |r - 1| times the sensitivity d ln(size)/d r at r = 1, measured
-        # (separatrix at r = 1 + h) to stay below 20 + 2/(1 - eps) + 2 sqrt(b/a)
-        sens = (20.0 + 2.0 / (1.0 - eps) + 2.0 * math.sqrt(ba)) * abs(r - 1.0)
-        if pert == 0:
-            d, acc = _vjump_kcrit_acc(ba, eps)
-            return KIND_FINITE, d, acc + sens, M_CF_VJUMP_KCRIT, flags, 0
-        dv, _, acc = _ljump_kcrit_acc(ba, eps)
-        return KIND_FINITE, dv, acc + sens, M_CF_LJUMP_KCRIT, flags, 0
-    st, val, aerr, nr = _separatrix(kappa, kc, eps, pert, rtol, K)
-    if st == S_OVERFLOW and pert == 1:
-        # val = l = ln(1 + dv) > 709, aerr its absolute error = the relative error of dv
-        return KIND_FINITE, val, max(aerr, rtol), M_FINITE_BEYOND_RANGE, flags | FLAG_LOG_VALUE, nr
-    if st != S_OK:
-        return KIND_FINITE, math.nan, math.nan, M_SEPARATRIX, flags | FLAG_FALLBACK, nr
-    # reported accuracy: the requested rtol (met by calibration, see _TOL_FACTOR_V) or the
-    # propagated a-posteriori estimate when that is larger
-    return KIND_FINITE, val, max(aerr / val, rtol), M_SEPARATRIX, flags, nr
 
 
 @nb.njit(cache=True, nogil=True)
@@ -220,7 +181,7 @@ def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method,
     K = np.empty(N_WORK)
     n_total = 0
     for i in range(ba.shape[0]):
-        k, v, a, m, fl, nr = _critical_point(ba[i], kappa[i], eps[i], vo, pert, rtol, K)
+        k, v, a, m, fl, nr = critical_point(ba[i], kappa[i], eps[i], vo, pert, rtol, K)
         kind[i] = k
         value[i] = math.inf if fl & FLAG_LOG_VALUE else v  # finite, beyond the double range
         rel_acc[i] = a
@@ -245,11 +206,11 @@ def separatrix_raw(
     tolerance), the method as it was before the stiff corner was handled; a reference
     where its step budget (2e5 steps) suffices, status 4 (budget) where not.
     """
-    pert = _pert_code(perturbation)
+    pert = pert_code(perturbation)
     if not (
         params.vo > 0.0
         and params.kappa >= params.kappa_crit
-        and params.eps * params.kappa < params.kappa_crit
+        and boundary_gaps(params.ba, params.kappa, params.eps)[1] > 0.0
     ):
         raise ParameterError(
             "params", params.as_dict(), "kappa >= kappa_crit, eps*kappa < kappa_crit, v_o > 0"
@@ -369,30 +330,6 @@ def _with_accuracy(res: CriticalResult, rtol: float) -> CriticalResult:
     return replace(res, accuracy_met=met, reason=reason)
 
 
-def _pert_code(perturbation: str) -> int:
-    if perturbation not in PERTURBATIONS:
-        raise ParameterError("perturbation", perturbation, "one of " + ", ".join(PERTURBATIONS))
-    return PERTURBATIONS.index(perturbation)
-
-
-def _first_decision(params: Params, perturbation: str, rtol: float) -> tuple:
-    """Validate the inputs and run the compiled decision for one point.
-
-    Returns (rtol, kind, value, rel_accuracy, method, flags, n_rhs, on_boundary)."""
-    if not isinstance(params, Params):
-        raise ParameterError("params", params, "an rsfcore.Params")
-    pert = _pert_code(perturbation)
-    rtol = lim.RTOL.check(rtol)
-    if pert == 1 and params.vo == 0.0:
-        raise ParameterError(
-            "vo", params.vo, "> 0 for a load-point jump (relative jump of a moving load point)"
-        )
-    kind, val, acc, meth, flags, nr = _critical_point(
-        params.ba, params.kappa, params.eps, params.vo, pert, rtol, np.empty(N_WORK)
-    )
-    return rtol, kind, val, acc, meth, flags, nr, bool(flags & (FLAG_ON_X1 | FLAG_ON_KCRIT))
-
-
 def critical_perturbation(
     params: Params, perturbation: str = "velocity-jump", *, rtol: float = DEFAULT_RTOL
 ) -> CriticalResult:
@@ -420,94 +357,38 @@ def critical_perturbation(
         res = _asymptote_result(params, perturbation, abs(x - 1.0) <= BOUNDARY_RTOL)
         if res is not None:
             return _with_accuracy(res, lim.RTOL.check(rtol))
-    rtol, kind, val, acc, meth, flags, nr, on_b = _first_decision(params, perturbation, rtol)
-    if flags & FLAG_FALLBACK:
-        res = bisect_critical(params, perturbation, rtol=rtol)
-        return replace(res, on_boundary=on_b)
-    log = float(val) if flags & FLAG_LOG_VALUE else None
-    res = _make_result(
-        int(kind), float(val), float(acc), int(meth), perturbation, params, on_b, int(nr), log
-    )
-    return _with_accuracy(res, rtol)
+    dec = first_decision(params, perturbation, rtol)
+    if dec.flags & DecisionFlag.FALLBACK:
+        res = bisect_critical(params, perturbation, rtol=dec.rtol)
+        return replace(res, on_boundary=dec.on_boundary)
+    log = dec.value if dec.flags & DecisionFlag.LOG_VALUE else None
+    res = _make_result(dec, perturbation, params, log)
+    return _with_accuracy(res, dec.rtol)
 
 
 def _make_result(
-    kind: int,
-    val: float,
-    acc: float,
-    meth: int,
-    perturbation: str,
-    params: Params,
-    on_b: bool,
-    nr: int = 0,
-    log: float | None = None,
+    dec: Decision, perturbation: str, params: Params, log: float | None = None
 ) -> CriticalResult:
-    """log: l = ln(1 + dv) when dv is beyond the double range (size inf, kind finite)."""
+    """The CriticalResult of a decision; log: l = ln(1 + dv) when dv is beyond the double
+    range (size inf, kind finite)."""
     size: float | None
-    if kind == KIND_INFINITE:
+    if dec.kind == Kind.INFINITE:
         size = None
-    elif kind == KIND_ZERO:
+    elif dec.kind == Kind.ZERO:
         size = 0.0
     else:
-        size = math.inf if log is not None else val
+        size = math.inf if log is not None else dec.value
     return CriticalResult(
-        KINDS[kind], size, acc, METHODS[meth], perturbation, params, on_b, nr, log
+        dec.kind.text,
+        size,
+        dec.rel_accuracy,
+        dec.method.text,
+        perturbation,
+        params,
+        dec.on_boundary,
+        dec.n_rhs,
+        log,
     )
-
-
-#: The load-point asymptote is used where kappa/kappa_crit >= this and L* >= ASYM_LSTAR_MIN
-#: (ln(1 + dv_crit) >~ 1e4, beyond the starts classify integrates), as a fallback of the
-#: separatrix method or (ASYM_DIRECT_LSTAR) in its place.
-ASYM_R_MIN = 1.0e3
-ASYM_LSTAR_MIN = 1.0e4
-#: From this L* on critical_perturbation answers by the asymptote at once: its error there
-#: is ~8 ulp(l) (3 b (1/r + b)^2 < 1e-12 for r >= 2e4), ~1 us, where the separatrix
-#: method (which now reaches L* ~ 1e8) carries a rounding floor of 2 sqrt(steps) ulp(l).
-ASYM_DIRECT_LSTAR = 2.0e4
-#: b = kappa_crit (1 - x)/r up to which the remainder bound of the asymptote is tested
-#: (its series in b has radius ~1)
-ASYM_B_MAX = 0.3
-_ZETA2_M1 = math.pi**2 / 6.0 - 1.0
-_ZETA3 = 1.2020569031595942  # zeta(3) (Apery's constant)
-
-
-def load_jump_asymptote(
-    params: Params, lstar_min: float = ASYM_LSTAR_MIN
-) -> tuple[float, float] | None:
-    """(l, abs error of l) of the critical load-point jump, l = ln(1 + dv_crit), for
-    r = kappa/kappa_crit >> 1, or None outside its range (r < ASYM_R_MIN, b =
-    kappa_crit (1 - x)/r > ASYM_B_MAX, L* < ``lstar_min``, or L* infinite; a smaller
-    ``lstar_min`` is for testing it where the separatrix method runs too).
-
-    Derived in docs/derivations/load_jump_asymptote.md (inner variables of the
-    separatrix ODE (B) near u = L*; every step checked in
-    tests/core/test_asymptote_derivation.py), with x = eps r and b as above:
-
-        l = L* - ln(kappa_crit) + ln((r - 1)/(r - x)) + b (zeta(2) - 1)
-            + (b/r) [(zeta(3) - 1)(2 - x) + (zeta(3) - 3/2) kappa_crit (1 - x)] + R3,
-
-    |R3| <= 3 b (1/r + b)^2 (10x the largest remainder measured against the numerical
-    inner solution, b <= 0.3).  The first order is the formerly fitted
-    -(1 - x)(1 - (pi^2/6 - 1) kappa_crit)/r exactly.  The returned error is that bound
-    plus 8 ulp of l; tested against the separatrix method wherever both run
-    (tests/core/test_critical_agreement.py): e.g. 2.3e-10 at r = 1e3, kappa_crit = 1
-    (the fitted first-order form erred 3.9e-7 there)."""
-    kc, kappa, eps = params.kappa_crit, params.kappa, params.eps
-    r = kappa / kc
-    if not r >= ASYM_R_MIN:
-        return None
-    ls = float(L_star(kappa, kc, eps))
-    if not (math.isfinite(ls) and ls >= lstar_min):
-        return None
-    x = eps * r
-    b = kc * (1.0 - x) / r
-    if not b <= ASYM_B_MAX:
-        return None
-    delta = math.log1p(-(1.0 - x) / (r - x)) + b * (
-        _ZETA2_M1 + ((_ZETA3 - 1.0) * (2.0 - x) + (_ZETA3 - 1.5) * kc * (1.0 - x)) / r
-    )
-    lg = ls - math.log(kc) + delta
-    return lg, 3.0 * b * (1.0 / r + b) ** 2 + 8.0 * math.ulp(lg)
 
 
 def _asymptote_result(params: Params, perturbation: str, on_b: bool) -> CriticalResult | None:
@@ -559,13 +440,12 @@ def _bisect_critical(
 ) -> CriticalResult:
     from .trajectory import classify
 
-    rtol, kind, val, acc, meth, flags, _, on_b = _first_decision(params, perturbation, rtol)
+    dec = first_decision(params, perturbation, rtol)
+    rtol, on_b = dec.rtol, dec.on_boundary
     p_run = params.with_(vo=1.0) if params.vo > 0.0 else params
-    if kind != KIND_FINITE:
-        return _make_result(
-            int(kind), float(val), float(acc), int(meth), perturbation, params, on_b
-        )
-    if _pert_code(perturbation) == 1 and not integrate_only:
+    if dec.kind != Kind.FINITE:
+        return _make_result(dec._replace(n_rhs=0), perturbation, params)
+    if pert_code(perturbation) == 1 and not integrate_only:
         res = _asymptote_result(params, perturbation, on_b)
         if res is not None:
             return res
@@ -576,11 +456,19 @@ def _bisect_critical(
 
     def unstable(size: float) -> bool:
         nonlocal n_rhs
-        r = classify(p_run, perturbation, size, rtol=crtol, check_accuracy=False, **kw)
+        r = classify(
+            p_run,
+            perturbation,
+            size,
+            rtol=crtol,
+            check_accuracy=False,
+            separatrix_side=False,  # independent of the separatrix method
+            **kw,
+        )
         n_rhs += r.n_rhs
         return r.outcome == "unstable"
 
-    if _pert_code(perturbation) == 0:
+    if pert_code(perturbation) == 0:
         from .trajectory import SIZE_MAX
 
         Ls = float(L_star(params.kappa, params.kappa_crit, params.eps))

@@ -176,7 +176,8 @@ def _kahan(s, comp, x):
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
-    """Hybrid-time right-hand side (module docstring). Writes into ``out``."""
+    """Hybrid-time right-hand side (module docstring) of the internal state
+    y = (phi, L, c T[, s, s_o]). Writes into ``out``."""
     zz = y[0] - lnc
     e = math.exp(-abs(zz))
     inv = 1.0 / (1.0 + e)
@@ -187,14 +188,17 @@ def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
     else:
         ap = e * inv
         om = inv
-    g = G_clipped(y[0] + y[1], eps)
+    g = G_clipped(y[1], eps)
     z = ba * g * ap
     az = abs(z)
     # D = hypot(1, z) without hypot's cost; |z| alone where z*z would overflow
     inv_d = 1.0 / math.sqrt(1.0 + z * z) if az < 1e150 else 1.0 / az
     load = vo * om / c
-    out[0] = (kappa * (load - ap) - z) * inv_d
-    out[1] = g * ap * inv_d
+    kl = kappa * (load - ap)
+    out[0] = (kl - z) * inv_d
+    # dL/dtau = d phi/dtau + d ln theta/dtau, written without the cancellation of the
+    # two (kc = b/a - 1 is exact in doubles for b/a in (1, 2], Sterbenz)
+    out[1] = (kl - (ba - 1.0) * g * ap) * inv_d
     out[2] = om * inv_d  # d(c T)/dtau: the engine carries c T, which is O(tau) for any v_o
     if out.shape[0] > 3:  # slip and load point only when the full state is carried
         out[3] = ap * inv_d
@@ -261,10 +265,11 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
             w2 = xm * (2.0 - 3.0 * xm)
             gm = (F[0, 0] + w1 * F[1, 0] + w2 * F[2, 0]) / poly_h
             if idx == -2:
-                gm += ba * (F[0, 1] + w1 * F[1, 1] + w2 * F[2, 1]) / poly_h
+                gl = (F[0, 1] + w1 * F[1, 1] + w2 * F[2, 1]) / poly_h
+                gm = ba * gl - (ba - 1.0) * gm
         else:
             _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            gm = ftmp[0] if idx == -1 else ftmp[0] + ba * ftmp[1]
+            gm = ftmp[0] if idx == -1 else ba * ftmp[1] - (ba - 1.0) * ftmp[0]
         if gm == 0.0 or abs(x1 - x0) < 1e-15:
             break
         x0, x1, g0, g1, side = rk.illinois_update(x0, x1, g0, g1, side, xm, gm)
@@ -277,10 +282,11 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _jacobian(y, J, ba, kappa, eps, vo, c, lnc):
-    """J[i, 0] = d f_i/d phi, J[i, 1] = d f_i/d ln theta of the hybrid-time RHS (_rhs).
+    """J[i, 0] = d f_i/d phi, J[i, 1] = d f_i/d L of the hybrid-time RHS (_rhs) in the
+    internal state (phi, L, c T[, s, s_o]).
 
-    The right-hand side depends on (phi, ln theta) only (T, s, s_o are quadratures), so
-    these two columns are the whole Jacobian.  Exact derivatives of every branch of _rhs
+    The right-hand side depends on (phi, L) only (T, s, s_o are quadratures), so these
+    two columns are the whole Jacobian.  Exact derivatives of every branch of _rhs
     (sigmoid, clipped G, the time change D = hypot(1, z) or |z|); checked against finite
     differences in tests/core/test_stiff.py.  J has shape (n, 2), n = len(y).
     """
@@ -294,39 +300,42 @@ def _jacobian(y, J, ba, kappa, eps, vo, c, lnc):
         ap = e * inv
         om = inv
     apom = e * inv * inv  # a_phi (1 - a_phi) = d a_phi / d phi, without cancellation
-    L = y[0] + y[1]
+    L = y[1]
     g = G_clipped(L, eps)
     gL = 0.0 if eps * L < -EXP_CLIP else -math.exp(-eps * L)  # G'(L)
+    kc = ba - 1.0
     z = ba * g * ap
     az = abs(z)
-    z_p = ba * (gL * ap + g * apom)
-    z_t = ba * gL * ap
+    z_p = ba * g * apom
+    z_l = ba * gL * ap
     # d inv_d = -(z/(1 + z^2)) inv_d dz, or -(dz/z) inv_d on the |z| branch; grouped so
     # that nothing underflows for |z| up to the double range
     if az < 1e150:
         inv_d = 1.0 / math.sqrt(1.0 + z * z)
         q = z * inv_d * inv_d
         id_p = -q * (inv_d * z_p)  # d inv_d / d phi
-        id_t = -q * (inv_d * z_t)  # d inv_d / d ln theta
+        id_l = -q * (inv_d * z_l)  # d inv_d / d L
     else:
         inv_d = 1.0 / az
         id_p = -(z_p / z) * inv_d
-        id_t = -(z_t / z) * inv_d
+        id_l = -(z_l / z) * inv_d
     load = vo * om / c
     load_p = -vo * apom / c
-    n0 = kappa * (load - ap) - z
-    J[0, 0] = (kappa * (load_p - apom) - z_p) * inv_d + n0 * id_p
-    J[0, 1] = -z_t * inv_d + n0 * id_t
-    n1 = g * ap
-    J[1, 0] = (gL * ap + g * apom) * inv_d + n1 * id_p
-    J[1, 1] = gL * ap * inv_d + n1 * id_t
+    kl = kappa * (load - ap)
+    kl_p = kappa * (load_p - apom)
+    n0 = kl - z
+    J[0, 0] = (kl_p - z_p) * inv_d + n0 * id_p
+    J[0, 1] = -z_l * inv_d + n0 * id_l
+    n1 = kl - kc * g * ap
+    J[1, 0] = (kl_p - kc * g * apom) * inv_d + n1 * id_p
+    J[1, 1] = -kc * gL * ap * inv_d + n1 * id_l
     J[2, 0] = -apom * inv_d + om * id_p
-    J[2, 1] = om * id_t
+    J[2, 1] = om * id_l
     if y.shape[0] > 3:
         J[3, 0] = apom * inv_d + ap * id_p
-        J[3, 1] = ap * id_t
+        J[3, 1] = ap * id_l
         J[4, 0] = load_p * inv_d + load * id_p
-        J[4, 1] = load * id_t
+        J[4, 1] = load * id_l
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -551,7 +560,13 @@ def integrate(
 
     K = np.empty((_NSE, n))
     F = np.empty((7, n))
+    # internal state (phi, L, c T[, s, s_o]): L = phi + ln theta is carried itself, so
+    # that it keeps its own accuracy (rtol |L| + atol) however large |phi| grows; from
+    # (phi, ln theta) it would be blurred by rtol |phi| per step and by the rounding of
+    # phi + ln theta (0.016 at phi = 1e14), which decides L > L* (issue 22)
+    kc = ba - 1.0
     y = y0.copy()
+    y[1] = y0[0] + y0[1]
     y[2] *= c
     ynew = np.empty(n)
     tmp = np.empty(n)
@@ -576,7 +591,7 @@ def integrate(
     T_return = math.nan
     peak_phi = y[0]
     peak_T = y[2]
-    peak_psi = y[0] + ba * y[1]
+    peak_psi = ba * y[1] - kc * y[0]
     peak_psi_T = y[2]
     above = (not fixed_L) and y[0] >= phi_ss
     runaway = False
@@ -603,8 +618,10 @@ def integrate(
 
     if y[2] >= t_end:
         y[2] /= c
+        y[1] -= y[0]
         for i in range(n_filled):
             samples[i, 2] /= c
+            samples[i, 1] -= samples[i, 0]
         return (
             _T_END,
             y,
@@ -624,7 +641,7 @@ def integrate(
             0,
             0,
         )
-    if check_runaway and y[0] + y[1] > Lstar:
+    if check_runaway and y[1] > Lstar:
         runaway = True
         T_cert = y[2]
         peak_phi = math.inf
@@ -759,8 +776,8 @@ def integrate(
                 fe[j] = fnew[j]
 
         # maximum of psi (friction), tracked on every step like that of phi
-        gp0 = f[0] + ba * f[1]
-        gp1 = fe[0] + ba * fe[1]
+        gp0 = ba * f[1] - kc * f[0]
+        gp1 = ba * fe[1] - kc * fe[0]
         if gp0 > 0.0 and gp1 <= 0.0:
             if not dense_ready:
                 _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
@@ -786,15 +803,15 @@ def integrate(
                 h if stiff else 0.0,
             )
             rk.dense_eval(F, y, xp, tmp)
-            if tmp[0] + ba * tmp[1] > peak_psi:
-                peak_psi = tmp[0] + ba * tmp[1]
+            if ba * tmp[1] - kc * tmp[0] > peak_psi:
+                peak_psi = ba * tmp[1] - kc * tmp[0]
                 peak_psi_T = tmp[2]
-        if ye[0] + ba * ye[1] > peak_psi:
-            peak_psi = ye[0] + ba * ye[1]
+        if ba * ye[1] - kc * ye[0] > peak_psi:
+            peak_psi = ba * ye[1] - kc * ye[0]
             peak_psi_T = ye[2]
 
         # runaway certificate (checked at the step end: L is absorbing above L*)
-        if check_runaway and not runaway and ye[0] + ye[1] > Lstar:
+        if check_runaway and not runaway and ye[1] > Lstar:
             runaway = True
             T_cert = ye[2]
 
@@ -865,11 +882,7 @@ def integrate(
                         stop_status = _RETURNED
                     if ye[0] >= phi_ss:
                         above = True
-                    if (
-                        stop_status < 0
-                        and abs(ye[0] - phi_ss) < eq_tol
-                        and abs(ye[0] + ye[1]) < eq_tol
-                    ):
+                    if stop_status < 0 and abs(ye[0] - phi_ss) < eq_tol and abs(ye[1]) < eq_tol:
                         # within eq_tol of the (asymptotically stable) steady state
                         # (phi = ln v_o, L = 0) without crossing it, from below or above:
                         # a node, not a focus (stiff machines approach from above)
@@ -1022,7 +1035,7 @@ def integrate(
                         y[3] += -dJ / (ba - 1.0)
                         y[4] += dcT
                     y[2] += dcT
-                    y[1] = L_exit - y[0]  # phi is back at its entry value
+                    y[1] = L_exit  # phi is back at its entry value
                     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
                     n_rhs += 1
                     n_legs += 1
@@ -1035,8 +1048,10 @@ def integrate(
     if status == _BUDGET and runaway:
         status = _RUNAWAY if y[0] - lnc > phi_stop else _BUDGET
     y[2] /= c
+    y[1] -= y[0]  # back to ln theta = L - phi
     for i in range(n_filled):
         samples[i, 2] /= c
+        samples[i, 1] -= samples[i, 0]
     return (
         status,
         y,

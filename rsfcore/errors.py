@@ -13,7 +13,9 @@
 working; the application layer maps it to HTTP 422 / a CLI usage error naming ``field``
 and ``valid``.  ``UndecidedError`` means "the numbers are fine but this run could not
 finish": a larger budget may succeed (``reason == "budget"``) or not
-(``reason == "step_underflow"``).
+(``reason == "step_underflow"``; ``reason == "not_certified"``: runs at tolerances 10x apart,
+down to the tightest, disagree on the outcome, so the start lies within the integration's
+error of the separatrix).
 
 The classes were first defined in rsfcore.params, rsfcore.trajectory and
 rsfcore.protocols; those modules re-export them, so old import paths keep working.
@@ -43,7 +45,8 @@ class UndecidedError(RuntimeError):
     """The integration could not certify an outcome within its budget.
 
     ``reason`` is "budget" when the step budget ran out (a larger ``max_steps`` may
-    succeed) or "step_underflow" when the steps failed down to zero.
+    succeed), "step_underflow" when the steps failed down to zero, or "not_certified"
+    when runs at tolerances 10x apart (down to the tightest) disagree on the outcome.
     """
 
     def __init__(self, message: str, reason: str = "budget") -> None:

@@ -32,8 +32,12 @@ cancellation for every eps in [0, 1] (eps = 0 included) and every q:
     z = q E / (r + G(L_in)),                   l(z) = log1p(z)/z        (leg 3)
 
 (at eps = 0: -ln((r - L)/(r - L_in)), the slip law).  The leg ends where phi is back at
-phi_in, the root L_exit < L_peak of (leg 1) = 0; (leg 1) is a difference of O(|dL|) terms,
-so L_exit carries an absolute error of a few ulp of |dL| however high the peak.  The time
+phi_in, the root L_exit < L_peak of (leg 1) = 0; (leg 1) is a difference of O(|dL|) terms
+whose second, r (J(L) - J(L_in)), carries the rounding of r + G(L_in) (~ulp(r)) relative to
+r + G(L_in), so L_exit carries an absolute error below max(1, c) ulp(|dL|) with the
+conditioning factor c = r/(r + G(L_in)) (large where the leg starts near L*), however high
+the peak: measured <= 0.18 max(1, c) ulp(|dL|) over 281 random legs against 60-digit
+mpmath roots of (leg 1) (up to 4.2e6 ulp at c ~ 1e8; tests/core/test_excursion.py).  The time
 spent on the leg is T-wise e^-(phi_in - ln c) (1/|rate_in| + 1/|rate_exit|)/c with
 rate = kappa + (b/a) G(L) (the integral of d(cT) = e^-(phi - ln c) d phi/rate over the
 two flanks), below 1e-21 of the time scale at PHI_LEG = 50.
@@ -101,9 +105,10 @@ def leg_phi(L: float, L_in: float, ba: float, r: float, eps: float, rg_in: float
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def fast_leg(
-    phi_in: float, lth_in: float, ba: float, kappa: float, eps: float
+    phi_in: float, L_in: float, ba: float, kappa: float, eps: float
 ) -> tuple[bool, float, float, float, float, float]:
-    """The leg from (phi_in, ln theta_in) at phi_in - ln c >= PHI_LEG back to phi_in.
+    """The leg from (phi_in, L_in) at phi_in - ln c >= PHI_LEG back to phi_in (the engine
+    carries L = phi + ln theta itself, rsfcore.engine).
 
     Returns (ok, L_exit, phi_peak, dJ_exit, rate_in, rate_exit).  ``ok`` is False (and the
     integrator should go on stepping) where the closed form does not apply or gains
@@ -112,7 +117,6 @@ def fast_leg(
     LEG_MIN_RISE, or an exit in the clipped range of G (eps L < -EXP_CLIP).
     """
     kc = ba - 1.0
-    L_in = phi_in + lth_in
     bad = (False, math.nan, math.nan, math.nan, math.nan, math.nan)
     if not (kc > 0.0 and kappa > 0.0 and math.isfinite(L_in)):
         return bad
@@ -121,9 +125,9 @@ def fast_leg(
     r = kappa / kc
     g_in = G(L_in, eps)
     rg_in = r + g_in
-    # L itself is known to ~ulp(|phi| + |ln theta|); r + G must be clear of that blur
-    # (dG/dL = -e^(-eps L)), else the side of L* (and the exit) is not resolved here
-    blur = 64.0 * _U * (abs(phi_in) + abs(lth_in) + abs(L_in)) * math.exp(-eps * L_in)
+    # r + G must be clear of the rounding of L (dG/dL = -e^(-eps L)), else the side of L*
+    # (and the exit) is not resolved here
+    blur = 64.0 * _U * (abs(phi_in) + abs(L_in)) * math.exp(-eps * L_in)
     if not (rg_in > blur + 64.0 * _U * (r + abs(g_in))):
         return bad
     L_pk = L_star(kappa, ba, eps)  # root of kappa + (b/a) G(L): the peak of phi
@@ -179,5 +183,5 @@ class LegResult(NamedTuple):
 
 def leg(phi_in: float, lth_in: float, ba: float, kappa: float, eps: float) -> LegResult:
     """:func:`fast_leg` as a :class:`LegResult`."""
-    res = fast_leg(phi_in, lth_in, ba, kappa, eps)
+    res = fast_leg(phi_in, phi_in + lth_in, ba, kappa, eps)
     return LegResult(bool(res[0]), *(float(v) for v in res[1:]))

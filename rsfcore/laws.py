@@ -115,7 +115,8 @@ def _two_prod(a: float, b: float) -> tuple[float, float]:
 def L_star(kappa: float, kappa_crit: float, eps: float) -> float:
     """Root L* of g(L) = -kappa - kappa_crit G(L): L* = -log1p(-x)/eps, x = eps kappa/kappa_crit.
 
-    Returns +inf when x >= 1 (no runaway possible).  For v_o = 0 this is
+    Returns +inf when x >= 1 (no runaway possible), decided on the exact 1 - x of the input
+    doubles (a computed x = 1.0 can hide 1 - x = 5e-17, where L* = 37/eps is finite).  For v_o = 0 this is
     `eq: analytical phi crit`; `eq: limiting trajectory2` is the line L = L*.
     Relative accuracy <= 6u = 6.7e-16 for all inputs with x < 1 (derivation in
     rsfcore.analytic.L_star_acc, tested against 50-digit mpmath): series for x < 1e-4,
@@ -125,8 +126,6 @@ def L_star(kappa: float, kappa_crit: float, eps: float) -> float:
     """
     r = kappa / kappa_crit
     x = eps * r
-    if x >= 1.0:
-        return math.inf
     if x < _SERIES:
         return r * (1.0 + x * (0.5 + x * (1.0 / 3.0 + x * 0.25)))
     if x < 0.5:

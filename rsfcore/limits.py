@@ -92,6 +92,7 @@ __all__ = [
     "BA_MAX",
     "KAPPA_MAX",
     "VO_MAX",
+    "VO_MIN",
     "SIZE_MAX",
     "STEP_BUDGET",
     "LIMITS",
@@ -228,6 +229,10 @@ class Limit:
 BA_MAX: float = 1.0e6
 KAPPA_MAX: float = 1.0e6
 VO_MAX: float = 1.0e300
+#: smallest positive v_o: |ln v_o| <= 691 on both sides, so times T = V_* t/Dc, which
+#: scale as 1/v_o, stay finite (at v_o = 5e-324 they overflow and v_o (1 + dv) rounds
+#: to a denormal that loses the jump); v_o = 0 (stationary load point) stays valid
+VO_MIN: float = 1.0e-300
 SIZE_MAX: float = 1.0e4
 #: largest step budget of one integration
 STEP_BUDGET: int = 10_000_000
@@ -273,7 +278,8 @@ VO = Limit(
     0.0,
     VO_MAX,
     default=1.0,
-    description="v_o = V_o/V_*, load-point velocity (0 = stationary load point).",
+    description="v_o = V_o/V_*, load-point velocity (0 = stationary load point; a moving"
+    " load point needs v_o >= 1e-300).",
 )
 
 # --- perturbations ----------------------------------------------------------------------

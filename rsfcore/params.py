@@ -47,7 +47,8 @@ class Params:
         kappa: k Dc/(a sigma), absolute dimensionless stiffness; valid range [0, 1e6].
         eps: evolution-law parameter of `eq: intermediate state evolution law`;
             [0, 1], 0 = slip law (exact limit), 1 = aging law.
-        vo: V_o/V_*, load-point velocity; 0 (stationary load point) or (0, 1e300].
+        vo: V_o/V_*, load-point velocity; 0 (stationary load point) or [1e-300, 1e300]
+            (limits.VO_MIN: below it times, ~1/v_o, leave the double range).
     """
 
     ba: float
@@ -60,6 +61,13 @@ class Params:
         object.__setattr__(self, "kappa", lim.KAPPA.check(self.kappa))
         object.__setattr__(self, "eps", lim.EPS.check(self.eps))
         object.__setattr__(self, "vo", lim.VO.check(self.vo))
+        if 0.0 < self.vo < lim.VO_MIN:
+            raise ParameterError(
+                "vo",
+                self.vo,
+                f"0 (stationary load point) or [{lim.VO_MIN:g}, {VO_MAX:g}]: below"
+                f" {lim.VO_MIN:g} the times, which scale as 1/v_o, leave the double range",
+            )
 
     @classmethod
     def from_ratio(cls, ba: float, kappa_ratio: float, eps: float, vo: float = 1.0) -> Params:

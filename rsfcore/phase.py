@@ -57,6 +57,9 @@ from numpy.typing import ArrayLike, NDArray
 from . import limits as lim
 from .analytic import U_kcrit_sign
 from .errors import ParameterError
+
+# (numba's cache does not track callees in other modules: this file was touched when
+# rsfcore.laws.L_star began deciding x >= 1 on the exact 1 - x, NUMERICS_VERSION 5)
 from .laws import G, L_star
 from .ode import rk
 from .params import Params

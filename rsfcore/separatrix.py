@@ -61,6 +61,8 @@ from enum import IntEnum
 import numba as nb
 import numpy as np
 
+# (numba's cache does not track callees in other modules: this file was touched when
+# rsfcore.laws.L_star began deciding x >= 1 on the exact 1 - x, NUMERICS_VERSION 5)
 from .laws import G, L_star
 from .ode import rk
 from .ode import rodas4_tableau as _ro

@@ -42,6 +42,8 @@ from numpy.typing import NDArray
 
 from . import limits as lim
 from .analytic import U_kcrit_sign, kcrit_jump_side
+from .asymptote import ASYM_DIRECT_LSTAR, load_jump_asymptote
+from .decision import DecisionFlag, Kind, first_decision
 from .engine import EngineResult, Integrator, Status, blowup_tail, run
 from .errors import BudgetExceeded, UndecidedError
 from .jsonsafe import finite_or_none
@@ -170,6 +172,10 @@ class TrajectoryResult:
     trajectory: Trajectory | None = None
     physical: PhysicalParams | None = None
     complete: bool = True
+    #: the outcome rests on the integration alone (no closed form, no separatrix side, not
+    #: the linear instability of kappa < kappa_crit): simulate() certifies it by runs at
+    #: tolerances 10x apart (not part of to_dict)
+    integration_decided: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dict (no inf/nan: a runaway peak is reported as null)."""
@@ -228,11 +234,18 @@ def start_point(params: Params, perturbation: str, size: float) -> tuple[float, 
         raise ParameterError(
             "vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)"
         )
-    dv = check_range("size", size, -1.0, None, lo_open=True)  # upper end 1e300/v_o: below
+    dv = check_range("size", size, -1.0, None, lo_open=True)  # upper end 1e300/v_o - 1: below
     new_vo = vo * (1.0 + dv)
-    if new_vo == 0.0 or not math.isfinite(new_vo) or new_vo > 1e300:
+    if not (lim.VO_MIN <= new_vo <= lim.VO_MAX):
+        lo = lim.VO_MIN / vo - 1.0
+        hi = lim.VO_MAX / vo - 1.0
         raise ParameterError(
-            "size", size, f"(-1, {1e300 / vo:g}] so that v_o (1 + dv) stays in (0, 1e300]"
+            "size",
+            size,
+            (f"(-1, {hi:.6g}]" if lo <= -1.0 else f"[{lo:.6g}, {hi:.6g}]")
+            + f" at v_o = {vo:g}, so that the new load-point"
+            f" velocity v_o (1 + dv) = {new_vo:.6g} stays in [{lim.VO_MIN:g}, {lim.VO_MAX:g}]"
+            " (or give log_size = ln(1 + dv), which takes any finite value)",
         )
     return phi_ss, psi_ss, params.with_(vo=new_vo)
 
@@ -292,6 +305,11 @@ def _separatrix_asymptote(
     if not (cz <= 1e-4):
         return 0
     u_sep = lstar - z * (c1 + c2 * z)
+    if not (ell0 > 0.5 * u_sep):
+        # the picture "below the separatrix returns" holds near it, in the chart L > 0
+        # where s_theta is monotone along it; farther below (e.g. a velocity jump d = -137
+        # near kappa = kappa_crit, whose open orbit runs away: issue 22) it decides nothing
+        return 0
     tol = 1e4 * cz**3 * max(1.0, lstar) + 8.0 * 2.0**-53 * (
         abs(phi0) + abs(psi0) / p.ba + abs(t0) + lstar
     )
@@ -362,15 +380,16 @@ def _plan(p: Params, phi0: float, psi0: float, resolution: float = 0.0) -> _Plan
     return _Plan(True, True, None, None)
 
 
-#: Load-point jumps with ln(1 + dv) below this are decided by the integration alone (no
-#: disagreement between classify and the critical size was found there); above, the side
-#: of the traced separatrix overrules an integration that ends on the other side
-#: (_load_jump_side).
-LJ_SEPARATRIX_LOG_MIN = 3.0
+#: Load-point jumps with ln(1 + dv) above this (every dv > 0) are checked against the side
+#: of the traced separatrix, which overrules an integration that ends on the other side
+#: (_load_jump_side).  It was 3 (no disagreement had been found below); issue 22 found
+#: stiff corners (b/a = kappa = 1e6, dv_crit = 1e-6) where runs at rtol 1e-10 .. 1e-13
+#: could not settle dv_crit (1 - 1e-9).
+LJ_SEPARATRIX_LOG_MIN = 0.0
 
 
 def _load_jump_side(params: Params, lg: float, rtol: float) -> int:
-    """Side of the separatrix of a load-point jump l = ln(1 + dv) >= LJ_SEPARATRIX_LOG_MIN,
+    """Side of the separatrix of a load-point jump l = ln(1 + dv) > LJ_SEPARATRIX_LOG_MIN,
     from the critical size itself: -1 below (stable), +1 above (unstable), 0 unknown.
 
     The start (L = 0, t = l) lies at the separatrix's turning point, from which the path
@@ -384,9 +403,9 @@ def _load_jump_side(params: Params, lg: float, rtol: float) -> int:
     bound (2 rel_accuracy dv/(1 + dv) plus 8 ulp of l_crit) is on the side it says; closer,
     or where the separatrix method does not apply (bisection fallback, kind zero or
     infinite), the side is unknown (0)."""
-    if not lg >= LJ_SEPARATRIX_LOG_MIN:
+    if not lg > LJ_SEPARATRIX_LOG_MIN:
         return 0
-    crit = _load_jump_critical_log(params.ba, params.kappa, params.eps, params.vo, rtol)
+    crit = _critical_log(params.ba, params.kappa, params.eps, params.vo, 1, rtol)
     if crit is None:
         return 0
     lc, band = crit
@@ -396,40 +415,63 @@ def _load_jump_side(params: Params, lg: float, rtol: float) -> int:
     return -1 if gap < 0.0 else 1
 
 
-@functools.lru_cache(maxsize=256)
-def _load_jump_critical_log(
-    ba: float, kappa: float, eps: float, vo: float, rtol: float
-) -> tuple[float, float] | None:
-    """(l_crit, error band of l_crit) of a load-point jump by the separatrix method, or None
-    where it does not apply.  Cached: a bisection on classify asks the same parameters
-    ~60 times, and where the separatrix method fails it fails only after its budget."""
-    from .critical import (
-        ASYM_DIRECT_LSTAR,
-        FLAG_FALLBACK,
-        FLAG_LOG_VALUE,
-        KIND_FINITE,
-        _first_decision,
-        load_jump_asymptote,
-    )
+def _velocity_jump_side(params: Params, d: float, rtol: float) -> int:
+    """Side of the separatrix of a velocity jump d > 0 (kappa > kappa_crit, v_o > 0), from
+    the critical size: -1 below (stable), +1 above (unstable), 0 unknown.
 
+    Sizes 0 < d < d_crit return and d > d_crit run away (rsfcore.critical: the separatrix
+    crosses the line of velocity-jump starts once).  The separatrix traced backwards from
+    its asymptote is well conditioned where the forward integration is not: near b/a -> 1
+    with x = eps kappa/kappa_crit -> 1 the excursions from d_crit (1 - 1e-3) climb to
+    phi ~ 1e14 and back, where any integration error in L decides the side (issue 22:
+    unstable at 0.999 d_crit, BudgetExceeded at 0.9 d_crit).  A start farther from d_crit
+    than its error bound (2 rel_accuracy d_crit plus 8 ulp) is on the side it says; closer,
+    for d <= 0 (no critical size covers those) or where the separatrix method does not
+    apply (bisection fallback, kind zero or infinite), the side is unknown (0)."""
+    if not (d > 0.0 and params.vo > 0.0 and params.kappa > params.kappa_crit):
+        return 0
+    crit = _critical_log(params.ba, params.kappa, params.eps, params.vo, 0, rtol)
+    if crit is None:
+        return 0
+    dc, band = crit
+    gap = d - dc
+    if abs(gap) <= band:
+        return 0
+    return -1 if gap < 0.0 else 1
+
+
+@functools.lru_cache(maxsize=256)
+def _critical_log(
+    ba: float, kappa: float, eps: float, vo: float, pert: int, rtol: float
+) -> tuple[float, float] | None:
+    """(log critical size, its error band) by the separatrix method (d_crit for a velocity
+    jump, pert 0; l_crit = ln(1 + dv_crit) for a load-point jump, pert 1), or None where it
+    does not apply.  Cached: a bisection on classify asks the same parameters ~60 times,
+    and where the separatrix method fails it fails only after its budget."""
     p = Params(ba, kappa, eps, vo)
-    # beyond the separatrix integration's reach the critical size is its asymptote (as
-    # critical_perturbation answers), with that asymptote's error bound
-    far = float(L_star(kappa, p.kappa_crit, eps)) >= ASYM_DIRECT_LSTAR
-    flags = 0
+    # beyond the separatrix integration's reach the critical load-point size is its
+    # asymptote (as critical_perturbation answers), with that asymptote's error bound
+    far = pert == 1 and float(L_star(kappa, p.kappa_crit, eps)) >= ASYM_DIRECT_LSTAR
     if not far:
-        _, kind, val, acc, _, flags, _, _ = _first_decision(p, "load-point-jump", rtol)
-    if far or flags & FLAG_FALLBACK:
+        dec = first_decision(p, PERTURBATIONS[pert], rtol)
+    if far or dec.flags & DecisionFlag.FALLBACK:
+        if pert == 0:
+            return None
         asym = load_jump_asymptote(p)
         if asym is None:
             return None
         return asym[0], 2.0 * asym[1] + 8.0 * math.ulp(asym[0])
-    if kind != KIND_FINITE:
+    if dec.kind != Kind.FINITE:
         return None
-    lc = float(val) if flags & FLAG_LOG_VALUE else math.log1p(float(val))
+    val, acc = float(dec.value), float(dec.rel_accuracy)
+    if pert == 0:
+        if not math.isfinite(val):
+            return None
+        return val, 2.0 * acc * abs(val) + 8.0 * math.ulp(val)
+    lc = val if dec.flags & DecisionFlag.LOG_VALUE else math.log1p(val)
     if not math.isfinite(lc):
         return None
-    return lc, 2.0 * float(acc) * -math.expm1(-lc) + 8.0 * math.ulp(lc)
+    return lc, 2.0 * acc * -math.expm1(-lc) + 8.0 * math.ulp(lc)
 
 
 #: Plans of a start decided by the side of the separatrix (-1 below, +1 above).
@@ -502,6 +544,7 @@ def classify(
     integrator: IntegratorName = "auto",
     log_size: float | None = None,
     check_accuracy: bool = True,
+    separatrix_side: bool = True,
 ) -> TrajectoryResult:
     """Certified stable/unstable outcome of one perturbation (no trajectory returned).
 
@@ -520,6 +563,10 @@ def classify(
         check_accuracy: run the second integration at rtol/10 that makes rel_accuracy of
             the times and peak a bound (:func:`simulate`); False where only the outcome is
             wanted (bisection, point fallbacks): half the cost, outcome unchanged.
+        separatrix_side: let the side of the traced separatrix (the critical size, where
+            the separatrix method applies) overrule an integration of a named perturbation
+            d > 0 or dv > 0 that ends on the other side; False decides by the integration
+            alone (bisect_critical, which must stay independent of the separatrix).
 
     Returns a TrajectoryResult with outcome, certificate, blow-up or return time and the
     true peak.  Where the outcome is certain before integrating (kappa < kappa_crit with
@@ -541,6 +588,7 @@ def classify(
         integrator=integrator,
         log_size=log_size,
         check_accuracy=check_accuracy,
+        separatrix_side=separatrix_side,
     )
 
 
@@ -561,6 +609,7 @@ def simulate(
     integrator: IntegratorName = "auto",
     log_size: float | None = None,
     check_accuracy: bool = True,
+    separatrix_side: bool = True,
 ) -> TrajectoryResult:
     """Classify a perturbation and optionally return its trajectory.
 
@@ -619,6 +668,7 @@ def simulate(
         integrator=integrator,
         log_size=log_size,
         side_rtol=rtol,  # the separatrix side is asked once, at the caller's tolerance
+        separatrix_side=separatrix_side,
     )
     res = run(rtol=rtol, n_points=n_points, times=times, sampling=sampling, physical=physical)
     if res.n_steps == 0 or not check_accuracy or not res.complete:
@@ -631,7 +681,58 @@ def simulate(
         check = run(rtol=other)
     except (UndecidedError, ParameterError):
         return res  # no second opinion to be had; the first run's estimate stands
-    return replace(res, rel_accuracy=_checked_accuracy(res, check, other / r))
+    ok, acc = _certified(res, check, other / r)
+    if ok:
+        return replace(res, rel_accuracy=acc)
+    # Not certified at this tolerance: the outcome, or its return/blow-up time or peak by
+    # more than CERTIFIED_ACCURACY, moved between rtol and rtol/10, so the integration
+    # error is deciding it (near b/a -> 1 and kappa -> kappa_crit the orbits are nearly
+    # closed and the sign of U is below rtol: issue 22, unstable at rtol <= 1e-10,
+    # "stable" at 1e-8).  Tighten by 10x until two runs 10x apart agree; the answer is
+    # the looser of that pair.
+    prev, lo = (res, r) if r <= other else (check, other)
+    agree = res.outcome == check.outcome
+    while lo / 10.0 >= lim.RTOL_RANGE[0] * (1.0 - 1e-12):
+        nxt_r = max(lo / 10.0, lim.RTOL_RANGE[0])
+        try:
+            nxt = run(
+                rtol=nxt_r, n_points=n_points, times=times, sampling=sampling, physical=physical
+            )
+        except (UndecidedError, ParameterError):
+            break
+        ok, acc = _certified(prev, nxt, nxt_r / lo)
+        if ok:
+            if prev is check and (n_points or (times is not None and len(times) > 0)):
+                # (the check run carries no samples)
+                prev = run(
+                    rtol=lo, n_points=n_points, times=times, sampling=sampling, physical=physical
+                )
+            return replace(prev, rel_accuracy=acc)
+        agree = nxt.outcome == prev.outcome
+        prev, lo = nxt, nxt_r
+    if agree:
+        # the two tightest runs agree on the outcome, which stands; their times and peak
+        # are ill-conditioned (a plateau-like peak, a return along the separatrix), and
+        # rel_accuracy says by how much
+        if prev is check and (n_points or (times is not None and len(times) > 0)):
+            prev = run(rtol=lo, n_points=n_points, times=times, sampling=sampling,
+                       physical=physical)  # fmt: skip
+        return replace(prev, rel_accuracy=max(prev.rel_accuracy, acc))
+    raise UndecidedError(
+        f"outcome not certified: runs at rtol {r:.3g} down to {lo:.3g} (the tightest"
+        f" tolerance) disagree on the outcome or on its times and peak by more than"
+        f" {CERTIFIED_ACCURACY:g} (the perturbation lies within the integration's error of"
+        f" the separatrix); params={res.params.as_dict()}, start={res.start}",
+        reason="not_certified",
+    )
+
+
+#: A run is certified when a second run at 10x the tolerance gives the same outcome and
+#: times and peak within this relative accuracy (the SECOND_RUN_FACTOR-scaled difference);
+#: otherwise :func:`simulate` tightens the tolerance (down to 1e-13) until two runs do.
+#: Above it the times carry less than two digits: the integration error is of the size of
+#: the distance to the separatrix, and the outcome itself is not certain (issue 22).
+CERTIFIED_ACCURACY = 1e-2
 
 
 #: The second run of :func:`simulate` (at rtol/10) estimates the first run's error as
@@ -644,15 +745,41 @@ def simulate(
 SECOND_RUN_FACTOR = 5.0
 
 
-def _checked_accuracy(res: TrajectoryResult, check: TrajectoryResult, ratio: float) -> float:
+_TIMED = ("blowup_time", "return_time", "peak_time", "peak_phi")
+#: what decides whether an integrated outcome is settled (the time of a plateau-like peak
+#: is ill-conditioned for any method and says nothing about the outcome)
+_OUTCOME_TIMED = ("blowup_time", "return_time", "peak_phi")
+
+
+def _certified(a: TrajectoryResult, b: TrajectoryResult, ratio: float) -> tuple[bool, float]:
+    """(the outcome of ``a`` is certified by ``b``, the checked rel_accuracy of ``a``).
+
+    Certified: equal outcomes and, where the outcome rests on the integration alone
+    (TrajectoryResult.integration_decided), its return or blow-up time and peak agree
+    within CERTIFIED_ACCURACY."""
+    acc = _checked_accuracy(a, b, ratio)
+    if a.outcome != b.outcome:
+        return False, acc
+    if not (a.integration_decided or b.integration_decided):
+        return True, acc
+    return _checked_accuracy(a, b, ratio, _OUTCOME_TIMED) <= CERTIFIED_ACCURACY, acc
+
+
+def _checked_accuracy(
+    res: TrajectoryResult,
+    check: TrajectoryResult,
+    ratio: float,
+    names: tuple[str, ...] = _TIMED,
+) -> float:
     """rel_accuracy of ``res`` raised to SECOND_RUN_FACTOR x the error that the run at
-    ``ratio`` x its rtol implies; 1.0 (no digit certain) where the outcomes differ."""
+    ``ratio`` x its rtol implies (over the fields ``names``); 1.0 (no digit certain) where
+    the outcomes differ."""
     if check.outcome != res.outcome:
         return 1.0
     if not (res.complete and check.complete):
         return res.rel_accuracy  # a budget cut a run short: its peak is only a lower bound
     worst = 0.0
-    for name in ("blowup_time", "return_time", "peak_time", "peak_phi"):
+    for name in names:
         a, b = getattr(res, name), getattr(check, name)
         if a is None or b is None or not (math.isfinite(a) and math.isfinite(b)):
             continue
@@ -682,6 +809,7 @@ def _simulate(
     integrator: IntegratorName = "auto",
     log_size: float | None = None,
     side_rtol: float | None = None,
+    separatrix_side: bool = True,
 ) -> TrajectoryResult:
     """:func:`simulate` without the second run (one integration); ``side_rtol`` is the
     tolerance of the separatrix side of a large load-point jump (default ``rtol``)."""
@@ -709,8 +837,18 @@ def _simulate(
     else:
         phi0, psi0, p_run = start_point(params, perturbation, size)
         pert_name, pert_size = perturbation, float(size)
-    # starts the integration cannot take (from log_size) are answered in closed form only
-    beyond = not (lim.PHI_START.contains(phi0) and lim.PSI_START.contains(psi0))
+    # starts the integration cannot take (from log_size) are answered in closed form only;
+    # a named perturbation with v_o > 0 is integrated in the v_o = 1 frame (below), so its
+    # start there is what counts
+    phi_f, psi_f = phi0, psi0
+    if start is None and p_run.vo > 0.0:
+        lg_f = float(log_size) if log_size is not None else float(size)
+        if perturbation == "velocity-jump":
+            phi_f, psi_f = lg_f, lg_f
+        else:
+            lg_f = lg_f if log_size is not None else math.log1p(lg_f)
+            phi_f, psi_f = -lg_f, (p_run.ba - 1.0) * lg_f
+    beyond = not (lim.PHI_START.contains(phi_f) and lim.PSI_START.contains(psi_f))
     if n_points:
         n_points = int(lim.N_POINTS.check(n_points))
     if t_end is not None:
@@ -719,7 +857,7 @@ def _simulate(
     if method not in ("auto", "integrate"):
         raise ParameterError("method", method, "'auto' or 'integrate'")
     lg_named: float | None = None  # d or ln(1 + dv) of a named perturbation (v_o > 0)
-    sep_side = 0  # side of the separatrix of a large load-point jump (0: not used)
+    sep_side = 0  # side of the separatrix of a named perturbation (0: not used)
     # The closed-form decisions are frame-invariant; for a velocity jump they are taken in
     # the v_o = 1 frame, where its start (d, d) is exact: from (phi0, psi0) the jump is
     # blurred by the rounding of psi0 = (1 - b/a) ln v_o + d (1e-9 relative at b/a = 1e4,
@@ -736,13 +874,22 @@ def _simulate(
         lg_named = lg
         if perturbation == "velocity-jump":
             plan = _plan(p_run.with_(vo=1.0), lg, lg, res_)
+            if plan.outcome is None and method == "auto" and only_outcome and separatrix_side:
+                # the side of the traced separatrix overrules an integration that ends on
+                # the other side (_velocity_jump_side); starts the integration cannot
+                # take are decided by the side alone
+                sep_side = _velocity_jump_side(
+                    params, lg, rtol if side_rtol is None else float(side_rtol)
+                )
+                if sep_side and beyond:
+                    plan = _SEPARATRIX_PLANS[sep_side]
         else:
             lg = lg if log_size is not None else math.log1p(lg)
             lg_named = lg
             # (in its own frame the start is steady sliding at the old v_o, L = 0 exactly,
             # which the v_o = 1 frame (-l, (b/a - 1) l) would blur)
             plan = _plan(p_run, phi0, psi0, res_)
-            if plan.outcome is None and method == "auto" and only_outcome:
+            if plan.outcome is None and method == "auto" and only_outcome and separatrix_side:
                 # the integration runs (for the times) and is overruled by the side of the
                 # traced separatrix if it ended on the other side; starts the integration
                 # cannot take are decided by the side alone (_load_jump_side)
@@ -773,11 +920,23 @@ def _simulate(
                 else _Plan(True, False, None, None)
             )
     if beyond and plan.outcome is None:
+        given = ("log_size", log_size) if log_size is not None else ("size", size)
+        near = ""
+        if lg_named is not None:
+            pc = 0 if perturbation == "velocity-jump" else 1
+            crit = _critical_log(p_run.ba, p_run.kappa, p_run.eps, p_run.vo or 1.0, pc, rtol)
+            if crit is not None and abs(lg_named - crit[0]) <= crit[1]:
+                what = "d_crit" if pc == 0 else "ln(1 + dv_crit)"
+                near = (
+                    f"; it lies within the error band of the critical size ({what} ="
+                    f" {crit[0]:.17g} +- {crit[1]:.3g}), where neither outcome is certain"
+                )
         raise ParameterError(
-            "log_size",
-            log_size,
-            "a start the integration takes (|phi0| <= 1e4, |psi0| <= 1e8) unless a closed"
-            f" form decides it; here phi0 = {phi0:g}, psi0 = {psi0:g}",
+            given[0],
+            given[1],
+            "a perturbation whose outcome a closed form or the separatrix decides, or whose"
+            " start the integration takes (|phi0| <= 1e4, |psi0| <= 1e8 in the v_o = 1"
+            f" frame; here ({phi_f:g}, {psi_f:g}))" + near,
         )
     frame_shift = 0.0  # ln v_o of the run when it is integrated in the v_o = 1 frame
     if (
@@ -905,6 +1064,12 @@ def _simulate(
         blowup_time = return_time = None
         peak_phi, peak_T, complete = phi0, 0.0, False
 
+    integration_decided = (
+        res is not None
+        and plan.outcome is None
+        and sep_side == 0
+        and not (p_run.vo > 0.0 and p_run.kappa < p_run.kappa_crit)
+    )
     traj = None
     want = n_points > 0 or (times is not None and len(times) > 0)
     if want:
@@ -940,6 +1105,7 @@ def _simulate(
         trajectory=traj,
         physical=physical,
         complete=complete,
+        integration_decided=integration_decided,
     )
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -292,7 +293,8 @@ def test_kinds_and_boundaries():
         assert r.kind == "zero" and r.critical_size == 0.0 and not r.on_boundary
         assert classify(Params.from_ratio(2.0, 0.7, 0.3), pert, 1e-3).outcome == "unstable"
         r = critical_perturbation(Params(2.0, 0.0, 0.3), pert)
-        assert r.kind == "zero"
+        # kappa = 0: no spring, so a load-point jump changes nothing (issue 22)
+        assert r.kind == ("zero" if pert == VJ else "infinite")
     # infinite: eps kappa >= kappa_crit; huge perturbations stay stable by direct integration
     for pert, size in ((VJ, 40.0), (LJ, 1e6)):
         p = Params.from_ratio(2.0, 5.0, 0.25)
@@ -302,19 +304,30 @@ def test_kinds_and_boundaries():
     # aging law at kappa = kappa_crit: infinite (x = 1), flagged
     r = critical_perturbation(Params(2.0, 1.0, 1.0), VJ)
     assert r.kind == "infinite" and r.on_boundary
-    # x = 1 up to rounding: 25/9 * 0.36 (numerics.md)
+    # x = 1 up to rounding: 25/9 * 0.36 (numerics.md): flagged; the kind follows the exact
+    # sign of 1 - x of the input doubles (issue 22; referee: exact rationals)
     p = Params.from_ratio(2.0, 25.0 / 9.0, 0.36)
     r = critical_perturbation(p, VJ)
-    assert r.kind == "infinite" and r.on_boundary
+    omx = 1 - Fraction(p.eps) * Fraction(p.kappa) / (Fraction(p.ba) - 1)
+    assert r.kind == ("finite" if omx > 0 else "infinite") and r.on_boundary
+    if omx > 0:  # then d_crit <= L* = -ln(1 - x)/eps (~85 here)
+        assert r.critical_size is not None
+        assert 0 < r.critical_size <= -math.log(float(omx)) / p.eps * (1 + 1e-9)
     # just inside: finite and not flagged
     p = Params.from_ratio(2.0, 25.0 / 9.0, 0.36 * (1 - 1e-9))
     r = critical_perturbation(p, VJ)
     assert r.kind == "finite" and not r.on_boundary
     assert r.critical_size > 0.99 * float(L_star(p.kappa, p.kappa_crit, 0.0))
     # kappa = kappa_crit up to rounding uses the closed form and is flagged
-    p = Params(1.1, 0.1 * (1 + 3e-16), 0.2)
+    kc = 1.1 - 1.0
+    p = Params(1.1, kc * (1 + 4e-16), 0.2)
     r = critical_perturbation(p, VJ)
     assert r.on_boundary and "closed form" in r.method
+    # ... and just below it (exactly, for these doubles) it is zero (issue 22)
+    p = Params(1.1, kc * (1 - 4e-16), 0.2)
+    assert Fraction(p.kappa) < Fraction(1.1) - 1
+    r = critical_perturbation(p, VJ)
+    assert r.on_boundary and r.kind == "zero"
     # stationary load point
     r = critical_perturbation(Params(2.0, 0.5, 0.0, 0.0), VJ)
     assert r.kind == "finite" and r.method == METHODS[4]

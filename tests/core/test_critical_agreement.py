@@ -16,13 +16,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from rsfcore import Params, bisect_critical, classify, critical_perturbation
-from rsfcore.critical import (
-    FLAG_FALLBACK,
-    FLAG_LOG_VALUE,
-    METHODS,
-    _first_decision,
-    load_jump_asymptote,
-)
+from rsfcore.critical import load_jump_asymptote
+from rsfcore.decision import DecisionFlag, Method, first_decision
 from rsfcore.laws import G, L_star
 
 VJ, LJ = "velocity-jump", "load-point-jump"
@@ -254,9 +249,11 @@ def test_separatrix_far_out_against_the_asymptote(kc: float, lstar: float) -> No
     # carries its rounding floor 2 sqrt(steps) ulp(l), is tested as a bound up to l ~ 1e8
     # (before the floor it claimed 1e-10 where l alone rounds to 1.5e-8)
     p = Params(1.0 + kc, kc * lstar, 0.0)
-    _, kind, val, acc, meth, flags, nr, _ = _first_decision(p, LJ, 1e-10)
-    assert METHODS[meth].startswith("separatrix") and not flags & FLAG_FALLBACK
-    lg = float(val) if flags & FLAG_LOG_VALUE else math.log1p(float(val))
+    dec = first_decision(p, LJ, 1e-10)
+    acc, nr = dec.rel_accuracy, dec.n_rhs
+    assert dec.method.text.startswith("separatrix") and not dec.flags & DecisionFlag.FALLBACK
+    assert dec.method in (Method.SEPARATRIX, Method.FINITE_BEYOND_RANGE)
+    lg = dec.value if dec.flags & DecisionFlag.LOG_VALUE else math.log1p(dec.value)
     asym = load_jump_asymptote(p, lstar_min=0.0)
     assert asym is not None
     assert abs(lg - asym[0]) <= float(acc) + asym[1], (lg, asym, acc)

@@ -65,7 +65,14 @@ def test_corner_agrees_with_bisection(p: Params, pert: str) -> None:
     r = critical_perturbation(p, pert, rtol=1e-10)
     b = bisect_critical(p, pert, rtol=1e-10)
     assert r.critical_size is not None and b.critical_size is not None
-    assert _rel(r.critical_size, b.critical_size) <= r.rel_accuracy + b.rel_accuracy, (r, b)
+    # At b/a = kappa = 1e6 (dv_crit = 1e-6, a basin 1e-6 wide) the engine locates the
+    # boundary to ~2e-10 relative whatever its rtol (issue 22, engine carrying L: bisection
+    # at crtol 1e-10 / 1e-11 / 1e-12 lands 2.1e-10 / 6.6e-12 / 1.8e-10 from the separatrix
+    # value, which itself moves by 3.4e-14 between rtol 1e-10 and 1e-12): the bisection's
+    # bracket is not its error there, so that corner's bound adds this measured floor x 1.5
+    floor = 3e-10 if p.kappa_crit > 1e5 else 0.0
+    bound = r.rel_accuracy + b.rel_accuracy + floor
+    assert _rel(r.critical_size, b.critical_size) <= bound, (r, b)
 
 
 @pytest.mark.parametrize("pert", [VJ, LJ])

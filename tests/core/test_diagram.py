@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -51,9 +52,12 @@ def test_grid_matches_per_point_and_bisection(bench_grid):
 
 
 def test_zero_and_infinite_regions_exact(bench_grid):
-    r = XR[:, None] * np.ones_like(YE)[None, :]
-    x = r * YE[None, :]
-    inf = x >= 1.0 - 1e-13
+    # the kind follows the exact sign of 1 - x of the input doubles (issue 22; referee:
+    # exact rationals of the kappa the diagram forms, kappa = r (b/a - 1))
+    inf = np.zeros((len(XR), len(YE)), dtype=bool)
+    for i, j in np.ndindex(inf.shape):
+        kappa = float(XR[i]) * (2.0 - 1.0)
+        inf[i, j] = Fraction(float(YE[j])) * Fraction(kappa) >= 1
     assert np.array_equal(bench_grid.kind == 2, inf)
     assert np.all(np.isinf(bench_grid.critical_size[inf]))
     assert np.all(np.isfinite(bench_grid.critical_size[~inf]))
@@ -68,7 +72,9 @@ def test_boundary_flags():
     ye = np.array([0.0, 0.36, 0.5])
     d = stability_diagram("kappa_ratio", xr, "eps", ye)
     assert d.on_boundary[0].all()  # kappa = kappa_crit row
-    assert d.on_boundary[1, 1] and d.kind[1, 1] == 2  # x = 1 up to rounding
+    # x = 1 up to rounding: flagged, and the kind follows the exact 1 - x (issue 22)
+    omx = 1 - Fraction(0.36) * Fraction(25.0 / 9.0 * (2.0 - 1.0))
+    assert d.on_boundary[1, 1] and d.kind[1, 1] == (2 if omx <= 0 else 1)
     assert not d.on_boundary[2, 0] and not d.on_boundary[1, 0]
     assert d.kind[0, 0] == 1 and "closed form" in d.methods[d.method[0, 0]]
 

@@ -25,14 +25,15 @@ def test_old_import_paths_are_the_same_classes() -> None:
     assert params.ParameterError is errors.ParameterError is rsfcore.ParameterError
     assert trajectory.UndecidedError is errors.UndecidedError is rsfcore.UndecidedError
     assert protocols.IntegrationBudgetError is errors.IntegrationBudgetError
-    assert rsfcore.NUMERICS_VERSION == NUMERICS_VERSION == "4"
+    assert rsfcore.NUMERICS_VERSION == NUMERICS_VERSION == "5"
 
 
 def test_budget_exhaustion_raises_budget_exceeded() -> None:
-    # b/a = 2, kappa = 2.5, eps = 0.25 (x = 0.625 < 1): a velocity jump of 1.0 needs far
-    # more than 5 steps to certify its return (no closed form applies): the budget runs out
+    # b/a = 2, kappa = 2.5, eps = 0.25 (x = 0.625 < 1): an explicit start (1, 1) needs far
+    # more than 5 steps to certify its return (no closed form and, unlike a named velocity
+    # jump, no separatrix side applies): the budget runs out
     with pytest.raises(errors.BudgetExceeded) as e:
-        rsfcore.classify(rsfcore.Params(2.0, 2.5, 0.25), "velocity-jump", 1.0, max_steps=5)
+        rsfcore.classify(rsfcore.Params(2.0, 2.5, 0.25), start=(1.0, 1.0), max_steps=5)
     assert e.value.reason == "budget"
 
 

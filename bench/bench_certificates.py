@@ -1,0 +1,251 @@
+"""Certificate stress run: are classify's outcomes and accuracies always true? (issue 22)
+
+Own sampling and seeds (independent of bench/bench_stress.py), over the whole valid range:
+
+* b/a - 1 log-uniform in [1e-12, 1e6] (half of the points in the corner b/a - 1 < 1e-6);
+* kappa/kappa_crit: 30 % log-uniform in [1e-3, 1e3], 30 % near 1 (1 + 10^U(-12, 0)),
+  40 % placed near x = eps kappa/kappa_crit = 1 (x = 1 - 10^U(-12, -1), the issue-22
+  corner), kappa clipped to 1e6;
+* eps: 10 % 0, 10 % 1, 30 % uniform, the rest from the x placement;
+* v_o: 10 % exactly 0, else 10^U(-300, 300) on a quarter of the points, 10^U(-40, 40)
+  on the rest;
+* rtol of every query log-uniform in [1e-13, 1e-3]; both perturbations.
+
+Per (point, perturbation) with a finite critical size s_c (rel_accuracy a_c): classify at
+s_c (1 -/+ f), f in {0.1, 1e-2, 1e-3} where f > 4 a_c (through log_size), each at its own
+rtol, and the same starts at rtol 1e-13 (the reference).  Checks:
+
+1. contradiction: an outcome that contradicts the critical size (stable above, unstable
+   below) outside its stated error;
+2. monotone: the outcomes along the sizes are stable ... stable, unstable ... unstable;
+3. wrong: a complete outcome that differs from the rtol 1e-13 run (and, where they
+   disagree, from the critical size's side: the referee);
+4. bound: every time and peak within its rel_accuracy of the reference (plus the
+   reference's own claim);
+5. exceptions other than ParameterError and UndecidedError(reason="not_certified")
+   (an uncertified answer that says so is counted apart).
+
+Timing: p50 / p99 / max per rtol decade and the slowest queries with their parameters.
+
+    python bench/bench_certificates.py [--n 800] [--seed 2211] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+import rsfcore as rc
+from rsfcore.errors import ParameterError, UndecidedError
+
+VJ, LJ = "velocity-jump", "load-point-jump"
+FRACTIONS = (0.1, 1e-2, 1e-3)
+REF_RTOL = 1e-13
+
+
+def sample_point(rng: np.random.Generator) -> rc.Params:
+    kc = 10.0 ** rng.uniform(-12, -6) if rng.random() < 0.5 else 10.0 ** rng.uniform(-6, 6)
+    ba = min(1.0 + kc, 1e6)
+    kc = ba - 1.0
+    u = rng.random()
+    if u < 0.3:
+        r = 10.0 ** rng.uniform(-3, 3)
+        eps = float(rng.choice([0.0, 1.0, rng.uniform()]))
+    elif u < 0.6:
+        r = 1.0 + 10.0 ** rng.uniform(-12, 0)
+        eps = float(rng.choice([0.0, 1.0, rng.uniform()]))
+    else:
+        x = 1.0 - 10.0 ** rng.uniform(-12, -1)
+        r = 1.0 + 10.0 ** rng.uniform(-3, 1)
+        eps = x / r
+    kappa = min(r * kc, 1e6)
+    v = rng.random()
+    if v < 0.1:
+        vo = 0.0
+    elif v < 0.325:
+        vo = 10.0 ** rng.uniform(-300, 300)
+    else:
+        vo = 10.0 ** rng.uniform(-40, 40)
+    return rc.Params(ba, kappa, eps, vo)
+
+
+def rtol_draw(rng: np.random.Generator) -> float:
+    return float(10.0 ** rng.uniform(-13, -3))
+
+
+def timed(fn: Any, *a: Any, **k: Any) -> tuple[Any, float, str]:
+    t0 = time.perf_counter()
+    try:
+        out = fn(*a, **k)
+        err = ""
+    except UndecidedError as e:
+        out, err = None, f"UndecidedError:{e.reason}"
+    except ParameterError as e:
+        out, err = None, f"ParameterError:{e.field}"
+    except Exception as e:  # noqa: BLE001 - counted as a defect
+        out, err = None, f"{type(e).__name__}:{e}"[:200]
+    return out, time.perf_counter() - t0, err
+
+
+def close(a: float | None, b: float | None, acc: float, acc_ref: float, peak: bool) -> bool:
+    if a is None or b is None or not (math.isfinite(a) and math.isfinite(b)):
+        return True
+    scale = max(abs(b), 1.0) if peak else abs(b)
+    if scale <= 1e-290:
+        return True
+    return abs(a - b) <= (acc + acc_ref) * scale * (1.0 + 1e-9) + 4e-16 * scale
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--n", type=int, default=800, help="parameter points")
+    ap.add_argument("--seed", type=int, default=2211)
+    ap.add_argument("--json", default="")
+    a = ap.parse_args()
+    rng = np.random.default_rng(a.seed)
+    times: list[tuple[float, float, str]] = []  # (seconds, rtol, description)
+    counts = dict(
+        queries=0,
+        contradiction=0,
+        non_monotone=0,
+        wrong_complete=0,
+        wrong_vs_ref_only=0,
+        bound_violations=0,
+        not_certified=0,
+        other_exceptions=0,
+        parameter_errors=0,
+    )
+    examples: dict[str, list[str]] = {k: [] for k in counts}
+    worst_ratio = 0.0
+
+    def note(kind: str, text: str) -> None:
+        counts[kind] += 1
+        if len(examples[kind]) < 8:
+            examples[kind].append(text)
+
+    t_start = time.perf_counter()
+    for _ in range(a.n):
+        p = sample_point(rng)
+        for pert in (VJ, LJ):
+            if pert == LJ and p.vo == 0.0:
+                continue
+            rt_c = rtol_draw(rng)
+            crit, dt, err = timed(rc.critical_perturbation, p, pert, rtol=rt_c)
+            counts["queries"] += 1
+            times.append((dt, rt_c, f"critical {pert} {p.as_dict()} rtol={rt_c:.3g}"))
+            if err:
+                note(
+                    "other_exceptions" if not err.startswith("Param") else "parameter_errors",
+                    f"critical {pert} {p.as_dict()}: {err}",
+                )
+                continue
+            if crit.kind != "finite" or crit.log_critical_size is None:
+                continue
+            lc = crit.log_critical_size
+            if pert == VJ and not lc > 0.0:
+                continue
+            ac = crit.rel_accuracy
+            # sizes as log sizes: d for a velocity jump, ln(1 + dv) for a load-point jump
+            rows = []
+            for f in sorted([-f for f in FRACTIONS] + list(FRACTIONS)):
+                if abs(f) <= 4.0 * ac:
+                    continue
+                if pert == VJ:
+                    lg = lc * (1.0 + f)
+                else:
+                    dvc = crit.critical_size
+                    if dvc is not None and math.isfinite(dvc) and lc < 700.0:
+                        lg = math.log1p(dvc * (1.0 + f))
+                    else:
+                        lg = lc + math.log1p(f)  # dv (1 + f) for dv >> 1
+                rows.append((f, lg))
+            outs = []
+            for f, lg in rows:
+                rt = rtol_draw(rng)
+                res, dt, err = timed(rc.classify, p, pert, log_size=lg, rtol=rt)
+                counts["queries"] += 1
+                desc = f"classify {pert} {p.as_dict()} log_size={lg!r} (f={f:g}) rtol={rt:.3g}"
+                times.append((dt, rt, desc))
+                ref, dt2, err2 = timed(rc.classify, p, pert, log_size=lg, rtol=REF_RTOL)
+                counts["queries"] += 1
+                times.append((dt2, REF_RTOL, desc + " [reference]"))
+                if err:
+                    if err == "UndecidedError:not_certified":
+                        note("not_certified", desc)
+                    elif err.startswith("ParameterError"):
+                        note("parameter_errors", desc + " " + err)
+                    else:
+                        note("other_exceptions", desc + " " + err)
+                    outs.append(None)
+                    continue
+                outs.append(res.outcome)
+                side = "stable" if f < 0 else "unstable"
+                if res.outcome != side:
+                    note("contradiction", f"{desc}: {res.outcome} ({res.certificate})")
+                if ref is not None and res.complete and res.outcome != ref.outcome:
+                    if res.outcome != side:
+                        note("wrong_complete", f"{desc}: {res.outcome} vs ref {ref.outcome}")
+                    else:
+                        note("wrong_vs_ref_only", f"{desc}: ref {ref.outcome} ({ref.certificate})")
+                if ref is not None and res.complete and ref.complete and res.outcome == ref.outcome:
+                    for name in ("blowup_time", "return_time", "peak_time", "peak_phi"):
+                        va, vb = getattr(res, name), getattr(ref, name)
+                        if not close(
+                            va, vb, res.rel_accuracy, ref.rel_accuracy, name == "peak_phi"
+                        ):
+                            scale = max(abs(vb), 1.0) if name == "peak_phi" else abs(vb)
+                            ratio = abs(va - vb) / scale / max(res.rel_accuracy, 1e-300)
+                            worst_ratio = max(worst_ratio, ratio)
+                            note(
+                                "bound_violations",
+                                f"{desc}: {name} {va!r} vs {vb!r}, claim {res.rel_accuracy:.2g}"
+                                f" ({ratio:.3g}x)",
+                            )
+            seen_unstable = False
+            for o in outs:
+                if o is None:
+                    continue
+                if o == "unstable":
+                    seen_unstable = True
+                elif seen_unstable:
+                    note("non_monotone", f"{pert} {p.as_dict()}: {outs}")
+                    break
+    wall = time.perf_counter() - t_start
+    arr = np.array([t for t, _, _ in times])
+    print(f"queries {counts['queries']} in {wall:.1f} s (seed {a.seed}, n {a.n})")
+    for k, v in counts.items():
+        if k != "queries":
+            print(f"  {k:20s} {v}")
+            for ex in examples[k]:
+                print(f"      {ex}")
+    print(f"  worst bound ratio (delivered/claimed) {worst_ratio:.3g}")
+    print("time per query [ms]: p50 / p99 / max, by rtol decade")
+    for lo in range(-13, -2):
+        sel = np.array([lo <= math.log10(r) < lo + 1 for _, r, _ in times])
+        if sel.any():
+            x = arr[sel] * 1e3
+            print(
+                f"  rtol 1e{lo:+d}: n {sel.sum():6d}  {np.median(x):7.2f} "
+                f"{np.percentile(x, 99):8.2f} {x.max():9.2f}  over 10 ms: {(x > 10).sum()}"
+            )
+    print(
+        f"  all: {np.median(arr) * 1e3:.2f} / {np.percentile(arr, 99) * 1e3:.2f} /"
+        f" {arr.max() * 1e3:.1f} ms; over 10 ms: {(arr > 0.01).sum()}"
+    )
+    print("slowest 12:")
+    for t, _, d in sorted(times, key=lambda z: -z[0])[:12]:
+        print(f"  {t * 1e3:9.1f} ms  {d}")
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(
+                {"counts": counts, "examples": examples, "worst_ratio": worst_ratio}, fh, indent=1
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,211 @@
+"""Certificates that are always true (issue 22): the stress cases, each with a referee.
+
+Referees are independent of the code under test: a 30-digit mpmath integration of the
+separatrix ODE (A) of rsfcore.critical, exact rational arithmetic on the input doubles
+(fractions), and the closed-form U of `eq: trajectories 1` evaluated in mpmath.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import mpmath as mp
+import pytest
+
+from rsfcore import Params, classify, critical_perturbation
+from rsfcore.decision import Kind, boundary_gaps, first_decision
+from rsfcore.errors import ParameterError, UndecidedError
+
+VJ, LJ = "velocity-jump", "load-point-jump"
+
+#: issue 22, item 1: b/a -> 1 with x = eps kappa/kappa_crit -> 1 (x = 1 - 3.8e-6)
+P1 = Params(1.0000000017765576, 1.8663441662595142e-09, 0.9518881218377987, 1.0)
+#: issue 22, item 2: kappa/kappa_crit = 1 + 1.8e-12, v_o = 1.0164e-38, d = -137.44
+P2 = Params(1.0000000914548568, 9.145485679890026e-08, 0.810531874881151, 1.0164e-38)
+D2 = -137.44437450710728
+
+
+def _separatrix_dcrit_mpmath(p: Params) -> mp.mpf:
+    """d_crit by a 30-digit Taylor integration (mpmath.odefun) of the separatrix ODE
+    du/dt = kappa expm1(t - u)/G(u) - kappa_crit from its first-order asymptotic start at
+    t0 = L* - 40 (the neglected c2 z^2 term is ~e^-80 there) to t = 0."""
+    with mp.workdps(30):
+        ba, kappa, eps = mp.mpf(p.ba), mp.mpf(p.kappa), mp.mpf(p.eps)
+        kc = ba - 1
+        x = eps * kappa / kc
+        ls = -mp.log(1 - x) / eps if eps > 0 else kappa / kc
+        c1 = kappa / ((kc - eps * kappa) + kappa / kc)
+
+        def g(u: mp.mpf) -> mp.mpf:
+            return mp.expm1(-eps * u) / eps if eps > 0 else -u
+
+        t0 = ls - 40
+        u0 = ls - c1 * mp.e ** (t0 - ls)
+        sol = mp.odefun(
+            lambda t, u: kappa * mp.expm1(t - u) / g(u) - kc,
+            t0,
+            u0,
+            tol=mp.mpf(10) ** -25,
+            degree=20,
+        )
+        return sol(0)
+
+
+@pytest.mark.slow
+def test_no_false_instability_near_x1_ba1() -> None:
+    # issue 22 item 1: velocity jumps 0.1 .. 1e-4 below d_crit came back unstable (the
+    # engine's L = phi + ln theta was blurred at phi ~ 1e14 by 0.016, more than L* - L);
+    # at 0.9 d_crit BudgetExceeded after 16 s.  Referee: d_crit from a 30-digit integration.
+    dref = float(_separatrix_dcrit_mpmath(P1))
+    crit = critical_perturbation(P1, VJ)
+    assert crit.kind == "finite" and crit.critical_size is not None
+    # the critical size itself against the referee, within its claim (rel 1e-10) x 2
+    assert abs(crit.critical_size - dref) <= 2.0 * crit.rel_accuracy * dref
+    outs = []
+    for f in (0.5, 0.9, 0.99, 0.999, 0.9999, 1.0001, 1.001, 1.1):
+        for rtol in (1e-6, 1e-10, 1e-13):
+            r = classify(P1, VJ, f * dref, rtol=rtol)
+            want = "stable" if f < 1.0 else "unstable"
+            assert r.outcome == want, (f, rtol, r.outcome, r.certificate)
+        outs.append(r.outcome)
+    assert outs == sorted(outs)  # monotone: stable ... unstable
+
+
+def test_engine_carries_L_at_huge_phi() -> None:
+    # the mechanism of item 1: the excursion from 0.999 d_crit peaks at phi ~ 7e14, where
+    # phi + ln theta rounds to 0.1; carrying L itself, the stepping engine (no closed-form
+    # legs, no separatrix side) returns.  L* - L0 = 0.013.
+    r = classify(P1, VJ, 0.999 * 13.115423396402554, method="integrate", check_accuracy=False)
+    assert r.outcome == "stable" and r.certificate == "returned_to_steady_state"
+    assert r.peak_phi > 1e14
+
+
+def _U_kcrit_reduced(p: Params, phi: float, psi: float) -> mp.mpf:
+    """r = U/P of `eq: trajectories 1` at kappa = kappa_crit (rsfcore.analytic.U_kcrit
+    docstring), in the v_o = 1 frame, 40 digits: kappa_crit/D - e^phi (G(L) + 1)/(1 - eps)."""
+    with mp.workdps(40):
+        ba, eps = mp.mpf(p.ba), mp.mpf(p.eps)
+        kc = ba - 1
+        dd = ba * (1 - eps) + eps
+        L = phi + (mp.mpf(psi) - phi) / ba
+        g = mp.expm1(-eps * L) / eps
+        return kc / dd - mp.e ** mp.mpf(phi) * (g + 1) / (1 - eps)
+
+
+def test_no_wrong_outcome_at_loose_rtol() -> None:
+    # issue 22 item 2: rtol 1e-6 .. 9.27e-9 answered stable / returned_to_steady_state with
+    # complete True.  Referee: U of the kappa = kappa_crit system is positive with a wide
+    # margin (an open orbit; kappa/kappa_crit - 1 = 1.8e-12 exactly, from fractions)
+    ba, k = Fraction(P2.ba), Fraction(P2.kappa)
+    rm1 = (k - (ba - 1)) / (ba - 1)
+    assert 1e-12 < float(rm1) < 3e-12
+    u = _U_kcrit_reduced(P2, D2, D2)
+    assert u > 0.99 * (mp.mpf(P2.ba) - 1) / (P2.ba * (1 - P2.eps) + P2.eps)
+    for rtol in (1e-3, 1e-6, 1e-8, 9.27e-9, 1e-10, 1e-12, 1e-13):
+        r = classify(P2, VJ, D2, rtol=rtol)
+        assert r.outcome == "unstable", (rtol, r.certificate, r.rel_accuracy)
+
+
+@pytest.mark.parametrize(
+    "ba, kappa, eps",
+    [
+        (2.0, 1.0 * (1.0 - 1.8e-14), 1.0),  # kappa just below kappa_crit: zero
+        (2.0, 1.0 * (1.0 + 1.8e-14), 1.0),  # x just above 1 at eps = 1: infinite
+        (2.0, 1.0, 1.0 - 2.0**-52),  # kappa = kappa_crit exactly, x = 1 - 2.2e-16: finite
+        (3.0, 2.0 * (1 + 2.0**-50), 0.5),  # b/a > 2: kappa_crit = 2 exactly
+        (1.0 + 2.0**-30, 2.0**-30 * 1.5, 2.0 / 3.0),  # x = 1 up to rounding of eps
+    ],
+)
+def test_kind_follows_exact_signs(ba: float, kappa: float, eps: float) -> None:
+    # issue 22 item 4: inside the former 1e-13 band the kind was snapped; now it follows
+    # the exact signs of kappa - kappa_crit and 1 - x of the input doubles (referee: exact
+    # rational arithmetic)
+    fb, fk, fe = Fraction(ba), Fraction(kappa), Fraction(eps)
+    kc = fb - 1
+    rm1, omx = (fk - kc) / kc, 1 - fe * fk / kc
+    g_rm1, g_omx = boundary_gaps(ba, kappa, eps)
+    assert (g_rm1 > 0) == (rm1 > 0) and (g_rm1 < 0) == (rm1 < 0)
+    assert (g_omx > 0) == (omx > 0) and (g_omx < 0) == (omx < 0)
+    assert abs(g_omx - float(omx)) <= 8 * 2.0**-53 * abs(float(omx)) + 1e-300
+    dec = first_decision(Params(ba, kappa, eps, 1.0), VJ, 1e-10)
+    want = Kind.ZERO if rm1 < 0 else (Kind.INFINITE if omx <= 0 else Kind.FINITE)
+    assert dec.kind == want
+
+
+def test_kind_and_classify_agree_at_the_band() -> None:
+    # kappa/kappa_crit - 1 = -1.8e-14 is linearly unstable (kind zero): a small velocity
+    # jump must grow, never be certified stable
+    p = Params(2.0, 1.0 - 1.8e-14, 0.5, 1.0)
+    assert critical_perturbation(p, VJ).kind == "zero"
+    r = classify(p, VJ, 1e-3)
+    assert r.outcome == "unstable"
+
+
+def test_kappa_zero_consistent() -> None:
+    # no spring: a load-point jump changes nothing (classify at_equilibrium), so its
+    # critical size is infinite (was "zero"); a velocity jump d > 0 puts L above L* = 0
+    p = Params(2.0, 0.0, 0.5, 1.0)
+    assert critical_perturbation(p, LJ).kind == "infinite"
+    assert classify(p, LJ, 10.0).outcome == "stable"
+    assert critical_perturbation(p, VJ).kind == "zero"
+    assert classify(p, VJ, 1e-3).outcome == "unstable"
+
+
+def test_denormal_vo_rejected_naming_the_field() -> None:
+    with pytest.raises(ParameterError) as e:
+        Params(2.0, 2.0, 0.25, 5e-324)
+    assert e.value.field == "vo" and "1e-300" in e.value.valid
+    Params(2.0, 2.0, 0.25, 1e-300)  # the smallest moving load point
+    Params(2.0, 2.0, 0.25, 0.0)  # a stationary one
+
+
+def test_load_point_message_names_the_range_of_dv() -> None:
+    # "valid range is (-1, 1]" rejected 0.001 at v_o = 1e300: the range is (-1, 0]
+    with pytest.raises(ParameterError) as e:
+        classify(Params(2.0, 2.0, 0.25, 1e300), LJ, 1e-3)
+    assert e.value.field == "size" and "(-1, 0]" in e.value.valid
+    assert "log_size" in e.value.valid
+
+
+def test_beyond_message_names_the_given_field() -> None:
+    # a valid size at b/a = 1e6, v_o = 1e-300: the start in the user's frame has psi0 ~ 7e8,
+    # but the run is made in the v_o = 1 frame, where it is (d, d): integrated, no error
+    p = Params(1e6, 8e5, 0.0, 1e-300)
+    r = classify(p, VJ, 2.0)
+    assert r.outcome in ("stable", "unstable")
+    # a log size inside the critical size's own error band, beyond the integration: the
+    # message says so and names log_size
+    q = Params(1.0 + 1e-12, 1e-12 * 3e4, 0.0, 1.0)
+    c = critical_perturbation(q, LJ)
+    assert c.log_critical_size is not None
+    with pytest.raises(ParameterError) as e:
+        classify(q, LJ, log_size=c.log_critical_size)
+    assert e.value.field == "log_size" and "error band of the critical size" in e.value.valid
+    assert classify(q, LJ, log_size=c.log_critical_size * (1 + 1e-3)).outcome == "unstable"
+    assert classify(q, LJ, log_size=c.log_critical_size * (1 - 1e-3)).outcome == "stable"
+
+
+def test_uncertified_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    # where runs at tolerances 10x apart keep disagreeing on the outcome down to rtol
+    # 1e-13, the answer says so (UndecidedError reason not_certified) instead of guessing;
+    # the integration is replaced by one whose outcome flips with the tolerance
+    from dataclasses import replace
+
+    from rsfcore import trajectory
+
+    real = trajectory._simulate
+    calls: list[float] = []
+
+    def flipping(*a: object, **k: object) -> trajectory.TrajectoryResult:
+        res = real(*a, **k)  # type: ignore[arg-type]
+        rtol = float(k["rtol"])  # type: ignore[arg-type]
+        calls.append(rtol)
+        flip = round(-math.log10(rtol)) % 2 == 0
+        return replace(res, outcome="unstable" if flip else "stable", integration_decided=True)
+
+    monkeypatch.setattr(trajectory, "_simulate", flipping)
+    with pytest.raises(UndecidedError) as e:
+        classify(Params(2.0, 2.5, 0.25), start=(1.0, 1.0), rtol=1e-9)
+    assert e.value.reason == "not_certified"
+    assert min(calls) == pytest.approx(1e-13)  # it tightened down to the end of the range
