@@ -171,7 +171,7 @@ def _describe(comp: list[str], graph: dict[str, dict[str, int]]) -> str:
 #: work that moves the critical-size decisions out of rsfcore/critical.py (trajectory's
 #: load-jump classification needs them, critical's bisection needs classify).  Any other
 #: cycle fails; delete this entry once that work has landed.
-PENDING: set[tuple[str, ...]] = {("rsfcore.critical", "rsfcore.trajectory")}
+PENDING: set[tuple[str, ...]] = set()  # (rsfcore critical/trajectory: split by rsfcore.decision)
 
 
 @pytest.mark.parametrize("package", sorted(ALLOWED))
