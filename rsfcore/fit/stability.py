@@ -236,11 +236,24 @@ def _point(
     return c.kind, c.critical_size, c
 
 
+#: Relative margin inside which a sample's kind is left to the core (rounding boundary).
+_SHORTCUT_MARGIN = 1e-9
+
+
 def _sample_kind_size(p: dict[str, float], pert: str) -> tuple[str | None, float | None]:
     a, b, Dc, eps, k = p["a"], p["b"], p["Dc_m"], p["eps"], p["k_per_m"]
     kind, _ = _kind_no_core(a, b, Dc, eps, k)
     if kind != "":
         return kind, (0.0 if kind == "zero" else None)
+    # the core's own closed-form kinds (rsfcore.critical methods M_ZERO_LINEAR and
+    # M_INF_NO_RUNAWAY), decided here without its per-call set-up when clear of the
+    # boundary: kappa < kappa_crit is zero, eps kappa >= kappa_crit infinite
+    kc = b / a - 1.0
+    kappa = kappa_from_lab_stiffness(k, Dc, a)
+    if kappa < kc * (1.0 - _SHORTCUT_MARGIN):
+        return "zero", 0.0
+    if eps * kappa > kc * (1.0 + _SHORTCUT_MARGIN):
+        return "infinite", None
     c = critical_perturbation(
         Params(ba=b / a, kappa=kappa_from_lab_stiffness(k, Dc, a), eps=eps, vo=1.0),
         pert,

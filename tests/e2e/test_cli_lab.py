@@ -207,3 +207,88 @@ def test_si_defaults_and_old_option_names() -> None:
     assert new == old == ref and ref["params"]["eps"] == 0.25 and ref["rtol"] == 1e-10
     text = rsf("si", "critical", *MACHINE).stdout
     assert "eps 0.25" in text and "rtol 1e-10" in text and "Dc_m 1e-05" in text
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".json"])
+def test_protocol_output_fits_as_written(tmp_path: Path, suffix: str) -> None:
+    """`rsf protocol velocity-step --out F` then `rsf fit F`: the file as written is a fit
+    record; the fit (stiffness fitted, the default) recovers a, b, Dc and k (1/m and, with
+    --sigma-pa, Pa/m) to 1e-6 relative (both at rtol 1e-10: measured ~1e-10)."""
+    out = tmp_path / f"vs{suffix}"
+    rsf(
+        "protocol",
+        "velocity-step",
+        *MACHINE,
+        "--eps",
+        "1",
+        "--v1-m-s",
+        "1e-6",
+        "--v2-m-s",
+        "1e-5",
+        "--slip-total-m",
+        "3e-4",
+        "--n-points",
+        "1500",
+        "--out",
+        str(out),
+    )
+    d = json.loads(
+        rsf(
+            "fit",
+            str(out),
+            "--law",
+            "aging",
+            "--no-compare",
+            "--sigma-pa",
+            str(SIGMA),
+            "--uncertainty-samples",
+            "0",
+            "--json",
+        ).stdout
+    )
+    assert d["status"] == "ok", d["message"]
+    want = {"a": A, "b": B, "Dc_m": DC, "k_per_m": K / SIGMA, "k_Pa_per_m": K}
+    for k, val in want.items():
+        assert d["params"][k] == pytest.approx(val, rel=1e-6), k
+    assert d["stability"]["critical_stiffness_Pa_per_m"] == pytest.approx(
+        (B - A) / DC * SIGMA, rel=1e-6
+    )
+
+
+def test_lab_file_cli_equals_library_and_errors_name_the_line(tmp_path: Path) -> None:
+    """A lab export (own headers, um/s, a units row, decimal comma) read with --column and
+    --decimal: `rsf fit --json` equals the adapter's answer for the same request (what
+    POST /v1/fits computes) in every parameter, bit for bit; a bad cell exits 2 naming the
+    column and the file's line."""
+    from rsfapp import adapter
+    from rsfapp.requests.fits import FitRequest
+    from rsfcore.fit import synthetic_record
+
+    t = np.linspace(0.0, 60.0, 601)
+    v = np.where(t < 20, 1e-6, np.where(t < 40, 1e-5, 1e-6))
+    rec = synthetic_record(t, v, mu0=0.6, a=A, b=B, Dc_m=DC, eps=1.0, k_per_m=1000.0)
+    rows = [
+        f"{x!r};{y * 1e6!r};{m!r}".replace(".", ",")
+        for x, y, m in zip(rec.t_s.tolist(), rec.v_lp_m_s.tolist(), rec.mu.tolist(), strict=True)
+    ]
+    f = tmp_path / "lab.csv"
+    f.write_text("\n".join(["Time (s);LP Velocity;Friction", "s;um/s;-", *rows]) + "\n")
+    cols = ["--column", "t=Time (s)", "--column", "v_lp=LP Velocity", "--column", "mu=Friction"]
+    args = ["--law", "aging", "--no-compare", "--uncertainty-samples", "20"]
+    d = json.loads(rsf("fit", str(f), *cols, "--decimal", ",", *args, "--json").stdout)
+    req = FitRequest(
+        record=f.read_text(),
+        columns={"t": "Time (s)", "v_lp": "LP Velocity", "mu": "Friction"},
+        decimal=",",
+        law="aging",
+        compare=False,
+        uncertainty_samples=20,
+    )
+    ref = adapter.fit(req)
+    assert d["params"] == ref["params"] and d["stderr"] == ref["stderr"]
+    assert d["status"] == "ok" and d["params"]["b"] == pytest.approx(B, rel=1e-6)
+    lines = f.read_text().splitlines()
+    lines[9] = lines[9].rsplit(";", 1)[0] + ";n/a"  # line 10 of the file, data row 7
+    f.write_text("\n".join(lines) + "\n")
+    p = rsf("fit", str(f), *cols, "--decimal", ",", *args, check=False)
+    assert p.returncode == 2 and "record.Friction[7]" in p.stderr and "line 10" in p.stderr
