@@ -825,7 +825,15 @@ def test_measured_displacement_record() -> None:
 def _machine() -> PhysicalParams:
     # k = 2 k_crit: k_crit [1/m] = (b - a)/Dc = 500, sigma 1e7 -> k = 1e10 Pa/m
     return PhysicalParams(
-        a=A, b=B, Dc=DC, sigma=1e7, k=1e10, V_star=1e-6, Vo=1e-6, eps=1.0, f_star=0.6
+        a=A,
+        b=B,
+        Dc_m=DC,
+        sigma_Pa=1e7,
+        k_Pa_per_m=1e10,
+        V_star_m_s=1e-6,
+        V_load_m_s=1e-6,
+        eps=1.0,
+        f_star=0.6,
     )
 
 
