@@ -15,10 +15,11 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import model_validator
+from pydantic import ConfigDict, model_validator
 
 from ._base import F
 from ._base import Model as _Model
+from ._rules import Rule, stated
 from .single import field_error
 
 __all__ = ["FitRequest", "FIT_LAWS", "MAX_RECORD_CHARS", "PosteriorOptions"]
@@ -31,6 +32,8 @@ MAX_RECORD_CHARS = 20_000_000
 
 class PosteriorOptions(_Model):
     """MCMC (emcee) settings of a posterior sample (rsfcore.fit.sample_posterior)."""
+
+    model_config = ConfigDict(json_schema_extra=stated(Rule("burn < n_steps")))
 
     n_walkers: int = F(
         32, "[4, 256]", "Ensemble size (>= 2 x fitted parameters).", name="n_walkers", ge=4, le=256
@@ -49,6 +52,24 @@ class PosteriorOptions(_Model):
 class FitRequest(_Model):
     """Fit mu0, a, b, Dc (and eps, machine stiffness) to a velocity-step record, compare
     the evolution laws, and answer how close sample and machine are to instability."""
+
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            Rule(
+                "law is given when compare is false",
+                {
+                    "anyOf": [
+                        {"properties": {"compare": {"const": True}}},
+                        {"required": ["law"], "properties": {"law": {"type": "string"}}},
+                    ]
+                },
+            ),
+            Rule(
+                "record is a readable lab record: CSV or JSON text (or a mapping of columns) "
+                "with the columns the fit needs"
+            ),
+        )
+    )
 
     record: str = F(
         ...,

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
 from rsfcore import limits
 
 from ._base import FL, F
 from ._base import Model as _Model
+from ._rules import Rule, stated
 from .single import PhysicalSI, field_error
 
 __all__ = [
@@ -32,7 +33,15 @@ __all__ = [
 MAX_PROTOCOL_SAMPLES = 200_000
 
 
+#: The rules of the SI machine of every protocol (checked by rsfcore.units).
+_MACHINE_RULE = Rule(
+    "physical: b > a, kappa = k_Pa_per_m Dc_m/(a sigma_Pa) <= 1e6 (checked as physical.<field>)"
+)
+
+
 class _Machine(_Model):
+    model_config = ConfigDict(json_schema_extra=stated(_MACHINE_RULE))
+
     physical: PhysicalSI = F(
         ...,
         "an object {a, b, Dc_m, sigma_Pa, k_Pa_per_m, V_star_m_s}",
@@ -142,6 +151,15 @@ class ProtocolStart(_Model):
 
 class LoadHistoryRequest(_Machine):
     """Any piecewise-constant load-point velocity history (velocity steps, holds, ...)."""
+
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            _MACHINE_RULE,
+            Rule(
+                f"segments x n_points_per_segment <= {MAX_PROTOCOL_SAMPLES} samples in all",
+            ),
+        )
+    )
 
     segments: Annotated[list[Segment], Field(min_length=1, max_length=1000)] = F(
         ...,

@@ -36,6 +36,7 @@ from rsfcore.units import SI_SIZE_FIELDS
 
 from ._base import FL, RTOL, SIZE_TEXT, VALID_RTOL, F, Perturbation
 from ._base import Model as _Model
+from ._rules import Rule, not_both, null_or, nulls, stated
 
 __all__ = [
     "AnalyticRequest",
@@ -288,10 +289,69 @@ def _si_perturbation_schema(schema: dict[str, Any]) -> None:
     schema["allOf"] = [*schema.get("allOf", []), *rules]
 
 
+def _size_range(lim: limits.Limit) -> dict[str, Any]:
+    lo = {"exclusiveMinimum" if lim.lo_open else "minimum": lim.lo}
+    hi = {"exclusiveMaximum" if lim.hi_open else "maximum": lim.hi}
+    return {**lo, **hi}
+
+
+def _dimless_rule(fields: tuple[str, ...]) -> Rule:
+    return Rule(
+        f"'physical' (SI) and the dimensionless {', '.join(fields)} are never both given",
+        null_or("physical", {"properties": dict.fromkeys(fields, False)}),
+    )
+
+
+#: Rules of every query with a perturbation (classify, trajectory; batch items).
+PERTURBATION_RULES: tuple[Rule, ...] = (
+    _dimless_rule(_DIMLESS),
+    Rule(
+        "factor, new_slip_rate_m_s, new_load_point_velocity_m_s state the perturbation in SI: "
+        "at most one of them, only with 'physical', never with size, log_size or start"
+    ),
+    Rule(
+        "log_size is never given with size, start or an SI perturbation field",
+        null_or(
+            "log_size",
+            {"properties": {"size": False, **nulls("start", *SI_PERTURBATION_FIELDS)}},
+        ),
+    ),
+    Rule(
+        "size lies in the range of the perturbation (unless start is given): velocity-jump "
+        f"{limits.VELOCITY_JUMP_SIZE.text}; load-point-jump {limits.LOAD_POINT_JUMP_SIZE.text} "
+        "with v_o (1 + dv) <= 1e300",
+        {
+            "anyOf": [
+                {"required": ["start"], "properties": {"start": {"type": "object"}}},
+                {
+                    "properties": {
+                        "perturbation": {"const": "velocity-jump"},
+                        "size": _size_range(limits.VELOCITY_JUMP_SIZE),
+                    }
+                },
+                {
+                    "required": ["perturbation"],
+                    "properties": {
+                        "perturbation": {"const": "load-point-jump"},
+                        "size": _size_range(limits.LOAD_POINT_JUMP_SIZE),
+                    },
+                },
+            ]
+        },
+    ),
+    Rule(
+        "with 'physical': b > a, kappa = k_Pa_per_m Dc_m/(a sigma_Pa) <= 1e6 and "
+        "V_load_m_s/V_star_m_s <= 1e300 (checked as physical.<field>)"
+    ),
+)
+
+
 class ClassifyRequest(_SIPerturbation, _SIInput, _Dimless):
     """Classify one perturbation as stable or unstable (runaway); dimensionless or SI."""
 
-    model_config = ConfigDict(json_schema_extra=_si_perturbation_schema)
+    model_config = ConfigDict(
+        json_schema_extra=stated(*PERTURBATION_RULES, then=_si_perturbation_schema)
+    )
 
     perturbation: Perturbation = F(
         "velocity-jump",
@@ -376,6 +436,35 @@ class TrajectoryRequest(ClassifyRequest):
     has SI columns (t_s, V_m_s, tau_change_Pa, friction, theta_s, slip_m, load_point_m).
     """
 
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            *PERTURBATION_RULES,
+            Rule(
+                "'physical' (SI inputs) and 'scales' (SI columns of a dimensionless query) "
+                "are never both given",
+                not_both("physical", "scales"),
+            ),
+            Rule(
+                "sampling 'seconds' needs 'physical'",
+                {
+                    "anyOf": [
+                        {"properties": {"sampling": {"not": {"const": "seconds"}}}},
+                        {"required": ["physical"], "properties": {"physical": {"type": "object"}}},
+                    ]
+                },
+            ),
+            Rule(
+                "t_end_s needs 'physical'",
+                null_or(
+                    "t_end_s",
+                    {"required": ["physical"], "properties": {"physical": {"type": "object"}}},
+                ),
+            ),
+            Rule("t_end and t_end_s are never both given", not_both("t_end", "t_end_s")),
+            then=_si_perturbation_schema,
+        )
+    )
+
     n_points: int = FL(
         limits.N_POINTS, description="Number of output samples (spacing: see sampling)."
     )
@@ -459,6 +548,10 @@ class CriticalRequest(_SIInput, _Dimless):
     """Critical perturbation size separating stable from unstable (as `rsf critical`);
     dimensionless or SI (then also the critical slip rate / load-point velocity in m/s)."""
 
+    model_config = ConfigDict(
+        json_schema_extra=stated(_dimless_rule(_DIMLESS), PERTURBATION_RULES[-1])
+    )
+
     perturbation: Perturbation = F(
         "velocity-jump",
         "'velocity-jump' or 'load-point-jump'",
@@ -475,6 +568,10 @@ class CriticalRequest(_SIInput, _Dimless):
 
 class GridSpec(_Model):
     """A rectangular (phi, psi) grid, n_phi x n_psi points, at most 250 000 in all."""
+
+    model_config = ConfigDict(
+        json_schema_extra=stated(Rule("phi_min <= phi_max and psi_min <= psi_max"))
+    )
 
     phi_min: float = F(-5.0, "[-1e3, 1e3]", "Smallest phi (-).", name="phi_min", ge=-1e3, le=1e3)
     phi_max: float = F(
@@ -506,7 +603,13 @@ class AnalyticRequest(_Model):
     'vo0': U of `eq: trajectories 2` (stationary load point, uses kappa).
     """
 
-    model_config = ConfigDict(json_schema_extra=_one_of_points_grid)
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            Rule("exactly one of points (at least one point) or grid"),
+            Rule("format=png (query) needs grid"),
+            then=_one_of_points_grid,
+        )
+    )
 
     function: Literal["kcrit", "vo0"] = F(
         "kcrit", "'kcrit' or 'vo0'", "Which closed form.", name="function"
@@ -571,6 +674,10 @@ class BoundariesSIRequest(_SIInput, BoundariesRequest):
     """Stability boundaries (POST): dimensionless, or the machine in SI (``physical``
     instead of ba and kappa; then also k_crit [Pa/m] and kappa/kappa_crit)."""
 
+    model_config = ConfigDict(
+        json_schema_extra=stated(_dimless_rule(("ba", "kappa")), PERTURBATION_RULES[-1])
+    )
+
     @model_validator(mode="after")
     def _si_rules(self) -> BoundariesSIRequest:
         _check_si(self, type(self).__name__, with_size=False)
@@ -621,6 +728,13 @@ class StiffnessRequest(_Model):
     """Eigen-stiffness of continuum case A-E and, with physical parameters, the critical
     dimension (lambda_c, L_c or R_c, in metres)."""
 
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            Rule("physical.b > physical.a (velocity weakening)"),
+            Rule("mode 0 only for cases A and C; physical.h is required for cases C and D"),
+        )
+    )
+
     case: Literal["A", "B", "C", "D", "E"] = F(
         "A", "'A'..'E'", "Configuration of `tab: table`.", name="case"
     )
@@ -642,6 +756,8 @@ class ClassifyPointsRequest(_Dimless):
     separatrix is computed once and each point is placed against it (points within a
     safety margin of it are integrated); every outcome agrees with /v1/classify given the
     same start (rsfcore.phase.classify_points)."""
+
+    model_config = ConfigDict(json_schema_extra=stated(Rule("psi has as many values as phi")))
 
     phi: Annotated[list[float], Field(min_length=1, max_length=100_000)] = F(
         ...,

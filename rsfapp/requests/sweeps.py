@@ -44,6 +44,7 @@ from rsfcore import limits, units
 
 from ._base import FL, F, Perturbation
 from ._base import Model as _Model
+from ._rules import NULL, Rule, nulls, stated
 from .single import PhysicalSI
 
 __all__ = [
@@ -111,11 +112,85 @@ MAX_AXIS_VALUES = 100_000
 MAX_AXIS_N = 1_000_000_000
 
 
+def _range(name: str) -> dict[str, Any]:
+    """JSON Schema of one value of parameter ``name`` (AXIS_RANGES; open at the low end
+    for ba and the SI sizes).  The ends that depend on the perturbation (load-point jump:
+    size > -1, vo > 0) and kappa_ratio (ba - 1) <= 1e6 are stated as text."""
+    lo, hi, _ = AXIS_RANGES[name]
+    low = "exclusiveMinimum" if name == "ba" or name in SI_SIZE_FIELDS else "minimum"
+    return {"type": "number", low: lo, "maximum": hi}
+
+
+def _axis_ranges() -> dict[str, Any]:
+    return {
+        "anyOf": [
+            {
+                "properties": {
+                    "name": {"const": n},
+                    "values": {"items": _range(n)},
+                    "start": _range(n) | {"type": ["number", "null"]},
+                    "stop": _range(n) | {"type": ["number", "null"]},
+                }
+            }
+            for n in AXIS_RANGES
+        ]
+    }
+
+
 class SweepAxis(_Model):
     """One sweep axis: explicit ``values`` or ``start``/``stop``/``n`` (optionally log).
 
     Generated values: v_k = start + (stop - start) k/(n - 1) (log: geometric), with the
     end points exact."""
+
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            Rule(
+                "either values, or start, stop and n (never both, never neither)",
+                {
+                    "anyOf": [
+                        {
+                            "required": ["values"],
+                            "properties": {
+                                "values": {"type": "array"},
+                                **nulls("start", "stop", "n"),
+                            },
+                        },
+                        {
+                            "required": ["start", "stop", "n"],
+                            "properties": {
+                                "values": NULL,
+                                "start": {"type": "number"},
+                                "stop": {"type": "number"},
+                                "n": {"type": "integer"},
+                            },
+                        },
+                    ]
+                },
+            ),
+            Rule(
+                "log spacing of start/stop needs start > 0 and stop > 0",
+                {
+                    "anyOf": [
+                        {"properties": {"log": {"const": False}}},
+                        {"required": ["values"], "properties": {"values": {"type": "array"}}},
+                        {
+                            "properties": {
+                                "start": {"exclusiveMinimum": 0},
+                                "stop": {"exclusiveMinimum": 0},
+                            }
+                        },
+                    ]
+                },
+            ),
+            Rule(
+                "values, start and stop lie in the range of the axis name ("
+                + "; ".join(f"{n} {t}" for n, (_lo, _hi, t) in AXIS_RANGES.items())
+                + "; with a load-point jump also size > -1 and vo > 0)",
+                _axis_ranges(),
+            ),
+        )
+    )
 
     name: AxisName = F(
         ...,
@@ -181,7 +256,19 @@ class SweepFixed(_Model):
     as the SI machine ``physical`` (never both; see the module docstring), and the
     perturbation size as ``size`` or, with ``physical``, in SI."""
 
-    model_config = ConfigDict(json_schema_extra=_si_size_schema)
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            Rule(
+                "'physical' (SI) and the dimensionless ba, kappa, kappa_ratio, vo are never "
+                "both given"
+            ),
+            Rule(
+                "factor, new_slip_rate_m_s, new_load_point_velocity_m_s state the size in SI: "
+                "at most one of them, only with 'physical', never with size",
+            ),
+            then=_si_size_schema,
+        )
+    )
 
     ba: float = FL(limits.BA)
     kappa_ratio: float | None = F(
@@ -260,9 +347,47 @@ class SweepFixed(_Model):
         return d
 
 
+def _form(required: tuple[str, ...], types: dict[str, str]) -> dict[str, Any]:
+    others = [f for f in ("axes", "points", "x", "y") if f not in required]
+    return {
+        "required": list(required),
+        "properties": {**{f: {"type": t} for f, t in types.items()}, **nulls(*others)},
+    }
+
+
 class SweepRequest(_Model):
     """An N-D grid (``axes``), scattered ``points`` or the 2-D ``x``/``y`` form (exactly one
     of them), computed by the workers in chunks."""
+
+    model_config = ConfigDict(
+        json_schema_extra=stated(
+            Rule(
+                "exactly one form: axes, or points, or both x and y",
+                {
+                    "anyOf": [
+                        _form(("axes",), {"axes": "array"}),
+                        _form(("points",), {"points": "object"}),
+                        _form(("x", "y"), {"x": "object", "y": "object"}),
+                    ]
+                },
+            ),
+            Rule("every swept parameter once: the names of x and y differ, as do those of axes"),
+            Rule("the arrays of points have equal lengths"),
+            Rule(
+                "the values of points lie in the range of their parameter (as an axis)",
+                {
+                    "properties": {
+                        "points": {"properties": {n: {"items": _range(n)} for n in AXIS_RANGES}}
+                    }
+                },
+            ),
+            Rule(
+                "a swept parameter does not clash with fixed (e.g. kappa with kappa_ratio; "
+                "with fixed.physical none of ba, kappa, kappa_ratio, vo is swept or given)"
+            ),
+            Rule("at most RSF_SWEEP_MAX_POINTS points (RSF_SWEEP_MAX_SCATTERED scattered)"),
+        )
+    )
 
     axes: Annotated[list[SweepAxis], Field(min_length=1, max_length=5)] | None = F(
         None,
