@@ -614,6 +614,20 @@ def test_3d_sweep_deep_link_and_slices(ui: UI) -> None:
     v3 = ui.view(sid, "the view over (b/a, eps)", "c.dataset.axes === 'ba,eps'")
     assert v3["labels"].startswith("x: b/a \u00b7 y: \u03b5"), v3
     assert "axes=ba,eps" in v3["href"] and "slice=kappa_ratio:" in v3["href"], v3
+    # the server's x is its first free axis (eps): the page transposes, cell for cell
+    d3 = httpx.get(f"{srv}/v1/sweeps/{sid}/diagram", params={"slice": "kappa_ratio:1.1"}).json()
+    assert d3["x_name"] == "eps" and d3["y_name"] == "ba", d3
+    checked = 0
+    for i_eps, row in enumerate(d3["critical_size"]):
+        for j_ba, cs in enumerate(row):
+            if cs is None:
+                continue
+            text = ui.b.js(f"window.rsfUi.view.readout({{i: {j_ba}, j: {i_eps}}})")
+            x, y = d3["y"][j_ba], d3["x"][i_eps]
+            assert text.startswith(f"b/a = {x:g}, \u03b5 = {y:.4g}:"), (text, x, y)
+            assert text.endswith(f"critical {cs:.6g}"), (text, cs)
+            checked += 1
+    assert checked >= 2, d3
 
     # -- clicking another sweep: its title at once, never the previous image
     now = ui.b.js(
