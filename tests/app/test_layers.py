@@ -167,18 +167,11 @@ def _describe(comp: list[str], graph: dict[str, dict[str, int]]) -> str:
     return " <-> ".join(comp) + "\n" + "\n".join(lines)
 
 
-#: The one cycle left on main while this test was written, being removed by the rsfcore
-#: work that moves the critical-size decisions out of rsfcore/critical.py (trajectory's
-#: load-jump classification needs them, critical's bisection needs classify).  Any other
-#: cycle fails; delete this entry once that work has landed.
-PENDING: set[tuple[str, ...]] = set()  # (rsfcore critical/trajectory: split by rsfcore.decision)
-
-
 @pytest.mark.parametrize("package", sorted(ALLOWED))
 def test_no_import_cycle_inside_a_package(package: str) -> None:
     graph = _graph(package)
     assert len(graph) > 1
-    found = [c for c in _cycles(graph) if tuple(c) not in PENDING]
+    found = _cycles(graph)
     assert not found, "import cycles:\n" + "\n".join(_describe(c, graph) for c in found)
 
 
