@@ -306,7 +306,7 @@ class Client:
         physical: Mapping[str, Any] | None = None,
     ) -> StiffnessResult:
         """Eigen-stiffness k/k_* of continuum case A-E (POST /v1/stiffness) and, with
-        ``physical`` {mu, nu, mode_of_slip, sigma, a, b, Dc, h} in SI, the critical
+        ``physical`` {mu, nu, mode_of_slip, sigma_Pa, a, b, Dc_m, h} in SI, the critical
         dimension [m]."""
         return StiffnessResult.from_json(self._ask("/v1/stiffness", dict(locals())))
 

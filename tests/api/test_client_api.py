@@ -185,7 +185,7 @@ def test_single_queries_equal_their_http_answers(c: TestClient, rc: Client) -> N
     assert up.to_pandas()["U"].tolist() == up.U and up.shape is None
 
     st = rc.stiffness(
-        case="B", physical={"mu": 3e10, "sigma": 1e8, "a": 0.01, "b": 0.015, "Dc": 1e-5}
+        case="B", physical={"mu": 3e10, "sigma_Pa": 1e8, "a": 0.01, "b": 0.015, "Dc_m": 1e-5}
     )
     assert st.eigenvalue == pytest.approx(1.1577738836976, rel=1e-12)
     assert st.critical_dimension_name == "L_c"

@@ -54,7 +54,7 @@ M = {
 }
 ML = {**M, "V_load_m_s": 3e-6}
 #: A continuum fault (stiffness question; its own SI set).
-FAULT = {"mu": 3e10, "nu": 0.25, "mode_of_slip": "II", "sigma": 1e8, "a": 0.01, "b": 0.015}
+FAULT = {"mu": 3e10, "nu": 0.25, "mode_of_slip": "II", "sigma_Pa": 1e8, "a": 0.01, "b": 0.015}
 
 
 def _fit_record() -> str:
@@ -255,7 +255,7 @@ TABLE: list[Row] = [
     Row(
         "stiffness-D",
         "stiffness",
-        {"case": "D", "mode": 1, "physical": {**FAULT, "Dc": 1e-5, "h": 1000.0}},
+        {"case": "D", "mode": 1, "physical": {**FAULT, "Dc_m": 1e-5, "h": 1000.0}},
     ),
     Row(
         "classify-points",
@@ -862,9 +862,10 @@ class Doors:
             raise DoorError(f"not one JSON object on stdout: {r.stdout[:300]!r}") from exc
 
     def cli_argv(self, row: Row) -> list[str]:
-        """``rsf`` words and options for a row: each JSON field ``f`` as ``--f`` with
-        underscores as dashes in lower case; lists repeated; the SI machine by its fields;
-        objects as JSON text; the record and sweep spec as files."""
+        """``rsf`` words and options for a row: each JSON field ``f`` as ``--f`` (the one
+        spelling, docs/lab-api.md: ``--Dc_m``, ``--n_points``); booleans as ``--f`` /
+        ``--no-f``; lists of numbers repeated; the SI machine by its fields; objects as JSON
+        text; the record and sweep spec as files."""
         q = QUESTIONS[row.question]
         body = dict(row.body)
         words = list(q.si_cli if q.si_cli and "physical" in body else q.cli)
@@ -879,7 +880,7 @@ class Doors:
             spec.write_text(json.dumps(body))
             return [*words, str(spec), *(["--wait"] if row.question == "sweep" else ["--json"])]
         for k, v in {**body.pop("physical", {}), **body}.items():
-            flag = "--" + k.lower().replace("_", "-")
+            flag = "--" + k
             if isinstance(v, bool):
                 args.append(flag if v else "--no-" + flag[2:])
             elif isinstance(v, list) and all(not isinstance(x, dict) for x in v):
@@ -931,17 +932,19 @@ def service(tmp_path_factory: pytest.TempPathFactory, redis_exe: str) -> Any:
     """uvicorn + a Celery worker on Redis (kombu's filesystem transport can hand a worker a
     message file still being written), and the doors on it."""
     d = tmp_path_factory.mktemp("rsf-conformance")
-    redis = Redis(redis_exe, d)
-    srv = Server(d, redis.url, RSF_INLINE_BUDGET_S="120")
-    wrk = Worker(d, redis.url)
-    doors = Doors(srv.url, service_env(d, redis.url, RSF_URL=srv.url), d)
+    started: list[Any] = []
     try:
-        yield doors
+        started.append(redis := Redis(redis_exe, d))
+        started.append(srv := Server(d, redis.url, RSF_INLINE_BUDGET_S="120"))
+        started.append(Worker(d, redis.url))
+        doors = Doors(srv.url, service_env(d, redis.url, RSF_URL=srv.url), d)
+        try:
+            yield doors
+        finally:
+            doors.close()
     finally:
-        doors.close()
-        wrk.stop()
-        srv.stop()
-        redis.stop()
+        for p in reversed(started):
+            p.stop()
 
 
 _NO_CLI = "no `rsf` command asks this question"
