@@ -48,6 +48,7 @@ METHOD_FLAGS: tuple[str, ...] = (
     "zero_kappa_0_stationary_load_point",
     "separatrix_beyond_double_range",
     "asymptote_load_point_jump",
+    "infinite_kappa_0_no_spring",
 )
 assert len(METHOD_FLAGS) == len(METHODS) and len(set(METHOD_FLAGS)) == len(METHODS)
 
