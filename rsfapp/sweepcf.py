@@ -27,6 +27,7 @@ from .grid import SweepSpec
 __all__ = [
     "CONVENTIONS",
     "METHOD_FLAGS",
+    "method_flags",
     "coordinate_attrs",
     "global_attrs",
     "software_version",
@@ -50,7 +51,16 @@ METHOD_FLAGS: tuple[str, ...] = (
     "asymptote_load_point_jump",
     "infinite_kappa_0_no_spring",
 )
-assert len(METHOD_FLAGS) == len(METHODS) and len(set(METHOD_FLAGS)) == len(METHODS)
+
+
+def method_flags() -> tuple[str, ...]:
+    """:data:`METHOD_FLAGS` for every entry of METHODS: a method added to rsfcore without
+    its word here gets ``method_<k>`` (still distinct); tests/api/test_sweep_subsets.py
+    asks for a word for each."""
+    return tuple(
+        METHOD_FLAGS[k] if k < len(METHOD_FLAGS) else f"method_{k}" for k in range(len(METHODS))
+    )
+
 
 _AXES: dict[str, tuple[str, str]] = {
     "ba": ("b/a: ratio of the evolution and direct-effect parameters", "1"),
@@ -126,7 +136,7 @@ def variable_attrs(spec: SweepSpec) -> dict[str, dict[str, Any]]:
         "method": {
             "long_name": "method that decided the critical size (rsfcore.critical.METHODS)",
             "units": "1",
-            **_flags(list(METHOD_FLAGS)),
+            **_flags(list(method_flags())),
             "comment": "-1 (fill): not computed yet or failed. "
             + " | ".join(f"{k} {m}" for k, m in enumerate(METHODS)),
         },

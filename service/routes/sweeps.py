@@ -432,36 +432,31 @@ async def get_data(
         raise
 
 
-@router.head("/{sweep_id}/zarr/{key:path}", include_in_schema=False)
-@router.get(
-    "/{sweep_id}/zarr/{key:path}",
-    summary="The sweep as a read-only Zarr store (lazy xarray access)",
-    responses={
-        **_N,
-        200: {
-            "description": "A Zarr (format 2) key: JSON metadata (.zmetadata, .zgroup, "
-            ".zattrs, <var>/.zarray, <var>/.zattrs) or a zlib-compressed chunk.",
-            "content": {"application/json": {}, "application/octet-stream": {}},
-        },
+ZarrKey = Annotated[
+    str,
+    Path(
+        pattern=r"^[A-Za-z0-9_.]{1,64}$",
+        description="A Zarr key part: .zmetadata, .zgroup, .zattrs, .zarray or a chunk "
+        "index like 0.3.1.",
+    ),
+]
+_ZARR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    **_N,
+    200: {
+        "description": "A Zarr (format 2) key: JSON metadata (.zmetadata, .zgroup, "
+        ".zattrs, <var>/.zarray, <var>/.zattrs) or a zlib-compressed chunk.",
+        "content": {"application/json": {}, "application/octet-stream": {}},
     },
-)
-async def get_zarr(sweep_id: SweepId, key: str, stores: StoresDep) -> Response:
-    """The sweep as a read-only Zarr store, for lazy access from xarray: only the
-    chunks a computation touches are fetched, each one stored block where the sweep's
-    chunking allows (rsfapp.sweepzarr).  Open it in a notebook with
-    ``xr.open_zarr("<url>/v1/sweeps/<id>/zarr", storage_options={"headers":
-    {"Authorization": "Bearer <key>"}}, consolidated=True, zarr_format=2)`` (needs zarr,
-    fsspec and aiohttp), or ``rsfclient`` ``sweep.to_xarray(lazy=True)``.  Points not
-    computed yet (a running sweep) are fill values (NaN after decoding).  Keys:
-    ``.zmetadata`` (consolidated metadata), ``.zgroup``, ``.zattrs``, ``<var>/.zarray``,
-    ``<var>/.zattrs`` and chunks ``<var>/<i>.<j>...``; any other key is 404."""
+}
+
+
+async def _zarr(stores: Any, sweep_id: str, key: str) -> Response:
     from rsfapp.sweepzarr import ZarrSweep
 
-    key = key.strip("/")
     if await run_in_threadpool(stores.sweeps.get_spec, sweep_id) is None:
         await _status(stores, sweep_id)  # 404 if unknown
     spec = await _spec(stores, sweep_id)  # 410 if stored in the pre-array layout
-    name, _, tail = key.rpartition("/")
+    tail = key.rpartition("/")[2]
     meta_key = not tail[:1].isdigit()
     st = await _status(stores, sweep_id) if meta_key else {"id": sweep_id}
     k = await run_in_threadpool(stores.sweeps.block_points, sweep_id)
@@ -471,6 +466,39 @@ async def get_zarr(sweep_id: SweepId, key: str, stores: StoresDep) -> Response:
         raise ProblemError(404, "Not found", f"sweep {sweep_id} has no Zarr key {key!r}")
     media = "application/json" if meta_key else "application/octet-stream"
     return Response(data, media_type=media, headers={"Cache-Control": "no-cache"})
+
+
+@router.get(
+    "/{sweep_id}/zarr/{key}",
+    summary="The sweep as a read-only Zarr store: group metadata",
+    responses=_ZARR_RESPONSES,
+)
+async def get_zarr_group(sweep_id: SweepId, key: ZarrKey, stores: StoresDep) -> Response:
+    """The sweep as a read-only Zarr store, for lazy access from xarray: only the
+    chunks a computation touches are fetched, each one stored block where the sweep's
+    chunking allows (rsfapp.sweepzarr).  Open it in a notebook with
+    ``xr.open_zarr("<url>/v1/sweeps/<id>/zarr", storage_options={"headers":
+    {"Authorization": "Bearer <key>"}}, consolidated=True, zarr_format=2)`` (needs zarr,
+    fsspec and aiohttp), or ``rsfclient`` ``sweep.to_xarray(lazy=True)``.  Points not
+    computed yet (a running sweep) are fill values (NaN after decoding).  Group keys:
+    ``.zmetadata`` (consolidated metadata), ``.zgroup``, ``.zattrs``; array keys are
+    ``<var>/...`` (next route); any other key is 404."""
+    return await _zarr(stores, sweep_id, key)
+
+
+@router.get(
+    "/{sweep_id}/zarr/{var}/{key}",
+    summary="The sweep as a read-only Zarr store: array metadata and chunks",
+    responses=_ZARR_RESPONSES,
+)
+async def get_zarr_array(
+    sweep_id: SweepId, var: ZarrKey, key: ZarrKey, stores: StoresDep
+) -> Response:
+    """One array of the sweep's Zarr store: ``<var>/.zarray``, ``<var>/.zattrs`` or the
+    chunk ``<var>/<i>.<j>...`` (C-order bytes, zlib; points not computed yet are the
+    array's fill value).  Arrays: the dimensions (grid axes or ``point``), the result
+    variables, and the swept parameters of a scattered sweep; any other key is 404."""
+    return await _zarr(stores, sweep_id, f"{var}/{key}")
 
 
 _JSON_OR_PNG = ("json", "png")

@@ -148,6 +148,10 @@ def test_netcdf_is_cf(done: tuple[TestClient, str]) -> None:
         "closed_form_load_point_jump_at_kappa_crit",
         "closed_form_phi_crit_vo_0",
     ]
+    from rsfapp.sweepcf import METHOD_FLAGS
+    from rsfcore.critical import METHODS
+
+    assert len(METHOD_FLAGS) == len(METHODS), "a word for each method in rsfapp/sweepcf.py"
     for name in ("kind", "outcome", "method"):
         assert ds[name].encoding["_FillValue"] == -1, name
     assert np.isnan(ds["critical_size"].encoding["_FillValue"])

@@ -551,6 +551,8 @@ NOT_QUESTIONS: dict[str, str] = {
     "GET /v1/sweeps/{sweep_id}/diagram": "a 2-D slice of the sweep's data",
     "GET /v1/sweeps/{sweep_id}/zarr/{key}": "the sweep as a Zarr store (lazy xarray): "
     "tests/api/test_sweep_subsets.py, tests/e2e/test_sweep_lazy.py",
+    "GET /v1/sweeps/{sweep_id}/zarr/{var}/{key}": "the sweep's Zarr arrays and chunks: "
+    "tests/api/test_sweep_subsets.py, tests/e2e/test_sweep_lazy.py",
     "DELETE /v1/sweeps/{sweep_id}": "cancel or delete",
     "GET /v1/figures": "the list of the paper's figures",
     "GET /v1/figures/{name}": "an image of the paper (no numbers to compare)",
