@@ -33,6 +33,7 @@ from typing import Any
 import typer
 
 from rsfapp.requests import ClassifyRequest, PhysicalSI, TrajectoryRequest
+from rsfapp.requests.fits import FitRequest
 from rsfapp.requests.protocols import SlideHoldSlideRequest, VelocityStepRequest
 
 from .common import echo_lines, emit, fail, given, model_option, run
@@ -469,20 +470,10 @@ def fit_command(
         "--law",
         help="Evolution law of the reported fit (default: the best of the comparison).",
     ),
-    k_pa_per_m: float | None = typer.Option(
-        None, "--k-pa-per-m", help="Machine stiffness [Pa/m] (with --sigma-pa)."
-    ),
-    sigma_pa: float | None = typer.Option(
-        None,
-        "--sigma-pa",
-        help="Normal stress [Pa]: converts --k-pa-per-m; stiffnesses answered also in Pa/m.",
-    ),
-    k_friction_per_m: float | None = typer.Option(
-        None,
-        "--k-friction-per-m",
-        "--stiffness",
-        help="Machine stiffness in friction per metre of load-point displacement [1/m] "
-        "(--stiffness: the same, older name).",
+    k_pa_per_m: float | None = model_option(FitRequest, "k_Pa_per_m", "--k-pa-per-m"),
+    sigma_pa: float | None = model_option(FitRequest, "sigma_Pa", "--sigma-pa"),
+    k_friction_per_m: float | None = model_option(
+        FitRequest, "k_friction_per_m", "--k-friction-per-m", "--stiffness"
     ),
     fit_stiffness: bool | None = typer.Option(
         None,
@@ -510,23 +501,13 @@ def fit_command(
         help="QUANTITY=HEADER[:UNIT], repeated (t, x_lp, v_lp, mu, tau, sigma_n), e.g. "
         "'v_lp=LP Velocity:um/s'.",
     ),
-    decimal: str = typer.Option(".", "--decimal", help="Decimal separator: '.' or ','."),
-    smooth: int | None = typer.Option(
-        None,
-        "--smooth",
-        help="Median-filter width [samples] when the velocity comes from a measured x_lp.",
-    ),
-    time_budget_s: float = typer.Option(
-        20.0, "--time-budget-s", help="Wall-time budget of each law's fit [s], (0, 600]."
-    ),
+    decimal: str | None = model_option(FitRequest, "decimal"),
+    smooth: int | None = model_option(FitRequest, "smooth"),
+    time_budget_s: float | None = model_option(FitRequest, "time_budget_s", "--time-budget-s"),
     compare: bool = typer.Option(
         True, "--compare/--no-compare", help="Fit every law and compare them (AIC/BIC)."
     ),
-    samples: int = typer.Option(
-        400,
-        "--uncertainty-samples",
-        help="Covariance samples for the stability uncertainty, [0, 100000].",
-    ),
+    samples: int | None = model_option(FitRequest, "uncertainty_samples", "--uncertainty-samples"),
     series: bool = typer.Option(
         False, "--series", help="Include the data/model/residual series in --json output."
     ),
@@ -551,14 +532,11 @@ def fit_command(
 
     if not file.is_file():
         _fail(f"file: {str(file)!r} is not a readable file")
-    body: dict[str, Any] = {
-        "record": file.read_text(encoding="utf-8-sig"),
-        "compare": compare,
+    body: dict[str, Any] = {"record": file.read_text(encoding="utf-8-sig"), "compare": compare}
+    opt: dict[str, Any] = {
         "uncertainty_samples": samples,
         "time_budget_s": time_budget_s,
         "decimal": decimal,
-    }
-    opt: dict[str, Any] = {
         "law": None if law is None else law.value,
         "k_Pa_per_m": k_pa_per_m,
         "sigma_Pa": sigma_pa,
