@@ -1044,8 +1044,10 @@ def _simulate(
         outcome, cert = "unstable", "linear_instability"
         peak_phi, peak_T = math.inf, None
         complete = False
-    elif sep_side:
-        outcome = "undecided"  # overruled by the separatrix just below
+    elif sep_side and max_steps >= (DECIDED_OUTCOME_BUDGET if only_outcome else DECIDED_BUDGET):
+        # overruled by the separatrix just below (when the caller's own max_steps ran out
+        # first, that budget bounds the work: BudgetExceeded as for any undecided run)
+        outcome = "undecided"
     else:
         msg = (
             f"no certificate within {max_steps} steps "
