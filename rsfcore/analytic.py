@@ -49,6 +49,8 @@ __all__ = [
     "L_star_acc",
     "UNIT_ROUNDOFF",
     "delta_tau",
+    "ljump_kcrit_acc",
+    "vjump_kcrit_acc",
 ]
 
 _SER = 1.0e-4
@@ -333,7 +335,7 @@ _LSTAR_ULPS = 6.0
 #: roundings (1 - eps, the product, the reciprocal) plus one for safety.
 _LJUMP_ULPS = 4.0
 #: Factor on the condition-number bound of the kappa = kappa_crit velocity jump
-#: (:func:`_vjump_kcrit_acc`): each term of the residual passes through up to ~8 roundings
+#: (:func:`vjump_kcrit_acc`): each term of the residual passes through up to ~8 roundings
 #: (gamma_8 of a running error analysis); the largest measured error / (u S/(|h'| d)) was
 #: 2.2 over 20000 random points (b/a in 1 + [1e-12, 1e6], eps in [0, 1 - 1e-15]).
 _VJUMP_COND_FACTOR = 8.0
@@ -370,7 +372,7 @@ def L_star_acc(kappa: float, kc: float, eps: float) -> tuple[float, float]:
 @nb.njit(cache=True, nogil=True)
 def _h_kcrit(d: float, eps: float, kc: float, D: float, q: float) -> tuple[float, float, float]:
     """Residual h(d) of the kappa = kappa_crit velocity jump, its slope h'(d) and the size S
-    of the rounding in h (sum of the magnitudes of everything added), see _vjump_kcrit_acc.
+    of the rounding in h (sum of the magnitudes of everything added), see vjump_kcrit_acc.
     """
     em1 = math.expm1(-d)
     R = q * em1 - 1.0 / D
@@ -397,7 +399,7 @@ def _h_kcrit(d: float, eps: float, kc: float, D: float, q: float) -> tuple[float
 
 
 @nb.njit(cache=True, nogil=True)
-def _vjump_kcrit_acc(ba: float, eps: float) -> tuple[float, float]:
+def vjump_kcrit_acc(ba: float, eps: float) -> tuple[float, float]:
     """Critical velocity jump at kappa = kappa_crit, v_o > 0, and its relative accuracy (compiled).
 
     psi_crit(d) = d for `eq: limiting trajectory 1` (psi_crit - d = -ba h(d)) with
@@ -460,12 +462,12 @@ def _vjump_kcrit_acc(ba: float, eps: float) -> tuple[float, float]:
 
 @nb.njit(cache=True, nogil=True)
 def _vjump_kcrit(ba: float, eps: float) -> float:
-    """Value of :func:`_vjump_kcrit_acc` alone (compiled; used by rsfcore.critical)."""
-    return _vjump_kcrit_acc(ba, eps)[0]
+    """Value of :func:`vjump_kcrit_acc` alone (compiled; used by rsfcore.critical)."""
+    return vjump_kcrit_acc(ba, eps)[0]
 
 
 @nb.njit(cache=True, nogil=True)
-def _ljump_kcrit_acc(ba: float, eps: float) -> tuple[float, float, float]:
+def ljump_kcrit_acc(ba: float, eps: float) -> tuple[float, float, float]:
     """(dv, ln(1 + dv), rel_accuracy) of the kappa = kappa_crit load-point jump (compiled).
 
     dv = 1/(kappa_crit (1 - eps)): 1 - eps (exact for eps >= 1/2, else one rounding), the
@@ -486,7 +488,7 @@ def kcrit_jump_side(
     Returns -1 (U < 0: closed orbit, stable), +1 (U > 0: open orbit, runaway for eps < 1)
     or 0 (within the rounding of the closed form: undecidable in double precision).
     Velocity jump (log_size = d): the sign of U at the start is the sign of the closed
-    form's own residual h(d) (:func:`_vjump_kcrit_acc`; psi - psi_crit = (b/a) h(d), and U
+    form's own residual h(d) (:func:`vjump_kcrit_acc`; psi - psi_crit = (b/a) h(d), and U
     increases with psi at fixed phi), certain where |h| > 8u S, so a jump d_crit (1 -/+ 10
     rel_accuracy) is always decided; U itself, a difference of O(1) terms, would not
     resolve it.  Load-point jump (log_size = ln(1 + dv), or size = dv when given): stable
@@ -504,7 +506,7 @@ def kcrit_jump_side(
         if abs(h) <= 8.0 * UNIT_ROUNDOFF * S:
             return 0
         return -1 if h < 0.0 else 1
-    dvc, lc, _ = _ljump_kcrit_acc(ba, eps)
+    dvc, lc, _ = ljump_kcrit_acc(ba, eps)
     if size is not None and math.isfinite(size):
         if abs(size - dvc) <= 8.0 * UNIT_ROUNDOFF * dvc:
             return 0
@@ -532,13 +534,13 @@ def velocity_jump_crit_slip_law(ba: float) -> float:
 
     `eq: asymptotic solution critical velocity jump slip law`: 1 + W0((a/b - 1)/e) with
     the principal branch of Lambert W (the root of b/a phi = b/a - kappa_crit e^(-phi)).
-    Evaluated as the cancellation-free root of :func:`_vjump_kcrit_acc` at eps = 0: the
+    Evaluated as the cancellation-free root of :func:`vjump_kcrit_acc` at eps = 0: the
     direct 1 + W0(z) loses digits as b/a grows, z tending to the branch point -1/e
     (measured against mpmath: 3.2e-13 at b/a = 1e4, 3.4e-11 at b/a = 1e6).  Relative
     accuracy: the bound of :func:`velocity_jump_crit_kcrit_acc` at eps = 0 (<= 1.8e-15).
     """
     ba = Params(ba=ba, kappa=0.0, eps=0.0).ba
-    return float(_vjump_kcrit_acc(ba, 0.0)[0])
+    return float(vjump_kcrit_acc(ba, 0.0)[0])
 
 
 def velocity_jump_crit_aging_asymptote(ba: float, eps: float) -> float:
@@ -600,7 +602,7 @@ def velocity_jump_crit_kcrit(ba: float, eps: float) -> float:
     """Critical velocity jump at kappa = kappa_crit, v_o > 0 (intersection of psi = phi with U = 0).
 
     Solves psi_crit_kcrit(d) = d (`eq: limiting trajectory 1` with psi = phi) with the
-    compiled, cancellation-free :func:`_vjump_kcrit_acc` (safeguarded Newton); the root is
+    compiled, cancellation-free :func:`vjump_kcrit_acc` (safeguarded Newton); the root is
     unique because psi_crit - phi is decreasing.  +inf at eps = 1.  Independent of v_o by
     the scaling invariance; at eps = 0 it equals the Lambert-W form of
     :func:`velocity_jump_crit_slip_law`.  Relative accuracy: ~1e-15 for moderate b/a, but
@@ -608,13 +610,13 @@ def velocity_jump_crit_kcrit(ba: float, eps: float) -> float:
     eps = 0.986); :func:`velocity_jump_crit_kcrit_acc` returns the tested bound.
     """
     ba, eps = _check_ba_eps(ba, eps)
-    return float(_vjump_kcrit_acc(ba, eps)[0])
+    return float(vjump_kcrit_acc(ba, eps)[0])
 
 
 def velocity_jump_crit_kcrit_acc(ba: float, eps: float) -> tuple[float, float]:
     """(d_crit, rel_accuracy) of :func:`velocity_jump_crit_kcrit`; rel_accuracy: tested bound."""
     ba, eps = _check_ba_eps(ba, eps)
-    d, acc = _vjump_kcrit_acc(ba, eps)
+    d, acc = vjump_kcrit_acc(ba, eps)
     return float(d), float(acc)
 
 
@@ -631,7 +633,7 @@ def load_point_jump_crit_kcrit(ba: float, eps: float) -> float:
     (three roundings; tested against mpmath).
     """
     ba, eps = _check_ba_eps(ba, eps)
-    return float(_ljump_kcrit_acc(ba, eps)[0])
+    return float(ljump_kcrit_acc(ba, eps)[0])
 
 
 # ----------------------------------------------------------------------------------------
@@ -691,11 +693,11 @@ def closed_form_critical(
         lv = v
     elif params.kappa == kc:
         if perturbation == "velocity-jump":
-            v, acc = _vjump_kcrit_acc(params.ba, params.eps)
+            v, acc = vjump_kcrit_acc(params.ba, params.eps)
             lv = v
             eq = "eq: limiting trajectory 1 (psi = phi)"
         else:
-            v, lv, acc = _ljump_kcrit_acc(params.ba, params.eps)
+            v, lv, acc = ljump_kcrit_acc(params.ba, params.eps)
             eq = "eq: trajectories 1 (U = 0 at the load-point jump start)"
     else:
         raise ParameterError(

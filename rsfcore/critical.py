@@ -125,7 +125,7 @@ from .errors import UndecidedError
 from .laws import L_star
 from .limits import DEFAULT_RTOL, RTOL_RANGE
 from .params import ParameterError, Params
-from .separatrix import N_WORK, _asym_coeffs, _separatrix, _separatrix_explicit
+from .separatrix import N_WORK, asym_coeffs, separatrix_critical, separatrix_explicit
 
 __all__ = [
     "CriticalResult",
@@ -215,7 +215,7 @@ def separatrix_raw(
         raise ParameterError(
             "params", params.as_dict(), "kappa >= kappa_crit, eps*kappa < kappa_crit, v_o > 0"
         )
-    run = _separatrix_explicit if explicit else _separatrix
+    run = separatrix_explicit if explicit else separatrix_critical
     st, v, e, nr = run(params.kappa, params.kappa_crit, params.eps, pert, rtol, np.empty(N_WORK))
     return int(st), float(v), float(e), int(nr)
 
@@ -225,7 +225,7 @@ def asymptotic_start(params: Params, s0: float) -> dict[str, float]:
 
     u = L* - c1 z - c2 z^2 with z = e^(s0 - L*); the neglected terms are O((c1 z)^3).
     """
-    Ls, c1, c2 = _asym_coeffs(params.kappa, params.kappa_crit, params.eps)
+    Ls, c1, c2 = asym_coeffs(params.kappa, params.kappa_crit, params.eps)
     z = math.exp(s0 - Ls)
     u = Ls - z * (c1 + c2 * z)
     return {

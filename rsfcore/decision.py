@@ -23,10 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import limits as lim
-from .analytic import L_star_acc, _ljump_kcrit_acc, _vjump_kcrit_acc
-from .laws import _two_prod
+from .analytic import L_star_acc, ljump_kcrit_acc, vjump_kcrit_acc
+from .laws import two_prod
 from .params import ParameterError, Params
-from .separatrix import N_WORK, S_OK, S_OVERFLOW, _separatrix
+from .separatrix import N_WORK, S_OK, S_OVERFLOW, separatrix_critical
 
 __all__ = [
     "PERTURBATIONS",
@@ -159,11 +159,11 @@ def critical_point(
         # (separatrix at r = 1 + h) to stay below 20 + 2/(1 - eps) + 2 sqrt(b/a)
         sens = (20.0 + 2.0 / (1.0 - eps) + 2.0 * math.sqrt(ba)) * abs(rm1)
         if pert == 0:
-            d, acc = _vjump_kcrit_acc(ba, eps)
+            d, acc = vjump_kcrit_acc(ba, eps)
             return KIND_FINITE, d, acc + sens, M_CF_VJUMP_KCRIT, flags, 0
-        dv, _, acc = _ljump_kcrit_acc(ba, eps)
+        dv, _, acc = ljump_kcrit_acc(ba, eps)
         return KIND_FINITE, dv, acc + sens, M_CF_LJUMP_KCRIT, flags, 0
-    st, val, aerr, nr = _separatrix(kappa, kc, eps, pert, rtol, K)
+    st, val, aerr, nr = separatrix_critical(kappa, kc, eps, pert, rtol, K)
     if st == S_OVERFLOW and pert == 1:
         # val = l = ln(1 + dv) > 709, aerr its absolute error = the relative error of dv
         return KIND_FINITE, val, max(aerr, rtol), M_FINITE_BEYOND_RANGE, flags | FLAG_LOG_VALUE, nr
@@ -256,7 +256,7 @@ def boundary_gaps(ba: float, kappa: float, eps: float) -> tuple[float, float]:
     computed in doubles can be off by 3 ulp either way."""
     kc = ba - 1.0
     rm1 = (kappa - kc) / kc
-    p, e = _two_prod(eps, kappa)
+    p, e = two_prod(eps, kappa)
     omx = ((kc - p) - e) / kc
     return rm1, omx
 

@@ -36,6 +36,7 @@ __all__ = [
     "nagata_to_intermediate",
     "intermediate_to_nagata",
     "EXP_CLIP",
+    "two_prod",
 ]
 
 #: Largest exponent used inside G: exp(600) ~ 4e260, so (b/a) G stays finite for b/a <= 1e6.
@@ -95,7 +96,7 @@ def runaway_possible(kappa: float, kappa_crit: float, eps: float, tol: float) ->
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _two_prod(a: float, b: float) -> tuple[float, float]:
+def two_prod(a: float, b: float) -> tuple[float, float]:
     """(p, e) with p = fl(a b) and p + e = a b exactly (Dekker/Veltkamp, no FMA needed).
 
     Valid for |a|, |b| < 1e290 and products far from underflow.
@@ -130,7 +131,7 @@ def L_star(kappa: float, kappa_crit: float, eps: float) -> float:
         return r * (1.0 + x * (0.5 + x * (1.0 / 3.0 + x * 0.25)))
     if x < 0.5:
         return -math.log1p(-x) / eps
-    p, e = _two_prod(eps, kappa)
+    p, e = two_prod(eps, kappa)
     omx = ((kappa_crit - p) - e) / kappa_crit
     if not (omx > 0.0):
         return math.inf

@@ -63,7 +63,7 @@ from .errors import ParameterError
 from .laws import G, L_star
 from .ode import rk
 from .params import Params
-from .separatrix import _asym_coeffs
+from .separatrix import asym_coeffs
 
 __all__ = [
     "Outcome",
@@ -353,7 +353,7 @@ def _trace(
     """Trace the separatrix: branch A into rows [0, nA), branch B into [nA, nA + nB).
 
     Returns (status, nA, nB, s0, t_sw, u_sw, t_end, u_end)."""
-    Ls, c1, c2 = _asym_coeffs(kappa, kc, eps)
+    Ls, c1, c2 = asym_coeffs(kappa, kc, eps)
     nan = math.nan
     if not (Ls > 0.0) or not math.isfinite(Ls):
         return TR_FAIL, 0, 0, nan, nan, nan, nan, nan
@@ -578,7 +578,7 @@ def trace_separatrix(params: Params, rtol: float = lim.DEFAULT_RTOL) -> Separatr
     )
     if st != TR_OK or nA < 1 or nB < 1:
         return None
-    Ls, c1, c2 = _asym_coeffs(params.kappa, kc, params.eps)
+    Ls, c1, c2 = asym_coeffs(params.kappa, kc, params.eps)
     m = nA + nB
     geom = np.array([Ls, c1, c2, s0, t_sw, u_sw, t_end, u_end], dtype=np.float64)
     return Separatrix(

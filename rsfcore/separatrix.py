@@ -7,7 +7,7 @@ is monotone while L > 0, and it solves the scalar ODE
     du/ds_theta = kappa expm1(s_theta - u)/G(u) - kappa_crit,                 (A)
 
 started from its asymptotic expansion u = L* - c1 z - c2 z^2, z = e^(s_theta - L*)
-(:func:`_asym_coeffs`), towards increasing s_theta, where the separatrix attracts its
+(:func:`asym_coeffs`), towards increasing s_theta, where the separatrix attracts its
 neighbours.  Near L = 0 (where d s_theta/ds = G(L) = 0) the roles are swapped:
 
     d s_theta/du = G(u) / (kappa expm1(s_theta - u) - kappa_crit G(u)).       (B)
@@ -78,6 +78,9 @@ __all__ = [
     "S_NO_START",
     "S_STIFF",
     "N_WORK",
+    "asym_coeffs",
+    "separatrix_critical",
+    "separatrix_explicit",
 ]
 
 # The kernels of rsfcore.ode.rk are inlined into _dop853_scalar; numba's cache does not
@@ -177,7 +180,7 @@ S_STIFF = int(SeparatrixStatus.STIFF)
 
 
 @nb.njit(cache=True, nogil=True)
-def _asym_coeffs(kappa, kc, eps):
+def asym_coeffs(kappa, kc, eps):
     """(L*, c1, c2) of the asymptotic expansion u = L* - c1 z - c2 z^2 + O(z^3)."""
     Ls = L_star(kappa, kc, eps)
     x = eps * kappa / kc
@@ -716,7 +719,7 @@ def _integrate(
 
 
 @nb.njit(cache=True, nogil=True)
-def _separatrix(kappa, kc, eps, pert, rtol, K):
+def separatrix_critical(kappa, kc, eps, pert, rtol, K):
     """Critical size by the separatrix method (kappa > kappa_crit, x < 1, v_o > 0).
 
     pert 0: velocity jump (returns d_crit); pert 1: load-point jump (returns dv_crit).
@@ -788,7 +791,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
 
     stiff_ok False with relax_cap 1: DOP853 alone with the strict tolerance (the method
     before the stiff switch; a reference where its step budget suffices)."""
-    Ls, c1, c2 = _asym_coeffs(kappa, kc, eps)
+    Ls, c1, c2 = asym_coeffs(kappa, kc, eps)
     if not (Ls > 0.0) or not math.isfinite(Ls):
         return S_NO_START, math.nan, math.nan, 0, False
     # start far enough out that the neglected O(z^3) terms are ~1e-3 rtol: measured
@@ -902,7 +905,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
 
 
 @nb.njit(cache=True, nogil=True)
-def _separatrix_explicit(kappa, kc, eps, pert, rtol, K):
+def separatrix_explicit(kappa, kc, eps, pert, rtol, K):
     """The separatrix method with DOP853 alone (no RODAS4, no relaxation): a reference."""
     tiny = np.empty((2, 2, 1))
     tiny_n = np.zeros(2, dtype=np.int64)

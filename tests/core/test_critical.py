@@ -25,7 +25,7 @@ from rsfcore.critical import (
     separatrix_raw,
 )
 from rsfcore.laws import L_star
-from rsfcore.separatrix import N_WORK, _asym_coeffs, _dop853_scalar
+from rsfcore.separatrix import N_WORK, _dop853_scalar, asym_coeffs
 
 from .reference import reference_cases
 
@@ -235,7 +235,7 @@ def test_asymptotic_start_truncation():
     for ba, r, eps in [(2.0, 2.0, 0.25), (2.0, 1.5, 0.05), (2.0, 1.01, 0.9), (100.0, 1.5, 0.0)]:
         p = Params.from_ratio(ba, r, eps)
         kc = p.kappa_crit
-        Ls, c1, c2 = _asym_coeffs(p.kappa, kc, eps)
+        Ls, c1, c2 = asym_coeffs(p.kappa, kc, eps)
         cz = max(c1, math.sqrt(abs(c2)))
         res = {}
         for zt in (1e-8, 1e-5, 1e-4):

@@ -195,7 +195,7 @@ def test_separatrix_side_agrees_with_a_forward_integration_of_t_of_u(p: Params) 
             assert _side_by_forward_t_of_u(p, lg) == outcome, (rel, sign)
             r = classify(p, LJ, log_size=lg, rtol=1e-8)
             assert r.outcome == outcome, (rel, sign, r)
-            if r.certificate.endswith("_separatrix"):
+            if r.certificate.endswith("separatrix_critical"):
                 assert not r.complete and r.blowup_time is None and r.return_time is None
 
 
