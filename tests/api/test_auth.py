@@ -25,7 +25,7 @@ from tests.api.conftest import RecordingQueue
 
 PROBLEM = "application/problem+json"
 #: Path parameters that pass validation, so that only the key decides the answer.
-PATH_VALUES = {"sweep_id": "0" * 32, "key": "0" * 64, "name": "no-such-figure"}
+PATH_VALUES = {"sweep_id": "0" * 32, "key": "0" * 64, "name": "no-such-figure", "var": "kind"}
 
 
 class Env:

@@ -82,6 +82,7 @@ ROUTES: dict[tuple[str, str], str] = {
     ("get", "/v1/sweeps/{sweep_id}/data"): "Sweep.data",
     ("get", "/v1/sweeps/{sweep_id}/diagram"): "Sweep.diagram",
     ("get", "/v1/sweeps/{sweep_id}/zarr/{key}"): "Sweep.to_xarray",  # lazy=True
+    ("get", "/v1/sweeps/{sweep_id}/zarr/{var}/{key}"): "Sweep.to_xarray",  # lazy=True
     ("delete", "/v1/sweeps/{sweep_id}"): "Sweep.cancel",
     ("get", "/v1/figures"): "figures",
     ("get", "/v1/figures/{name}"): "figure",
