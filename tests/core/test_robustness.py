@@ -40,6 +40,14 @@ MATRIX_BUDGET = 400_000
 #: eps = 1, d = 700 whose peak phi is ~1e19.  Accuracy as a bound is tested in
 #: test_trajectory.py (delivered error <= rel_accuracy against tighter runs).
 ACCURACY_MAX = 1.0
+#: Since NUMERICS_VERSION 5 the claim is no longer capped at 1 (the cap hid a peak time 17x
+#: off while claiming 1).  One corner of this matrix then claims more than 1 honestly: the
+#: peak *time* of the load-point jump dv = 700 at eps = 1, b/a = 100, kappa/kappa_crit = 1e4
+#: (peak_phi ~ 6.55 agrees to 2e-10 between rtol 1e-6 and 1e-12, but the time of that flat
+#: maximum moves between 5.2e-8 and 2.0e-7, so the measured spread of the time is ~2.8 and the
+#: claim 1.2-2.0).  Such a claim must stay finite and below this ceiling, and the outcome stays
+#: certified.
+ACCURACY_MAX_PEAK_TIME_CORNER = 4.0
 
 
 def _finite_or_none(*vals: float | None) -> bool:
@@ -80,7 +88,12 @@ def _check_load_point_jump(
     ctx = (eps, ba, kr, dv, r.certificate)
     assert r.outcome in ("stable", "unstable"), ctx
     assert _finite_or_none(r.blowup_time, r.return_time, r.peak_time), ctx
-    assert not math.isnan(r.peak_phi) and 0 < r.rel_accuracy <= ACCURACY_MAX, ctx
+    bound = (
+        ACCURACY_MAX_PEAK_TIME_CORNER
+        if (eps, ba, kr, dv) == (1.0, 100.0, 1e4, 700.0)
+        else ACCURACY_MAX
+    )
+    assert not math.isnan(r.peak_phi) and 0 < r.rel_accuracy <= bound, ctx
     assert r.complete or r.certificate == "linear_instability", ctx  # (no blow-up time: by design)
     if 0.0 < kr < 1.0:
         assert r.outcome == "unstable", ctx  # kind "zero": every perturbation grows
