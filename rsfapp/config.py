@@ -204,7 +204,7 @@ class Settings(BaseSettings):
         if not self.effective_broker_url.startswith("filesystem"):
             return {}
         base = self.data_path / "broker"
-        folders = {k: base / k for k in ("queue", "processed", "control")}
+        folders = {k: base / k for k in ("queue", "processed", "control", "quarantine")}
         for f in folders.values():
             f.mkdir(parents=True, exist_ok=True)
         return {
@@ -212,6 +212,7 @@ class Settings(BaseSettings):
             "data_folder_out": str(folders["queue"]),
             "processed_folder": str(folders["processed"]),
             "control_folder": str(folders["control"]),
+            "quarantine_folder": str(folders["quarantine"]),
             "store_processed": False,
             "polling_interval": 0.1,
         }

@@ -1,10 +1,12 @@
 """The Celery producer: the application object and the two messages the API sends.
 
 Default broker: kombu's filesystem transport under ``RSF_DATA_DIR/broker`` (nothing to
-install).  ``RSF_BROKER_URL=redis://...`` switches to Redis.  Results are not kept by
-Celery: every result lands in the application database.  Tasks are acknowledged late and
-prefetched one at a time.  Task names are explicit strings (``worker.tasks.*``), so the
-producer needs no import of the worker package and queued messages survive code moves.
+install), through :mod:`rsfapp.fsqueue` (atomic publish and claim; stock kombu lets a
+consumer read a message file still being written and the worker dies).
+``RSF_BROKER_URL=redis://...`` switches to Redis. Results are not kept by Celery: every
+result lands in the application database. Tasks are acknowledged late and prefetched one
+at a time. Task names are explicit strings (``worker.tasks.*``), so the producer needs
+no import of the worker package and queued messages survive code moves.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from typing import Any
 from celery import Celery
 
 from .config import Settings, get_settings
+from .fsqueue import TRANSPORT_PATH
 
 __all__ = ["Queue", "make_app", "RUN_CHUNK", "COMPUTE_SINGLE", "FIT_RECORD"]
 
@@ -29,6 +32,9 @@ def make_app(settings: Settings | None = None) -> Celery:
     url = s.effective_broker_url
     fs = url.startswith("filesystem")
     a = Celery("rsf", broker=url)
+    if fs:
+        # the race-free subclass of kombu's filesystem transport (see rsfapp.fsqueue)
+        a.conf.broker_transport = TRANSPORT_PATH
     a.conf.update(
         broker_transport_options=s.broker_transport_options,
         broker_connection_retry_on_startup=True,
