@@ -26,6 +26,7 @@ __all__ = [
     "fail",
     "fmt",
     "given",
+    "json_value",
     "model_default",
     "model_option",
     "run",
@@ -76,6 +77,19 @@ def given(**fields: Any) -> dict[str, Any]:
             continue
         out[k] = getattr(v, "value", v)
     return out
+
+
+def json_value(field: str, text: str | None) -> Any:
+    """An option that carries an object or a list of the request (``--start``,
+    ``--scales``, ``--segments``), given as JSON text; None when not given.  Invalid JSON
+    exits 2 naming the field; the request model then validates the value."""
+    if text is None:
+        return None
+    try:
+        return json.loads(text)
+    except ValueError as exc:
+        fail(f"{field}: {text!r} is not JSON ({exc}) (valid range: a JSON value, e.g. {{...}})")
+    raise AssertionError("unreachable")
 
 
 def run(

@@ -34,9 +34,13 @@ import typer
 
 from rsfapp.requests import ClassifyRequest, PhysicalSI, TrajectoryRequest
 from rsfapp.requests.fits import FitRequest
-from rsfapp.requests.protocols import SlideHoldSlideRequest, VelocityStepRequest
+from rsfapp.requests.protocols import (
+    LoadHistoryRequest,
+    SlideHoldSlideRequest,
+    VelocityStepRequest,
+)
 
-from .common import echo_lines, emit, fail, given, model_option, run
+from .common import echo_lines, emit, fail, given, json_value, model_option, run
 
 __all__ = ["si_app", "protocol_app", "fit_command"]
 
@@ -305,7 +309,7 @@ def si_critical(machine: Machine, rtol: float | None = RTOL, as_json: bool = JSO
     _emit(d, as_json, lines)
 
 
-@_machine_command(si_app, "trajectory", v_load=True, perturbation="sized")
+@_machine_command(si_app, "trajectory", v_load=True, f_star=True, perturbation="sized")
 def si_trajectory(
     machine: Machine,
     rtol: float | None = RTOL,
@@ -320,7 +324,7 @@ def si_trajectory(
     from rsfapp.requests import TrajectoryRequest
 
     body = machine.si_body(rtol)
-    body.update(given(n_points=n_points, sampling=sampling, t_end_s=t_end_s))
+    body.update(given(n_points=n_points, sampling=sampling, t_end_s=t_end_s, f_star=machine.f_star))
     d = _run(TrajectoryRequest, body, lambda r: adapter.trajectory(r, max_steps=None))
 
     def plot(r: dict[str, Any]) -> bytes:
@@ -374,6 +378,9 @@ def protocol_velocity_step(
     slip_total_m: float | None = model_option(
         VelocityStepRequest, "slip_total_m", "--slip-total-m"
     ),
+    slip_after_m: float | None = model_option(
+        VelocityStepRequest, "slip_after_m", "--slip-after-m"
+    ),
     n_points: int | None = model_option(VelocityStepRequest, "n_points", "--n-points"),
     rtol: float | None = RTOL,
     out: Path | None = OUT,
@@ -385,7 +392,11 @@ def protocol_velocity_step(
     from rsfapp.requests.protocols import VelocityStepRequest
 
     body = machine.protocol_body(rtol)
-    body.update(V1_m_s=v1, V2_m_s=v2, **given(n_points=n_points, slip_total_m=slip_total_m))
+    body.update(
+        V1_m_s=v1,
+        V2_m_s=v2,
+        **given(n_points=n_points, slip_total_m=slip_total_m, slip_after_m=slip_after_m),
+    )
     _protocol_out(_run(VelocityStepRequest, body, adapter.protocol_velocity_step), out, as_json)
 
 
@@ -423,8 +434,20 @@ def protocol_shs(
 @_machine_command(protocol_app, "load-history", f_star=True)
 def protocol_history(
     machine: Machine,
-    segment: list[str] = typer.Option(
-        ..., "--segment", help="DURATION_S:V_LOAD_M_S, repeated in order (V 0 = hold)."
+    segments: str | None = model_option(
+        LoadHistoryRequest,
+        "segments",
+        help='The segments as JSON, e.g. \'[{"duration_s": 10, "V_load_m_s": 1e-6}]\' '
+        "(V 0 = hold); or --segment.",
+    ),
+    segment: list[str] | None = typer.Option(
+        None, "--segment", help="DURATION_S:V_LOAD_M_S, repeated in order (V 0 = hold)."
+    ),
+    start_state: str | None = model_option(
+        LoadHistoryRequest,
+        "start_state",
+        help="'steady' (the default) or an explicit state as JSON, e.g. "
+        '\'{"V_m_s": 2e-6, "theta_s": 10}\'.',
     ),
     n_points: int | None = NPPS,
     rtol: float | None = RTOL,
@@ -433,10 +456,11 @@ def protocol_history(
 ) -> None:
     """Any piecewise-constant load-point history (e.g. several velocity steps)."""
     from rsfapp import adapter
-    from rsfapp.requests.protocols import LoadHistoryRequest
 
-    segs = []
-    for i, s in enumerate(segment):
+    if (segments is None) == (segment is None):
+        _fail("segments: give either --segments (JSON) or --segment (repeated), exactly one")
+    segs: Any = [] if segments is None else json_value("segments", segments)
+    for i, s in enumerate(segment or []):
         try:
             d_s, v_s = s.split(":")
             segs.append({"duration_s": float(d_s), "V_load_m_s": float(v_s)})
@@ -445,17 +469,27 @@ def protocol_history(
                 f"segment[{i}]: {s!r} is invalid (valid range: DURATION_S:V_LOAD_M_S, e.g. 10:1e-6)"
             )
     body = machine.protocol_body(rtol)
-    body.update(segments=segs, **given(n_points_per_segment=n_points))
+    state: Any = start_state
+    if start_state is not None and start_state.strip() != "steady":
+        state = json_value("start_state", start_state)
+    body.update(segments=segs, **given(n_points_per_segment=n_points, start_state=state))
     _protocol_out(_run(LoadHistoryRequest, body, adapter.protocol_load_history), out, as_json)
 
 
 # --------------------------------------------------------------------------- rsf fit
 def _pair(text: str, what: str, i: int) -> tuple[float, float]:
+    """A window ``T_START_S:T_END_S`` or, as the JSON field, ``[T_START_S, T_END_S]``."""
     try:
-        a, b = text.split(":")
+        if text.lstrip().startswith("["):
+            a, b = json.loads(text)
+        else:
+            a, b = text.split(":")
         return float(a), float(b)
-    except ValueError:
-        _fail(f"{what}[{i}]: {text!r} is invalid (valid range: T_START_S:T_END_S, e.g. 30:90)")
+    except (ValueError, TypeError):
+        _fail(
+            f"{what}[{i}]: {text!r} is invalid (valid range: T_START_S:T_END_S or "
+            "[T_START_S, T_END_S], e.g. 30:90)"
+        )
     raise AssertionError("unreachable")
 
 
@@ -477,21 +511,32 @@ def fit_command(
     ),
     fit_stiffness: bool | None = typer.Option(
         None,
+        "--fit_stiffness/--no-fit_stiffness",
         "--fit-stiffness/--fixed-stiffness",
         help="Fit the stiffness (a given one is the start) or keep it fixed.  Default: "
         "fitted unless a stiffness is given.",
     ),
     rigid: bool = typer.Option(
-        False, "--rigid", help="Assume an infinitely stiff machine (V follows the load point)."
+        False,
+        "--rigid_machine",
+        "--rigid",
+        help="Assume an infinitely stiff machine (V follows the load point).",
     ),
     trend: bool = typer.Option(
-        False, "--trend", help="Fit a linear friction trend in load-point displacement [1/m]."
+        False,
+        "--trend/--no-trend",
+        help="Fit a linear friction trend in load-point displacement [1/m].",
     ),
     window: list[str] | None = typer.Option(
-        None, "--window", help="T_START_S:T_END_S, repeated: only these times enter the misfit."
+        None,
+        "--windows",
+        "--window",
+        help="T_START_S:T_END_S (or [T_START_S, T_END_S]), repeated: only these times enter "
+        "the misfit.",
     ),
     step: list[int] | None = typer.Option(
         None,
+        "--steps",
         "--step",
         help="Segment index, repeated (0 = before the first step): only these enter the misfit.",
     ),
@@ -501,6 +546,14 @@ def fit_command(
         help="QUANTITY=HEADER[:UNIT], repeated (t, x_lp, v_lp, mu, tau, sigma_n), e.g. "
         "'v_lp=LP Velocity:um/s'.",
     ),
+    columns: str | None = model_option(
+        FitRequest,
+        "columns",
+        help='The column map as JSON, e.g. \'{"t": "t_s", "mu": "mu"}\' (or --column).',
+    ),
+    nagata_c: float | None = model_option(FitRequest, "nagata_c"),
+    rtol: float | None = model_option(FitRequest, "rtol"),
+    seed: int | None = model_option(FitRequest, "seed"),
     decimal: str | None = model_option(FitRequest, "decimal"),
     smooth: int | None = model_option(FitRequest, "smooth"),
     time_budget_s: float | None = model_option(FitRequest, "time_budget_s", "--time-budget-s"),
@@ -543,6 +596,10 @@ def fit_command(
         "k_friction_per_m": k_friction_per_m,
         "fit_stiffness": fit_stiffness,
         "smooth": smooth,
+        "nagata_c": nagata_c,
+        "rtol": rtol,
+        "seed": seed,
+        "columns": json_value("columns", columns),
         "steps": step or None,
         "windows": [_pair(w, "window", i) for i, w in enumerate(window or [])] or None,
     }
@@ -551,6 +608,8 @@ def fit_command(
         body["rigid_machine"] = True
     if trend:
         body["trend"] = True
+    if column and columns is not None:
+        _fail("columns: give either --columns (JSON) or --column (repeated), not both")
     if column:
         try:
             from rsfcore.fit import parse_column_map

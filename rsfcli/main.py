@@ -32,7 +32,7 @@ from rsfapp.requests import (
 )
 from rsfcore.limits import Limit
 
-from .common import echo_lines, emit, fail, given, model_option, run
+from .common import echo_lines, emit, fail, given, json_value, model_option, run
 
 app = typer.Typer(
     rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
@@ -79,6 +79,12 @@ PERT = model_option(ClassifyRequest, "perturbation")
 SIZE = model_option(ClassifyRequest, "size")
 LOG_SIZE = model_option(ClassifyRequest, "log_size")
 RTOL = model_option(ClassifyRequest, "rtol")
+START = model_option(
+    ClassifyRequest,
+    "start",
+    help='Explicit start point as JSON, e.g. \'{"phi": 1.0, "psi": 2.0}\'; overrides '
+    "perturbation and size.",
+)
 JSON = typer.Option(False, "--json", help="Print one JSON object.")
 
 
@@ -106,6 +112,7 @@ def classify(
     size: float | None = SIZE,
     log_size: float | None = LOG_SIZE,
     rtol: float | None = RTOL,
+    start: str | None = START,
     as_json: bool = JSON,
 ) -> None:
     """Certified outcome (stable/unstable) of one perturbation, with blow-up or return time and the true peak."""
@@ -113,6 +120,7 @@ def classify(
 
     body = _dimless(ba, kappa, eps, vo)
     body.update(given(perturbation=perturbation, size=size, log_size=log_size, rtol=rtol))
+    body.update(given(start=json_value("start", start)))
     d = run(ClassifyRequest, body, lambda r: adapter.classify(r, max_steps=None))
     _emit(
         d,
@@ -151,6 +159,13 @@ def trajectory(
         help="Samples even in the engine's hybrid time (tau) or in T ('time' is T too). "
         "Default: tau.",
     ),
+    start: str | None = START,
+    scales: str | None = model_option(
+        TrajectoryRequest,
+        "scales",
+        help="SI columns of a dimensionless query, as JSON: "
+        '\'{"a": .., "Dc": .., "sigma": .., "V_star": .., "f_star": ..}\'.',
+    ),
     out: Path | None = typer.Option(None, "--out", help="Also write the samples to .csv or .json."),
     as_json: bool = JSON,
 ) -> None:
@@ -173,6 +188,8 @@ def trajectory(
             n_points=n_points,
             t_end=t_end,
             sampling=None if sampling is None else ("T" if sampling.value == "time" else sampling),
+            start=json_value("start", start),
+            scales=json_value("scales", scales),
         )
     )
     d = run(TrajectoryRequest, body, lambda r: adapter.trajectory(r, max_steps=None))

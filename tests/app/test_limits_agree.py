@@ -192,7 +192,14 @@ def test_cli_si_options_agree_with_limits(group: str, command: str) -> None:
     params = _lab_params(group, command)
     names = [p.name for p in params]
     head = ["a", "b", "dc_m", "sigma_pa", "k_pa_per_m", "v_star_m_s"]
-    head += ["v_load_m_s", "eps", "perturbation"] if group == "si" else ["eps", "f_star"]
+    # f_star (the SI friction column) on the SI trajectory and the protocols only
+    si_head = [
+        "v_load_m_s",
+        "eps",
+        *(["f_star"] if command == "trajectory" else []),
+        "perturbation",
+    ]
+    head += si_head if group == "si" else ["eps", "f_star"]
     assert names[: len(head)] == head
     by_name = {p.name: p for p in params}
     for name, limit in CLI_SI:

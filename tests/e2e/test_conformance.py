@@ -950,16 +950,11 @@ def service(tmp_path_factory: pytest.TempPathFactory, redis_exe: str) -> Any:
 
 
 _NO_CLI = "no `rsf` command asks this question"
-_FIT_KEBAB = "`rsf fit` spells its options in kebab case (--k-pa-per-m), not as the JSON fields"
 #: Cells known to disagree with the library (row, door) -> why, each a defect of that door
 #: (issue 20, items 1/2: a CLI command without the question, or without an option of the
 #: one spelling).  A listed cell that agrees is reported on stdout (remove it); any other
 #: disagreement fails the test.  HTTP and the client agree in every cell.
 KNOWN_DISAGREEMENTS: dict[tuple[str, str], str] = {
-    ("classify-start", "cli"): "`rsf classify` has no --start",
-    ("trajectory-start", "cli"): "`rsf trajectory` has no --start",
-    ("trajectory-scales", "cli"): "`rsf trajectory` has no --scales",
-    ("trajectory-si-seconds", "cli"): "`rsf si trajectory` has no --f_star",
     ("boundaries", "cli"): _NO_CLI,
     ("boundaries-si", "cli"): _NO_CLI,
     ("analytic-u-grid", "cli"): _NO_CLI,
@@ -967,12 +962,6 @@ KNOWN_DISAGREEMENTS: dict[tuple[str, str], str] = {
     ("classify-points", "cli"): _NO_CLI,
     ("critical-batch", "cli"): _NO_CLI,
     ("classify-batch", "cli"): _NO_CLI,
-    ("velocity-step-all", "cli"): "`rsf protocol velocity-step` has no --slip_after_m",
-    ("load-history", "cli"): "`rsf protocol load-history` takes --segment D:V (not segments) "
-    "and no start_state",
-    ("fit", "cli"): _FIT_KEBAB,
-    ("fit-friction-per-m", "cli"): _FIT_KEBAB,
-    ("fit-rigid", "cli"): "`rsf fit` spells rigid_machine as --rigid",
 }
 
 
