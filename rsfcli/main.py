@@ -431,6 +431,9 @@ from .lab import fit_command, protocol_app, si_app  # noqa: E402  (SI, protocols
 app.add_typer(si_app, name="si")
 app.add_typer(protocol_app, name="protocol")
 app.command("fit")(fit_command)
+from .questions import register as _register_questions  # noqa: E402  (boundaries, batches)
+
+_register_questions(app)
 from .sweep import app as _sweep_app  # noqa: E402  (rsf sweep submit|status|download)
 
 app.add_typer(_sweep_app, name="sweep")

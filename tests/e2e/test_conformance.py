@@ -949,20 +949,11 @@ def service(tmp_path_factory: pytest.TempPathFactory, redis_exe: str) -> Any:
             p.stop()
 
 
-_NO_CLI = "no `rsf` command asks this question"
 #: Cells known to disagree with the library (row, door) -> why, each a defect of that door
 #: (issue 20, items 1/2: a CLI command without the question, or without an option of the
-#: one spelling).  A listed cell that agrees is reported on stdout (remove it); any other
-#: disagreement fails the test.  HTTP and the client agree in every cell.
-KNOWN_DISAGREEMENTS: dict[tuple[str, str], str] = {
-    ("boundaries", "cli"): _NO_CLI,
-    ("boundaries-si", "cli"): _NO_CLI,
-    ("analytic-u-grid", "cli"): _NO_CLI,
-    ("analytic-u-points", "cli"): _NO_CLI,
-    ("classify-points", "cli"): _NO_CLI,
-    ("critical-batch", "cli"): _NO_CLI,
-    ("classify-batch", "cli"): _NO_CLI,
-}
+#: one spelling; none left).  A listed cell that agrees is reported on stdout (remove it);
+#: any other disagreement fails the test.  HTTP, the client and the CLI agree in every cell.
+KNOWN_DISAGREEMENTS: dict[tuple[str, str], str] = {}
 
 
 def test_doors_agree(service: Doors) -> None:
