@@ -32,6 +32,10 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     await run_in_threadpool(lambda: stores_for(get_settings()).results.stats())
     await run_in_threadpool(warm_up)
     yield
+    # Close the pooled connections on shutdown: SQLite folds its WAL back into the file
+    # when the last connection closes, so a stopped service leaves one self-contained file
+    # (a WAL left behind would hold pages, page 1 included, that the file alone lacks).
+    await run_in_threadpool(lambda: stores_for(get_settings()).db.dispose())
 
 
 def create_app() -> FastAPI:

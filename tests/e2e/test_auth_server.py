@@ -22,7 +22,12 @@ from tests.conftest import ROOT, Proc, free_port, service_env
 
 pytestmark = pytest.mark.timeout(300)
 PROBLEM = "application/problem+json"
-PATH_VALUES = {"sweep_id": "0" * 32, "key": "0" * 64, "name": "no-such-figure"}
+PATH_VALUES = {
+    "sweep_id": "0" * 32,
+    "key": "0" * 64,
+    "name": "no-such-figure",
+    "var": "outcome",
+}
 RSF = str(Path(sys.executable).with_name("rsf"))
 
 
