@@ -936,6 +936,10 @@ def _fit_record(
             out_of_time = True
             x = np.asarray(best[1])
             opt_message = f"time budget of {_num(time_budget_s)} s reached"
+    # The budget bounds the optimisation; the Jacobian at the solution below is p + 1 more
+    # forward runs (bounded), and an optimisation that ended just before the deadline must
+    # not turn it into an escaping _OutOfTime.  resid reads `deadline` when called.
+    deadline = math.inf
     p_hat = model.full(_from_x(names, x))
     mu_model, n_ok = model.friction(p_hat)
     complete = n_ok == rec.n
