@@ -407,15 +407,40 @@ class SweepStore:
         return s is None or s == "cancelled"
 
     def finish_chunk(self, sweep_id: str, idx: int, complete: bool) -> None:
-        """Mark the chunk done (or cancelled if incomplete); close the sweep when all done."""
+        """Mark the chunk done (or, if incomplete, cancelled); close the sweep when all done.
+
+        A chunk becomes done only if its block is stored: a worker that finishes a chunk
+        of a sweep purged and re-submitted meanwhile (the same id) must not mark the new
+        sweep's chunk done without its block.  An incomplete chunk of a sweep that is
+        active again (cancelled, then resumed while this worker ran) goes back to
+        pending instead of cancelled, so the resumed sweep can still finish.
+        """
         now = time.time()
         with self.db.write() as conn:
-            self._lock_sweep(conn, sweep_id)
-            conn.execute(
-                update(chunks)
-                .where(_chunk(sweep_id, idx))
-                .values(status="done" if complete else "cancelled", heartbeat=now)
-            )
+            s = self._lock_sweep(conn, sweep_id)
+            if s is None:
+                return
+            if complete:
+                stored = (
+                    select(sweep_blocks.c.idx)
+                    .where(and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
+                    .exists()
+                )
+                conn.execute(
+                    update(chunks)
+                    .where(and_(_chunk(sweep_id, idx), stored))
+                    .values(status="done", heartbeat=now)
+                )
+            else:
+                conn.execute(
+                    update(chunks)
+                    .where(and_(_chunk(sweep_id, idx), chunks.c.status == "running"))
+                    .values(
+                        status="pending" if s in ACTIVE else "cancelled",
+                        owner=None,
+                        heartbeat=now,
+                    )
+                )
             left = conn.execute(
                 select(func.count())
                 .select_from(chunks)

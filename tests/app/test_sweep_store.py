@@ -275,3 +275,50 @@ def test_purge_converts_an_old_sqlite_file_once(tmp_path: Path) -> None:
         con.close()
     finally:
         db.dispose()
+
+
+def test_a_purged_and_resubmitted_sweep_is_not_closed_by_an_old_worker(db: Database) -> None:
+    """A worker that stored chunk 0 of a sweep that was then purged and submitted again
+    (same id) finishes its chunk: the new sweep's chunk 0 has no block, so it must stay
+    to be computed, and the sweep must not be 'done' with 10 of 20 points (found by the
+    race test above: a 'done' sweep with 30 of its 40 points)."""
+    st = SweepStore(db)
+    st.create("s", grid(2, 10), 10, "t", window=2)
+    rng = st.claim("s", 0, lease_s=30.0)
+    assert rng is not None
+    assert st.store_block("s", 0, rng.i0, rng.i1, encode_block(block(10)), {})
+    assert st.delete("s")
+    st.create("s", grid(2, 10), 10, "t", window=2)
+    r1 = st.claim("s", 1, lease_s=30.0)
+    assert r1 is not None
+    assert st.store_block("s", 1, r1.i0, r1.i1, encode_block(block(10, 1)), {})
+    st.finish_chunk("s", 1, complete=True)
+    st.finish_chunk("s", 0, complete=True)  # the old worker, after the purge
+    s = st.status("s")
+    assert s is not None and s["status"] != "done"
+    assert [(b.i0, b.i1) for b in st.blocks("s")] == [(10, 20)]
+    r0 = st.claim("s", 0, lease_s=30.0)
+    assert r0 is not None  # still to compute
+    assert st.store_block("s", 0, r0.i0, r0.i1, encode_block(block(10)), {})
+    st.finish_chunk("s", 0, complete=True)
+    s = st.status("s")
+    assert s is not None and s["status"] == "done"
+
+
+def test_an_unfinished_chunk_of_a_resumed_sweep_goes_back_to_pending(db: Database) -> None:
+    """Cancel while a worker runs chunk 0, resume, then the worker gives up its chunk
+    (it saw the cancel): the chunk is pending again, not cancelled, so the resumed sweep
+    can finish."""
+    st = SweepStore(db)
+    st.create("s", grid(1, 10), 10, "t", window=1)
+    assert st.claim("s", 0, lease_s=30.0) is not None
+    assert st.cancel("s") == ("cancelled", True)
+    st.create("s", grid(1, 10), 10, "t", window=1)  # resume
+    st.finish_chunk("s", 0, complete=False)
+    assert st.next_chunks("s", 1) == [0]
+    r0 = st.claim("s", 0, lease_s=30.0)
+    assert r0 is not None
+    assert st.store_block("s", 0, r0.i0, r0.i1, encode_block(block(10)), {})
+    st.finish_chunk("s", 0, complete=True)
+    s = st.status("s")
+    assert s is not None and s["status"] == "done"

@@ -479,7 +479,7 @@ def test_completion_is_race_free_and_self_repairing(
 
     from rsfapp.db.engine import Database
     from rsfapp.db.tables import sweeps
-    from rsfapp.store.sweeps import SweepStore
+    from rsfapp.store.sweeps import SweepStore, encode_block
 
     url = (
         request.getfixturevalue("postgres").url
@@ -500,6 +500,8 @@ def test_completion_is_race_free_and_self_repairing(
 
         def finish(i: int, sid: str = sid, gate: threading.Barrier = gate) -> None:
             gate.wait()
+            # as a worker does: the block, then the chunk (done only with its block)
+            store.store_block(sid, i, i, i + 1, encode_block({"x": np.zeros(1)}), {})
             store.finish_chunk(sid, i, complete=True)
 
         ts = [threading.Thread(target=finish, args=(i,)) for i in (0, 1)]
