@@ -35,6 +35,8 @@ __all__ = [
     "SpecError",
     "SweepSpec",
     "expand",
+    "aligned_chunk",
+    "cost_per_point",
     "plan_chunks",
     "si_to_size",
     "PARAM_NAMES",
@@ -234,8 +236,13 @@ class SweepSpec:
     def params(self, i0: int, i1: int) -> dict[str, F64 | None]:
         """Parameter arrays of flat indices [i0, i1): ba, kappa (not the ratio), eps, vo
         and size (None when the sweep computes critical sizes)."""
-        n = i1 - i0
-        vals = self.swept_values(i0, i1)
+        return self._derive(self.swept_values(i0, i1), i1 - i0)
+
+    def params_at(self, flat: NDArray[np.int64]) -> dict[str, F64 | None]:
+        """As :meth:`params`, at the flat indices ``flat`` (any order)."""
+        return self._derive(self.swept_at(flat), int(flat.size))
+
+    def _derive(self, vals: dict[str, F64], n: int) -> dict[str, F64 | None]:
         for name, v in self.fixed.items():
             if name not in vals and v is not None:
                 vals[name] = np.full(n, float(v))
@@ -255,21 +262,50 @@ class SweepSpec:
         }
 
     def swept_values(self, i0: int, i1: int) -> dict[str, F64]:
-        """Values of the swept parameters at flat indices [i0, i1)."""
+        """Values of the swept parameters at flat indices [i0, i1).
+
+        A grid axis shorter than the range has its values computed once and laid out by
+        copying (repeat each value over its run of ``stride`` flat indices, or tile the
+        axis for the last one): no index arithmetic per point, the same numbers as
+        :meth:`Axis.at` elementwise (a chunk of 10^6 points: ~10 ms instead of ~70 ms)."""
         vals: dict[str, F64] = {}
-        if self.mode == "grid":
-            idx = np.arange(i0, i1, dtype=np.int64)
-            multi = np.unravel_index(idx, self.shape)
-            for ax, k in zip(self.axes, multi, strict=True):
-                k64 = np.asarray(k, dtype=np.int64)
-                # an axis shorter than the range: its values once, then gathered (same
-                # numbers as at(k), elementwise; 3x less work than at() per point)
-                vals[ax.name] = ax.all()[k64] if ax.n < k64.size else ax.at(k64)
-        else:
+        if self.mode != "grid":
             assert self.points is not None
             for name, arr in self.points.items():
                 vals[name] = np.asarray(arr[i0:i1], dtype=np.float64)
+            return vals
+        size = i1 - i0
+        stride = 1
+        strides: list[int] = []
+        for ax in reversed(self.axes):
+            strides.append(stride)
+            stride *= ax.n
+        for ax, st in zip(self.axes, reversed(strides), strict=True):
+            if size == 0:
+                vals[ax.name] = np.empty(0)
+            elif ax.n >= size:  # a long axis: its values at the indices of the range
+                k = (np.arange(i0, i1, dtype=np.int64) // st) % ax.n
+                vals[ax.name] = ax.at(k)
+            elif st == 1:
+                off = i0 % ax.n
+                reps = -(-(off + size) // ax.n)
+                vals[ax.name] = np.tile(ax.all(), reps)[off : off + size]
+            else:
+                runs = np.arange(i0 // st, (i1 - 1) // st + 1, dtype=np.int64)
+                counts = np.minimum(i1, (runs + 1) * st) - np.maximum(i0, runs * st)
+                vals[ax.name] = np.repeat(ax.all()[runs % ax.n], counts)
         return vals
+
+    def swept_at(self, flat: NDArray[np.int64]) -> dict[str, F64]:
+        """Values of the swept parameters at the flat indices ``flat`` (any order)."""
+        if self.mode == "grid":
+            multi = np.unravel_index(flat, self.shape)
+            return {
+                ax.name: ax.at(np.asarray(k, dtype=np.int64))
+                for ax, k in zip(self.axes, multi, strict=True)
+            }
+        assert self.points is not None
+        return {n: np.asarray(v, dtype=np.float64)[flat] for n, v in self.points.items()}
 
     def coords(self) -> dict[str, F64]:
         """Axis values (grid) or the swept point arrays (scattered)."""
@@ -704,16 +740,78 @@ def _check_combinations(spec: SweepSpec, where: dict[str, str]) -> None:
 
 
 #: Expected seconds of work per point, for the default chunk size (measured on the
-#: compiled batch kernel: 7-90 us per finite critical size with the separatrix method,
-#: depending on b/a and kappa; negative sizes are classified one by one, ~100 us).
-_COST_S = {"critical": 3e-5, "classify": 1e-4}
+#: compiled batch kernel, one core: 7-400 us per finite critical size with the
+#: separatrix method, depending on b/a and kappa; negative sizes are classified one by
+#: one, ~100 us; a point decided in closed form, ~0.2 us of kernel plus ~0.1 us of
+#: parameters, encoding and storage).
+_COST_S = {"critical": 3e-5, "classify": 1e-4, "closed_form": 3e-7}
+#: Points of the spec whose kind :func:`cost_per_point` looks at (seeded, spread over
+#: the whole sweep): the estimated fraction of separatrix points is within ~1.5 % (one
+#: standard deviation of a binomial fraction at this size).
+_COST_SAMPLE = 4096
 #: Default chunking splits a sweep into at least this many chunks (parallel workers) ...
 _MIN_CHUNKS = 8
-#: ... and large sweeps into chunks of at most this many points, so that chunks of
-#: unequal cost (parts of a grid where the separatrix is slow) balance over the workers.
-_BALANCE_POINTS = 5_000
-#: Largest chunk (points): bounds a chunk's memory (~30 bytes a point) and lost work.
+#: ... and large sweeps into at least 64 chunks, so that chunks of unequal cost (parts of
+#: a grid where the separatrix is slow) balance over the workers, unless a chunk would
+#: then hold less than this much work [s]: below it the fixed cost of a chunk (two
+#: transactions, a broker message, ~10-30 ms) would no longer be small against its work.
+_MIN_CHUNK_S = 0.5
+#: Largest chunk (points): bounds a chunk's memory (~60 bytes a point while it is
+#: computed) and lost work.
 MAX_CHUNK = 1_000_000
+
+
+def cost_per_point(spec: SweepSpec) -> float:
+    """Estimated seconds of work per point of ``spec`` [s], from the kinds of a sample of
+    its points: a point with kappa_crit < kappa < kappa_crit/eps and v_o > 0 needs the
+    separatrix (``_COST_S["critical"]``), the others are decided in closed form
+    (kappa < kappa_crit: zero; eps kappa >= kappa_crit: infinite; v_o = 0: L*).  An
+    outcome sweep with negative sizes costs ``_COST_S["classify"]`` a point.  An
+    estimate for sizing chunks, not a promise (the separatrix cost varies 50x)."""
+    if spec.output == "outcome" and _negative_sizes(spec):
+        return _COST_S["classify"]
+    n = spec.n_total
+    if n <= _COST_SAMPLE:
+        flat = np.arange(n, dtype=np.int64)
+    else:
+        flat = np.sort(np.random.default_rng(0).integers(0, n, _COST_SAMPLE, dtype=np.int64))
+    p = spec.params_at(flat)
+    ba, kappa, eps, vo = p["ba"], p["kappa"], p["eps"], p["vo"]
+    assert ba is not None and kappa is not None and eps is not None and vo is not None
+    kc = ba - 1.0  # kappa_crit
+    hard = float(np.mean((vo > 0) & (kappa >= kc) & (eps * kappa < kc)))
+    return hard * _COST_S["critical"] + (1.0 - hard) * _COST_S["closed_form"]
+
+
+def _largest_divisor(n: int, most: int) -> int:
+    """The largest divisor of ``n`` that is at most ``most`` (0 if none)."""
+    best = 0
+    for d in range(1, math.isqrt(n) + 1):
+        if n % d == 0:
+            for c in (d, n // d):
+                if c <= most:
+                    best = max(best, c)
+    return best
+
+
+def aligned_chunk(shape: tuple[int, ...], k: int) -> int:
+    """The largest chunk size of at most ``k`` points that is whole rows of the trailing
+    axes of a grid of ``shape`` (m * n_{j+1} ... n_{N-1} points, with m dividing n_j, or
+    any m for the first axis), so that each stored block is one Zarr chunk
+    (:func:`rsfapp.sweepzarr.chunk_shape`) and a chunk request reads one block; ``k``
+    itself if no such size reaches k/2."""
+    best = 0
+    for j, nj in enumerate(shape):
+        tail = int(np.prod(shape[j + 1 :], dtype=np.int64))
+        if tail > k:
+            continue
+        m_max = min(nj, k // tail)
+        if j == 0:
+            m = m_max
+        else:
+            m = _largest_divisor(nj, m_max)
+        best = max(best, m * tail)
+    return best if 2 * best >= k else k
 
 
 def _negative_sizes(spec: SweepSpec) -> bool:
@@ -739,23 +837,27 @@ def _negative_sizes(spec: SweepSpec) -> bool:
 
 
 def plan_chunks(spec: SweepSpec, settings: Settings, requested: int | None = None) -> int:
-    """Points per chunk: ``requested``, else about ``settings.chunk_seconds`` of work, with
-    at least _MIN_CHUNKS chunks and at most ``settings.sweep_max_chunks`` chunks."""
+    """Points per chunk: ``requested``, else about ``settings.chunk_seconds`` of work at
+    the estimated cost per point (:func:`cost_per_point`: a sweep of points decided in
+    closed form gets chunks of up to MAX_CHUNK points, one of separatrix points ~10^4),
+    with at least _MIN_CHUNKS chunks, at least 64 chunks unless that leaves less than
+    _MIN_CHUNK_S of work in one, whole rows of the grid's trailing axes
+    (:func:`aligned_chunk`), and at most ``settings.sweep_max_chunks`` chunks."""
     n = spec.n_total
-    if requested:
-        chunk = requested
-    else:
-        per = _COST_S["critical"]
-        if spec.output == "outcome":
-            per = _COST_S["classify"] if _negative_sizes(spec) else per
-        chunk = max(
-            1,
-            min(
-                int(settings.chunk_seconds / per),
-                -(-n // _MIN_CHUNKS),
-                max(_BALANCE_POINTS, -(-n // 64)),
-            ),
-        )
-    chunk = min(chunk, MAX_CHUNK)
     max_chunks = getattr(settings, "sweep_max_chunks", 100_000)
-    return max(chunk, -(-n // max_chunks), 1)
+    least = max(-(-n // max_chunks), 1)
+    if requested:
+        return max(min(requested, MAX_CHUNK), least)
+    per = cost_per_point(spec)
+    chunk = max(
+        1,
+        min(
+            int(settings.chunk_seconds / per),
+            -(-n // _MIN_CHUNKS),
+            max(-(-n // 64), int(_MIN_CHUNK_S / per)),
+        ),
+    )
+    chunk = min(chunk, MAX_CHUNK)
+    if spec.mode == "grid":
+        chunk = aligned_chunk(spec.shape, chunk)
+    return max(chunk, least)

@@ -41,7 +41,11 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
 
     A chunk of a cancelled sweep is skipped; a chunk already running elsewhere is left to
     its worker; a chunk whose block is already stored is only marked done.  Cancellation
-    therefore takes effect within one chunk per worker process.
+    therefore takes effect within one chunk per worker process.  Two transactions per
+    chunk: the claim (which also says whether the block is stored) and the completion
+    (block, done mark, sweep closed when complete, next chunks marked queued:
+    :meth:`rsfapp.store.SweepStore.complete_chunk`); then one broker message per chunk
+    to send.
     """
     s = get_settings()
     sweeps = stores_for(s).sweeps
@@ -49,10 +53,10 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
     if rng is None:
         metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
         return {"skipped": True}
-    i0, i1 = rng
-    stored = False
+    i0, i1 = rng.i0, rng.i1
+    block = None
     result = metrics.ChunkResult.stored
-    if not sweeps.has_block(sweep_id, idx):
+    if not rng.stored:
         spec = sweeps.get_spec(sweep_id)
         if spec is None:  # deleted meanwhile, or stored in the pre-array layout
             sweeps.finish_chunk(sweep_id, idx, complete=False)
@@ -66,15 +70,15 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
         metrics.POINTS.labels("ok").inc(i1 - i0 - len(errors))
         metrics.POINTS.labels("failed").inc(len(errors))
         result = metrics.ChunkResult.computed
-        stored = sweeps.store_block(sweep_id, idx, i0, i1, encode_block(arrays), errors)
-    sweeps.finish_chunk(sweep_id, idx, complete=True)
+        block = (i0, i1, encode_block(arrays), errors)
+        del arrays
+    done = sweeps.complete_chunk(sweep_id, idx, block, s.sweep_window)
     metrics.CHUNKS.labels(result).inc()
-    nxt = sweeps.next_chunks(sweep_id, s.sweep_window)
-    if nxt:
+    if done.todo:
         q = Queue(s, app)
-        for c in nxt:
+        for c in done.todo:
             q.send_chunk(sweep_id, c)
-    return {"stored": stored, "points": i1 - i0}
+    return {"stored": done.stored, "points": i1 - i0}
 
 
 @app.task(name=RUN_CHUNK, bind=True, acks_late=True, reject_on_worker_lost=True, max_retries=5)

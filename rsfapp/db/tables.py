@@ -16,7 +16,8 @@
   API process or host (its ``concurrent_requests`` quota; :mod:`rsfapp.store.inflight`).
 
 Flat point indices, point counts and chunk numbers of sweeps are BIGINT (64-bit): a sweep
-may hold more than 2^31 points (Alembic revision 0002, :mod:`rsfapp.db.migrate`).
+may hold more than 2^31 points (Alembic revision 0002, :mod:`rsfapp.db.migrate`), and so
+may the sweep points a key submits in a day (``key_usage.points``, revision 0003).
 """
 
 from __future__ import annotations
@@ -135,7 +136,7 @@ key_usage = Table(
     metadata,
     Column("name", String(64), primary_key=True),
     Column("day", Integer, primary_key=True),  # UTC days since 1970-01-01
-    Column("points", Integer, nullable=False, default=0),
+    Column("points", BigInteger, nullable=False, default=0),  # sweep points; > 2^31 fit (0003)
 )
 
 # A side table (not a column of ``sweeps``) so that existing databases gain it on start.

@@ -155,3 +155,20 @@ def test_rsf_db_commands(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Non
     assert r.exit_code == 0 and "up to date" in r.stdout, r.output
     r = runner.invoke(app, ["db", "history", "--json"])
     assert [x["id"] for x in json.loads(r.stdout)][0] == "0001"
+
+
+def test_key_usage_holds_more_than_2_31_points(url: str) -> None:
+    """``key_usage.points`` is BIGINT at head (revision 0003): a day's usage beyond 2^31
+    points is counted exactly (PostgreSQL's INTEGER fails with 'integer out of range')."""
+    from rsfapp.store.keys import KeyStore
+
+    db = Database(url)
+    db.ensure_schema()
+    keys = KeyStore(db)
+    big = 3 * 10**9
+    assert keys.reserve_points("lab", big, 10 * big, day=1) == 9 * big
+    assert keys.reserve_points("lab", big, 10 * big, day=1) == 8 * big
+    assert keys.points_used("lab", day=1) == 2 * big > 2**31
+    keys.refund_points("lab", big, day=1)
+    assert keys.points_used("lab", day=1) == big
+    db.dispose()

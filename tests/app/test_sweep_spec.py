@@ -6,7 +6,16 @@ import numpy as np
 import pytest
 
 from rsfapp.config import Settings
-from rsfapp.grid import Axis, SweepSpec, expand, plan_chunks
+from rsfapp.grid import (
+    _COST_S,
+    MAX_CHUNK,
+    Axis,
+    SweepSpec,
+    aligned_chunk,
+    cost_per_point,
+    expand,
+    plan_chunks,
+)
 from rsfapp.requests import SweepRequest
 from rsfapp.sweepdata import compute_chunk
 from rsfcore import batch, critical
@@ -70,21 +79,24 @@ def test_spec_json_round_trip_is_small() -> None:
 
 def test_chunk_plan() -> None:
     s = Settings()
+    # 10^4 separatrix points (kappa/kappa_crit fixed at its default 2 > 1, eps < 0.5):
+    # 8 chunks by the minimum count, cut down to whole rows of 100: 12 rows
     assert (
         plan_chunks(
             spec_of(
                 {
                     "axes": [
-                        {"name": "eps", "start": 0, "stop": 1, "n": 100},
+                        {"name": "eps", "start": 0, "stop": 0.4, "n": 100},
                         {"name": "ba", "start": 2, "stop": 3, "n": 100},
                     ]
                 }
             ),
             s,
         )
-        == 1250
-    )  # 10^4 points: 8 chunks
-    big = spec_of(
+        == 1200
+    )
+    # 10^8 points decided in closed form (kappa/kappa_crit < 1): the largest chunks
+    cheap = spec_of(
         {
             "axes": [
                 {"name": n, "start": 0.5, "stop": 0.9, "n": 100}
@@ -92,9 +104,95 @@ def test_chunk_plan() -> None:
             ]
         }
     )
-    c = plan_chunks(big, s)
+    assert plan_chunks(cheap, s) == MAX_CHUNK
+    assert plan_chunks(cheap, s, 7) == 1000  # at most sweep_max_chunks chunks
+    # the same grid of separatrix points: ~2 s of work a chunk (2 s / 30 us), in rows
+    hard = spec_of(
+        {
+            "axes": [
+                {"name": "eps", "start": 0.0, "stop": 0.4, "n": 100},
+                {"name": "kappa_ratio", "start": 1.1, "stop": 2.0, "n": 100},
+                {"name": "vo", "start": 0.5, "stop": 0.9, "n": 100},
+                {"name": "size", "start": 0.5, "stop": 0.9, "n": 100},
+            ]
+        }
+    )
+    c = plan_chunks(hard, s)
+    assert c == 50_000  # 66,666 points of 30 us, cut to 5 rows of 10^4 (5 divides 100)
     assert 1000 <= -(-(10**8) // c) <= s.sweep_max_chunks
-    assert plan_chunks(big, s, 7) == 1000  # at most sweep_max_chunks chunks
+
+
+def test_cost_per_point_counts_separatrix_points() -> None:
+    """Half the kappa_ratio axis above 1 (and x = eps kappa/kappa_crit < 1): about half
+    the points need the separatrix; the sample of 4096 points is within 4 binomial
+    standard deviations (0.03) of the exact fraction 1/2."""
+    sp = spec_of(
+        {
+            "axes": [
+                {"name": "kappa_ratio", "values": [0.5, 0.9, 1.5, 1.9]},
+                {"name": "eps", "start": 0.0, "stop": 0.5, "n": 300},
+                {"name": "ba", "start": 2.0, "stop": 3.0, "n": 300},
+            ]
+        }
+    )
+    per = cost_per_point(sp)
+    cheap, hard = _COST_S["closed_form"], _COST_S["critical"]
+    frac = (per - cheap) / (hard - cheap)
+    assert abs(frac - 0.5) < 0.03
+    closed = spec_of({"axes": [{"name": "kappa_ratio", "start": 0.1, "stop": 0.99, "n": 50}]})
+    assert cost_per_point(closed) == cheap
+    infinite = spec_of(  # eps kappa >= kappa_crit everywhere: infinite, closed form
+        {
+            "axes": [{"name": "kappa_ratio", "start": 2.5, "stop": 4.0, "n": 50}],
+            "fixed": {"eps": 0.5},
+        }
+    )
+    assert cost_per_point(infinite) == cheap
+
+
+@pytest.mark.parametrize(
+    ("shape", "k", "want"),
+    [
+        ((100, 100, 100), 66_666, 60_000),  # 6 planes of 100 x 100 (the first axis: any m)
+        ((100, 100, 10_000), 1_000_000, 1_000_000),  # one 100 x 10^4 plane
+        ((7, 5, 3), 20, 15),  # 5 rows of 3 (5 divides 5)
+        ((7, 5, 3), 14, 14),  # no whole rows reach 7 points: unaligned
+        ((97,), 50, 50),  # 1-D: any cut is whole rows
+        ((3, 1_000_003), 1000, 1000),  # a prime row length: no aligned size >= k/2
+    ],
+)
+def test_aligned_chunk(shape: tuple[int, ...], k: int, want: int) -> None:
+    got = aligned_chunk(shape, k)
+    assert got == want and got <= k
+    if got != k:  # whole rows: every chunk is one Zarr chunk (rsfapp.sweepzarr)
+        from rsfapp.sweepzarr import chunk_shape
+
+        assert int(np.prod(chunk_shape(shape, got))) == got
+
+
+@pytest.mark.parametrize("shape", [(7, 5, 3), (100, 100, 100), (3, 1, 40), (13, 17), (1000,)])
+def test_swept_values_equal_the_outer_product_at_any_range(shape: tuple[int, ...]) -> None:
+    """The run-length layout of swept_values against unravel_index + Axis.at (the
+    definition), bit for bit, at 200 random ranges."""
+    names = ("kappa_ratio", "eps", "vo")[: len(shape)]
+    sp = spec_of(
+        {
+            "axes": [
+                {"name": nm, "start": 0.1, "stop": 0.9, "n": n, "log": nm == "vo"}
+                for nm, n in zip(names, shape, strict=True)
+            ]
+        }
+    )
+    rng = np.random.default_rng(3)
+    n = sp.n_total
+    for _ in range(200):
+        i0 = int(rng.integers(0, n))
+        i1 = int(rng.integers(i0, n + 1))
+        got = sp.swept_values(i0, i1)
+        multi = np.unravel_index(np.arange(i0, i1), shape)
+        for ax, k in zip(sp.axes, multi, strict=True):
+            want = ax.at(np.asarray(k, dtype=np.int64))
+            assert got[ax.name].tobytes() == want.tobytes(), (shape, i0, i1, ax.name)
 
 
 def test_compute_chunk_isolates_a_point_that_breaks_the_batch(monkeypatch) -> None:

@@ -95,6 +95,70 @@ def test_indices_beyond_2_31(db: Database) -> None:
     assert st.delete("big")
 
 
+def test_complete_chunk_stores_finishes_and_dispatches_once(db: Database) -> None:
+    """complete_chunk = store_block + finish_chunk + next_chunks in one transaction: the
+    block is stored once (a redelivered chunk stores nothing), the next pending chunk is
+    marked queued within the window, the last chunk closes the sweep, and a chunk whose
+    block is already stored is reported by the claim and only marked done."""
+    st = SweepStore(db)
+    spec = grid(3, 10)  # 30 points, chunks of 10
+    assert st.create("s", spec, 10, "t", window=1).todo == [0]
+    r0 = st.claim("s", 0, 30.0)
+    assert r0 is not None and (r0.i0, r0.i1, r0.stored) == (0, 10, False)
+    b0 = block(10, 0)
+    done = st.complete_chunk("s", 0, (0, 10, encode_block(b0), {4: "E: four"}), 1)
+    assert done.stored and done.todo == [1]
+    again = st.complete_chunk("s", 0, (0, 10, encode_block(block(10, 9)), {}), 1)
+    assert not again.stored and again.todo == []  # chunk 1 is in flight: window full
+    blk = st.read_block("s", 0)
+    assert blk is not None and np.array_equal(blk.arrays["critical_size"], b0["critical_size"])
+    assert blk.errors == {4: "E: four"}
+    # chunk 2's block was stored by an earlier attempt that died before its bookkeeping
+    assert st.store_block("s", 2, 20, 30, encode_block(block(10, 2)), {})
+    r1 = st.claim("s", 1, 30.0)
+    assert r1 is not None and not r1.stored
+    assert st.complete_chunk("s", 1, (10, 20, encode_block(block(10, 1)), {}), 1).todo == [2]
+    r2 = st.claim("s", 2, 30.0)
+    assert r2 is not None and r2.stored
+    assert st.complete_chunk("s", 2, None, 1) == (False, [])
+    s = st.status("s")
+    assert s is not None and (s["status"], s["n_done"], s["n_failed"]) == ("done", 30, 1)
+    # a cancelled sweep dispatches nothing; a purged one stores nothing
+    assert st.create("c", grid(3, 10, 0.8), 10, "t", window=1).todo == [0]
+    assert st.claim("c", 0, 30.0) is not None
+    st.cancel("c")
+    assert st.complete_chunk("c", 0, (0, 10, encode_block(block(10)), {}), 1) == (True, [])
+    st.delete("c")
+    assert st.complete_chunk("c", 1, (10, 20, encode_block(block(10)), {}), 1) == (False, [])
+
+
+def test_constant_arrays_are_stored_once(db: Database) -> None:
+    """A block whose arrays are each one repeated value (a region decided in closed
+    form, NaN included) is stored as one element per array and read back bit for bit,
+    mixed with ordinary arrays, through the store."""
+    st = SweepStore(db)
+    n = 100_000
+    arrays = {
+        "critical_size": np.zeros(n),
+        "rel_accuracy": np.full(n, np.nan),
+        "kind": np.zeros(n, np.int8),
+        "method": np.full(n, 3, np.int8),
+        "failed": np.zeros(n, np.bool_),
+        "on_boundary": np.r_[np.zeros(n - 1, np.bool_), True],  # not constant
+    }
+    st.create("k", grid(1, n), n, "t", window=1)
+    data = encode_block(arrays)
+    assert len(data) < 2000  # one element per constant array (zip entries ~150 B each)
+    assert st.store_block("k", 0, 0, n, data, {})
+    blk = st.read_block("k", 0)
+    assert blk is not None and set(blk.arrays) == set(arrays)
+    for name, a in arrays.items():
+        got = blk.arrays[name]
+        assert got.dtype == a.dtype and got.tobytes() == a.tobytes(), name
+    some = st.read_block("k", 0, ("kind", "on_boundary"))
+    assert some is not None and set(some.arrays) == {"kind", "on_boundary"}
+
+
 def _worker(st: SweepStore, ids: list[str], stop: float, errors: list[BaseException]) -> None:
     rng = random.Random(threading.get_ident())
     while time.monotonic() < stop:
@@ -109,8 +173,12 @@ def _worker(st: SweepStore, ids: list[str], stop: float, errors: list[BaseExcept
                     continue
                 st.heartbeat(sid, idx)
                 n = rng_.i1 - rng_.i0
-                st.store_block(sid, idx, rng_.i0, rng_.i1, encode_block(block(n, idx)), {})
-                st.finish_chunk(sid, idx, complete=True)
+                data = encode_block(block(n, idx))
+                if rng.random() < 0.5:  # the worker's path: one transaction
+                    st.complete_chunk(sid, idx, (rng_.i0, rng_.i1, data, {}), 4)
+                else:
+                    st.store_block(sid, idx, rng_.i0, rng_.i1, data, {})
+                    st.finish_chunk(sid, idx, complete=True)
         except BaseException as exc:  # noqa: BLE001 - reported by the test
             errors.append(exc)
             return
