@@ -30,6 +30,7 @@ from rsfapp.requests import (
     SweepRequest,
     TrajectoryRequest,
 )
+from rsfapp.requests.figures import FigureRequest
 from rsfcore.limits import Limit
 
 from .common import echo_lines, emit, fail, given, json_value, model_option, run
@@ -341,17 +342,24 @@ def stiffness(
 @app.command()
 def figure(
     name: str | None = typer.Argument(None, help="Figure name (see --list)."),
-    out: Path | None = typer.Option(None, "--out", help="Output file, .png or .svg."),
+    out: Path | None = typer.Option(
+        None, "--out", help="Output file, .png or .svg (default NAME.png)."
+    ),
+    quality: str | None = model_option(FigureRequest, "quality"),
     list_: bool = typer.Option(
         False, "--list", help="List the figures with the caption each reproduces."
     ),
+    as_json: bool = typer.Option(
+        False,
+        "--json",
+        help="Print the figure's data (with --list: the catalogue) as one JSON object, "
+        "as GET /v1/figures/{name}?format=json answers; with --out the image is written too.",
+    ),
 ) -> None:
     """Regenerate a figure of the paper from rsfcore (`rsf figure --list` names them)."""
-    from rsfplots.cli import figure_command
+    from .figures import figure_command
 
-    code = figure_command(name, out, list_)
-    if code:
-        raise typer.Exit(code=code)
+    figure_command(name, out, list_, quality, as_json)
 
 
 INSECURE = typer.Option(

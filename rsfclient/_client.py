@@ -24,6 +24,7 @@ from ._results import (
     BoundariesResult,
     ClassifyResult,
     CriticalResult,
+    FigureData,
     FigureInfo,
     FitResult,
     PointsResult,
@@ -575,13 +576,25 @@ class Client:
     def figure(
         self,
         name: str,
-        format: Literal["png", "svg"] = "png",  # noqa: A002
-        quality: Literal["paper", "draft"] = "paper",
+        format: Literal["png", "svg"] | None = None,  # noqa: A002
+        quality: Literal["paper", "draft"] | None = None,
     ) -> bytes:
-        """One figure regenerated from rsfcore (GET /v1/figures/{name}): PNG or SVG bytes."""
+        """One figure regenerated from rsfcore (GET /v1/figures/{name}): PNG or SVG bytes.
+        ``format`` and ``quality`` left out take the server's defaults (png, paper)."""
+        if format is not None and format not in ("png", "svg"):
+            raise ValueError(f"format: 'png' or 'svg', not {format!r} (data: figure_data)")
         return self.http.request(
-            "GET", f"/v1/figures/{name}", params={"format": format, "quality": quality}
+            "GET", f"/v1/figures/{name}", params=body({"format": format, "quality": quality})
         ).content
+
+    def figure_data(
+        self, name: str, quality: Literal["paper", "draft"] | None = None
+    ) -> FigureData:
+        """The numbers figure ``name`` plots (GET /v1/figures/{name}?format=json): the same
+        JSON as ``rsf figure NAME --json`` and the library's figure adapter.  ``quality``
+        left out takes the server's default (paper)."""
+        params = body({"format": "json", "quality": quality})
+        return FigureData.from_json(self.http.json("GET", f"/v1/figures/{name}", params=params))
 
     def render(self, question: str, format: str = "png", **fields: Any) -> bytes:  # noqa: A002
         """The image (``png``) or table (``csv``) form of a question in

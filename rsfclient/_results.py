@@ -25,6 +25,7 @@ __all__ = [
     "BoundariesResult",
     "ClassifyResult",
     "CriticalResult",
+    "FigureData",
     "FigureInfo",
     "FitResult",
     "ItemError",
@@ -379,6 +380,20 @@ class FitResult(Answer):
     def to_pandas(self) -> Any:
         """Data, model and residuals as a pandas.DataFrame."""
         return to_frame(self.series)
+
+
+@dataclass(frozen=True, kw_only=True)
+class FigureData(Answer):
+    """The numbers a figure of the paper plots (GET /v1/figures/{name}?format=json): its
+    catalogue entry (``name``, ``label``, ``caption``, ``note``), the ``quality`` they were
+    computed at, and the figure's arrays (every curve at most 400 points) in ``raw``, as
+    nested JSON lists (``d["panels"][0]["curves"]``)."""
+
+    name: str
+    label: str
+    caption: str
+    note: str = ""
+    quality: str
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,9 @@
-"""Shared plumbing of rsfplots: Agg canvases, output formats, JSON-safe data, downsampling.
+"""Shared plumbing of rsfplots: Agg canvases, output formats, reproducible bytes.
 
 No pyplot anywhere: every figure is a :class:`matplotlib.figure.Figure` attached to an Agg
-canvas, so rendering is thread-safe and never touches a display or global state.
+canvas, so rendering never touches a display; the only global state is matplotlib's
+rcParams, changed for the saving of an SVG file only (fixed ids; the service renders
+under one lock, :mod:`service.images`).
 """
 
 from __future__ import annotations
@@ -9,7 +11,7 @@ from __future__ import annotations
 import io
 from typing import Any
 
-import numpy as np
+import matplotlib as mpl
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -18,28 +20,18 @@ from rsfcore.jsonsafe import jsonsafe  # noqa: F401  (re-exported for rsfplots m
 
 __all__ = [
     "FORMATS",
-    "QUALITIES",
+    "PNG_DPI",
     "new_figure",
     "figure_bytes",
     "check_format",
-    "check_quality",
     "jsonsafe",
-    "thin",
-    "clip_to_window",
 ]
 
 FORMATS = ("png", "svg")
-QUALITIES = ("draft", "paper")
-#: largest number of points per curve in the data behind a figure
-MAX_DATA_POINTS = 400
-
+#: PNG resolution of a paper figure by the quality of its data (dots per inch)
 PNG_DPI = {"draft": 80, "paper": 110}
-
-
-def check_quality(quality: str) -> str:
-    if quality not in QUALITIES:
-        raise ParameterError("quality", quality, "'draft' or 'paper'")
-    return quality
+#: salt of the ids in an SVG file (matplotlib draws a random one per file otherwise)
+SVG_HASH_SALT = "rsfplots"
 
 
 def check_format(fmt: str) -> str:
@@ -64,33 +56,9 @@ def figure_bytes(fig: Figure, fmt: str = "png", dpi: int | None = None) -> bytes
     if fmt == "png":
         kw["dpi"] = dpi or PNG_DPI["paper"]
         kw["metadata"] = {"Software": "rsfplots (matplotlib Agg)"}
+        fig.savefig(buf, **kw)
     else:
-        kw["metadata"] = {"Date": None}  # reproducible SVG
-    fig.savefig(buf, **kw)
+        kw["metadata"] = {"Date": None}  # reproducible SVG: no date, fixed ids
+        with mpl.rc_context({"svg.hashsalt": SVG_HASH_SALT}):
+            fig.savefig(buf, **kw)
     return buf.getvalue()
-
-
-def thin(n: int, max_points: int = MAX_DATA_POINTS) -> np.ndarray:
-    """Indices of at most ``max_points`` of ``n`` samples, evenly strided, first and last kept."""
-    if n <= max_points:
-        return np.arange(n)
-    idx = np.unique(np.round(np.linspace(0, n - 1, max_points)).astype(int))
-    return idx
-
-
-def clip_to_window(
-    phi: np.ndarray, psi: np.ndarray, window: tuple[float, float, float, float], margin: float = 0.5
-) -> tuple[np.ndarray, np.ndarray]:
-    """Keep the leading part of a trajectory up to where it leaves the window (+ margin) for good.
-
-    Runaway trajectories end at phi ~ 40+; only their part near the plotted window matters.
-    """
-    x0, x1, y0, y1 = window
-    inside = (
-        (phi >= x0 - margin) & (phi <= x1 + margin) & (psi >= y0 - margin) & (psi <= y1 + margin)
-    )
-    if not inside.any():
-        return phi[:1], psi[:1]
-    last = int(np.flatnonzero(inside)[-1])
-    end = min(last + 2, phi.size)
-    return phi[:end], psi[:end]

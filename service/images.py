@@ -29,18 +29,16 @@ from starlette.responses import Response
 
 from rsfapp.adapter import ComputeError, guard, numerics_version
 from rsfapp.config import get_settings
+from rsfapp.requests.figures import FigureRequest
 
 from .errors import ProblemError
 
 __all__ = [
     "MEDIA",
-    "QUALITIES",
     "analytic_u_png",
     "choice",
     "diagram_png",
     "figure",
-    "figure_list",
-    "figure_names",
     "format_query",
     "image",
     "image_response",
@@ -51,7 +49,6 @@ __all__ = [
 
 #: Media type of each image format.
 MEDIA = {"png": "image/png", "svg": "image/svg+xml"}
-QUALITIES = ("paper", "draft")
 
 #: Renders in flight in this process, by image key.
 _inflight: dict[str, asyncio.Future[bytes]] = {}
@@ -222,32 +219,14 @@ def analytic_u_png(result: dict[str, Any]) -> bytes:
     return render_locked(_plots().plot_u_field, result, title=title, fmt="png")
 
 
-def figure(name: str, fmt: str, quality: str) -> bytes:
-    """Paper figure ``name`` regenerated from rsfcore (rsfplots.render) as png/svg bytes."""
-    plots = _plots()
-    return render_locked(plots.render, name, fmt, quality=quality)
+def figure(req: FigureRequest, fmt: str) -> bytes:
+    """Paper figure ``req`` as png/svg bytes: its data from the figure adapter
+    (:func:`rsfapp.adapter.figures.figure_arrays`, computed outside the render lock), drawn
+    by rsfplots under the lock."""
+    from rsfapp.adapter.figures import figure_arrays
 
-
-def figure_list() -> list[dict[str, Any]]:
-    """[{name, caption, label, note}] of every reproducible figure of the paper."""
-    plots = _plots()
-    out = []
-    for item in plots.list_figures():
-        spec = plots.FIGURES.get(item["name"])
-        out.append(
-            {
-                "name": item["name"],
-                "caption": item["caption"],
-                "label": getattr(spec, "label", None),
-                "note": getattr(spec, "note", ""),
-            }
-        )
-    return out
-
-
-def figure_names() -> list[str]:
-    """Names of the reproducible figures."""
-    return list(_plots().FIGURES)
+    data = guard(figure_arrays, req)
+    return render_locked(_plots().render_figure, data, fmt)
 
 
 def diagram_png(diagram: dict[str, Any]) -> bytes:

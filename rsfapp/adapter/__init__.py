@@ -9,6 +9,7 @@ module            questions
 ``batch``         classify and critical batches
 ``protocols``     lab protocols (velocity step, slide-hold-slide, load history)
 ``fits``          fits of lab records
+``figures``       the data of the paper's figures (rsfplots draws them)
 ``_si``           SI inputs and the ``si`` blocks of single answers
 ``_common``       error convention, quick step budget, JSON-safe answers
 ================  ==========================================================
@@ -30,6 +31,7 @@ from ._common import QUICK_STEPS, ComputeError, NeedsQueue, guard, numerics_vers
 if TYPE_CHECKING:  # imported on first use (a CLI command loads only its question's module)
     from ._si import resolve_params, resolve_size, si_inputs
     from .batch import classify_batch, critical_batch, item_error, validate_items
+    from .figures import figure, figure_arrays, figure_list
     from .fits import FIT_COLUMNS, fit, fit_key_request, fit_record_of, fit_table
     from .protocols import (
         PROTOCOL_COLUMNS,
@@ -57,6 +59,7 @@ _WHERE: dict[str, str] = {
     **dict.fromkeys(
         ("FIT_COLUMNS", "fit", "fit_key_request", "fit_record_of", "fit_table"), "fits"
     ),
+    **dict.fromkeys(("figure", "figure_arrays", "figure_list"), "figures"),
     **dict.fromkeys(
         (
             "PROTOCOL_COLUMNS",
@@ -81,7 +84,7 @@ _WHERE: dict[str, str] = {
         "single",
     ),
 }
-_MODULES = frozenset(("single", "batch", "protocols", "fits", "sweeps"))
+_MODULES = frozenset(("single", "batch", "protocols", "fits", "sweeps", "figures"))
 
 
 def __getattr__(name: str) -> Any:
@@ -122,6 +125,9 @@ __all__ = [
     "fit_record_of",
     "fit_table",
     "FIT_COLUMNS",
+    "figure",
+    "figure_arrays",
+    "figure_list",
     "analytic_u",
     "boundaries",
     "stiffness",

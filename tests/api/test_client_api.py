@@ -26,6 +26,7 @@ from rsfapp.requests import (
     SweepRequest,
     TrajectoryRequest,
 )
+from rsfapp.requests.figures import FigureRequest
 from rsfapp.requests.fits import FitRequest
 from rsfapp.requests.protocols import LoadHistoryRequest, SlideHoldSlideRequest, VelocityStepRequest
 from rsfclient import Client, ItemError, ProblemError, axis
@@ -56,6 +57,8 @@ METHOD_MODELS: dict[str, tuple[type, ...]] = {
     "submit_fit": (FitRequest,),
     "fit": (FitRequest,),
     "sweep": (SweepRequest, SweepFixed),
+    "figure": (FigureRequest,),
+    "figure_data": (FigureRequest,),
 }
 #: Every operation of the API (OpenAPI) -> the client method that asks it.
 ROUTES: dict[tuple[str, str], str] = {
@@ -92,7 +95,7 @@ ROUTES: dict[tuple[str, str], str] = {
     ("get", "/metrics"): "metrics",
 }
 #: Arguments of client methods that are not request fields.
-NOT_FIELDS = {"self", "spec", "fixed", "timeout", *rsfclient.MACHINE_FIELDS}
+NOT_FIELDS = {"self", "spec", "fixed", "timeout", "format", *rsfclient.MACHINE_FIELDS}
 
 
 def test_every_route_has_a_client_method(c: TestClient) -> None:
@@ -282,3 +285,13 @@ def test_figures(rc: Client) -> None:
     with pytest.raises(ProblemError) as e:
         rc.figure("no-such-figure")
     assert e.value.status == 404 and e.value.field == "name"
+    # the data: the figure adapter's answer, typed; the quality left out is the model's
+    from rsfapp.adapter.figures import figure
+
+    d = rc.figure_data("continuum-modes", quality="draft")
+    want = figure(FigureRequest(name="continuum-modes", quality="draft"))
+    assert d.raw == json.loads(json.dumps(want)) and d.quality == "draft"
+    assert d.label == want["label"] and d["cases"][0]["case"] == "B"
+    with pytest.raises(ProblemError) as e:
+        rc.figure_data("continuum-modes", quality="best")  # type: ignore[arg-type]
+    assert e.value.status == 422 and e.value.field == "quality"

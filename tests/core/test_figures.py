@@ -1,4 +1,5 @@
-"""rsfplots: every figure renders, and the data behind each agrees with an independent value.
+"""The paper's figures: the data of every figure (rsfapp.adapter.figures, the one adapter
+of the figure question) agree with an independent value, and rsfplots draws each of them.
 
 Figures are built at 'draft' quality (coarse grids) so that the whole file stays well
 under 90 s.  "Independent" means: the printed closed forms re-implemented here, a direct
@@ -22,7 +23,8 @@ from scipy.optimize import brentq
 from scipy.special import lambertw
 
 import rsfplots
-from rsfplots.cli import figure_command
+from rsfapp.adapter.figures import figure, figure_arrays, figure_list
+from rsfapp.requests.figures import FIGURES, FigureRequest
 
 from .reference import reference_by_id
 
@@ -59,7 +61,11 @@ def _a(v) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def data() -> dict[str, dict]:
-    return {n: rsfplots.figure_data(n, Q) for n in rsfplots.FIGURES}
+    return {n: figure(FigureRequest(name=n, quality=Q)) for n in FIGURES}
+
+
+def _arrays(name: str) -> dict:
+    return figure_arrays(FigureRequest(name=name, quality=Q))
 
 
 def _dist_to_polylines(px: np.ndarray, py: np.ndarray, lines: list[dict]) -> np.ndarray:
@@ -145,11 +151,17 @@ def dcrit_vo0_printed(ba: float, kappa: float, eps: float) -> float:
 
 # ----------------------------------------------------------------------------- rendering
 def test_registry_and_list() -> None:
-    assert set(rsfplots.FIGURES) == EXPECTED
-    listed = rsfplots.list_figures()
-    assert [d["name"] for d in listed] == list(rsfplots.FIGURES)
-    for d in listed:
+    assert set(FIGURES) == EXPECTED
+    assert list(rsfplots.DRAWINGS) == list(FIGURES)  # a drawing for every figure
+    listed = figure_list()
+    assert [d["name"] for d in listed["figures"]] == list(FIGURES)
+    for d in listed["figures"]:
         assert d["caption"].startswith("fig: ") and len(d["caption"]) > 40
+        assert d["url"] == f"/v1/figures/{d['name']}"
+    assert listed["formats"] == ["png", "svg", "json"]
+    assert listed["qualities"] == ["paper", "draft"]
+    # the default quality is the model's, 'paper'
+    assert FigureRequest(name="rate-neutral").quality == "paper"
 
 
 def _png_ok(blob: bytes) -> tuple[int, int]:
@@ -164,7 +176,7 @@ def _png_ok(blob: bytes) -> tuple[int, int]:
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_render_png(name: str, tmp_path: Path, data: dict) -> None:
     out = tmp_path / f"{name}.png"
-    assert rsfplots.render(name, out, quality=Q) is None
+    assert rsfplots.render_figure(_arrays(name), out) is None
     blob = out.read_bytes()
     _png_ok(blob)
     import matplotlib.image as mpimg
@@ -173,32 +185,64 @@ def test_render_png(name: str, tmp_path: Path, data: dict) -> None:
     assert img.std() > 0.05  # not blank
     json.dumps(data[name], allow_nan=False)  # JSON-safe data behind it
     assert data[name]["label"].startswith("fig: ")
+    assert data[name]["name"] == name and data[name]["quality"] == Q
 
 
 def test_render_bytes_svg_and_errors() -> None:
-    svg = rsfplots.render("continuum-modes", "svg", quality=Q)
+    arrays = _arrays("continuum-modes")
+    svg = rsfplots.render_figure(arrays, "svg")
     assert isinstance(svg, bytes) and b"<svg" in svg[:2000]
-    png = rsfplots.render("continuum-modes", "png", quality=Q)
+    png = rsfplots.render_figure(arrays, "png")
     _png_ok(png)
+    # the same data draw the same bytes (PNG, and SVG with its fixed id salt)
+    assert rsfplots.render_figure(arrays, "svg") == svg
+    assert rsfplots.render_figure(arrays, "png") == png
+    from pydantic import ValidationError
+
     from rsfcore import ParameterError
 
     with pytest.raises(ParameterError):
-        rsfplots.render("no-such-figure", "png")
+        rsfplots.render_figure({"name": "no-such-figure", "quality": Q}, "png")
     with pytest.raises(ParameterError):
-        rsfplots.render("continuum-modes", "x.jpg")
+        rsfplots.render_figure(arrays, "x.jpg")
+    with pytest.raises(ValidationError) as e:
+        FigureRequest(name="no-such-figure")
+    assert e.value.errors()[0]["loc"] == ("name",)
+    with pytest.raises(ValidationError) as e:
+        FigureRequest(name="continuum-modes", quality="best")  # type: ignore[arg-type]
+    assert e.value.errors()[0]["loc"] == ("quality",)
 
 
-def test_cli_hook(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    assert figure_command(None, None, True) == 0
-    out = capsys.readouterr().out
-    for name, spec in rsfplots.FIGURES.items():
-        assert name in out and spec.label in out
+def test_cli(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from rsfcli.main import app
+
+    cli = CliRunner()
+    r = cli.invoke(app, ["figure", "--list"])
+    assert r.exit_code == 0, r.output
+    for name, info in FIGURES.items():
+        assert name in r.output and info.label in r.output
+    r = cli.invoke(app, ["figure", "--list", "--json"])
+    assert r.exit_code == 0 and json.loads(r.output) == json.loads(json.dumps(figure_list()))
     target = tmp_path / "modes.svg"
-    assert figure_command("continuum-modes", target, False, quality=Q) == 0
-    assert b"<svg" in target.read_bytes()[:2000]
-    assert figure_command("nope", tmp_path / "x.png", False) == 2
-    assert figure_command(None, None, False) == 2
-    assert figure_command("continuum-modes", tmp_path / "x.pdf", False) == 2
+    r = cli.invoke(app, ["figure", "continuum-modes", "--out", str(target), "--quality", Q])
+    assert r.exit_code == 0, r.output
+    assert target.read_bytes() == rsfplots.render_figure(_arrays("continuum-modes"), "svg")
+    assert "quality draft" in r.output  # the text output echoes the quality used
+    r = cli.invoke(app, ["figure", "continuum-modes", "--quality", Q, "--json"])
+    assert r.exit_code == 0, r.output
+    want = figure(FigureRequest(name="continuum-modes", quality=Q))
+    assert json.loads(r.output) == json.loads(json.dumps(want))
+    for argv in (
+        ["figure", "nope", "--out", str(tmp_path / "x.png")],
+        ["figure"],
+        ["figure", "continuum-modes", "--out", str(tmp_path / "x.pdf")],
+        ["figure", "continuum-modes", "--quality", "best", "--json"],
+    ):
+        r = cli.invoke(app, argv)
+        assert r.exit_code == 2, (argv, r.output)
+    assert not (tmp_path / "x.png").exists() and not (tmp_path / "x.pdf").exists()
 
 
 def test_result_plots() -> None:

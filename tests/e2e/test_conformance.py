@@ -12,6 +12,11 @@ written once as the HTTP JSON body.  Every row is answered through each door:
 * ``http``: httpx against a real uvicorn server with a real Celery worker;
 * ``client``: :class:`rsfclient.Client`, its keyword arguments the JSON fields.
 
+A figure of the paper is a question too (its body the query of ``GET /v1/figures/{name}``):
+the numbers it plots are compared like every answer, and its PNG and SVG images, drawn by
+rsfplots from those numbers, byte for byte (:func:`test_figure_images_agree`); the list of
+figures is compared in :func:`test_figure_list_agrees`.
+
 The answers must agree bit for bit in every number and in every echoed parameter (only
 ``cached`` / ``cache_key``, wall-clock times and the ids of stored work are left out; see
 :data:`VOLATILE`).  A failure lists every cell (row x door x JSON path) that disagrees with
@@ -429,6 +434,10 @@ TABLE: list[Row] = [
             "fixed": {"physical": ML, "new_slip_rate_m_s": 2e-5},
         },
     ),
+    # -- figures of the paper: the default quality (paper) and a draft of a figure that
+    #    asks critical sizes, classify, trajectories, a diagram and contours of U
+    Row("figure-defaults", "figure", {"name": "velocity-step"}),
+    Row("figure-draft", "figure", {"name": "stability-diagram-velocity", "quality": "draft"}),
 ]
 
 #: Fields a row may not exercise, with the reason (everything else must appear in a row).
@@ -459,13 +468,14 @@ VOLATILE = {
 class Question:
     """How each door asks one kind of question."""
 
-    path: str  # HTTP route (POST)
+    path: str  # HTTP route (POST, or GET with the body as path and query parameters)
     model: str  # request model in rsfapp.requests (dotted under it)
     adapter: str  # function of rsfapp.adapter
     client: str  # rsfclient.Client method
     cli: tuple[str, ...]  # `rsf` command words
     si_cli: tuple[str, ...] | None = None  # the command when the body is in SI, if other
     library_kw: dict[str, Any] = field(default_factory=dict)
+    method: str = "POST"
 
 
 QUESTIONS: dict[str, Question] = {
@@ -536,6 +546,14 @@ QUESTIONS: dict[str, Question] = {
     ),
     "fit": Question("/v1/fits", "fits.FitRequest", "fit", "fit", ("fit",)),
     "sweep": Question("/v1/sweeps", "SweepRequest", "critical", "sweep", ("sweep", "submit")),
+    "figure": Question(
+        "/v1/figures/{name}",
+        "figures.FigureRequest",
+        "figure",
+        "figure_data",
+        ("figure",),
+        method="GET",
+    ),
 }
 
 #: Doors that are not questions (or ask the same question another way), with the reason.
@@ -554,8 +572,7 @@ NOT_QUESTIONS: dict[str, str] = {
     "GET /v1/sweeps/{sweep_id}/zarr/{var}/{key}": "the sweep's Zarr arrays and chunks: "
     "tests/api/test_sweep_subsets.py, tests/e2e/test_sweep_lazy.py",
     "DELETE /v1/sweeps/{sweep_id}": "cancel or delete",
-    "GET /v1/figures": "the list of the paper's figures",
-    "GET /v1/figures/{name}": "an image of the paper (no numbers to compare)",
+    "GET /v1/figures": "the list of the paper's figures (test_figure_list_agrees)",
     "GET /v1/results/{key}": "a deferred answer (the same JSON as its question)",
     "GET /health": "service health",
     "GET /v1/cache/stats": "cache statistics",
@@ -565,7 +582,6 @@ NOT_QUESTIONS: dict[str, str] = {
     "rsf api": "starts the API",
     "rsf worker": "starts a worker",
     "rsf keys": "API keys",
-    "rsf figure": "an image of the paper",
     "rsf db": "database schema migrations",
     "rsf diagram": "a local stability diagram (rsfcore.diagram), the sweep's library form",
     "rsf sweep status": "part of the sweep rows",
@@ -578,8 +594,8 @@ NOT_QUESTIONS: dict[str, str] = {
     "Client.get_fit": "the handle of a fit",
     "Client.get_sweep": "the handle of a sweep",
     "Client.sweeps": "lists sweeps",
-    "Client.figures": "the list of the paper's figures",
-    "Client.figure": "an image of the paper",
+    "Client.figures": "the list of the paper's figures (test_figure_list_agrees)",
+    "Client.figure": "the image of a figure row (test_figure_images_agree)",
     "Client.render": "the image or CSV form of a question",
     "Client.result": "a deferred answer",
     "Client.health": "service health",
@@ -614,7 +630,7 @@ def test_every_route_is_a_row_or_named() -> None:
         for m in item
         if m in ("get", "post", "delete", "put", "patch")
     }
-    asked = {f"POST {q.path}" for q in QUESTIONS.values()}
+    asked = {f"{q.method} {q.path}" for q in QUESTIONS.values()}
     used = {r.question for r in TABLE}
     assert used == set(QUESTIONS), f"questions without a row: {sorted(set(QUESTIONS) - used)}"
     missing = ops - asked - set(NOT_QUESTIONS)
@@ -799,6 +815,8 @@ class Doors:
     # -- http
     def http(self, row: Row) -> Any:
         q = QUESTIONS[row.question]
+        if q.method == "GET":
+            return self._get(q, row.body, "json").json()
         r = self.h.post(q.path, json=row.body)
         if row.question == "sweep":
             sid = r.json()["id"]
@@ -812,6 +830,15 @@ class Doors:
             r = self.h.get(loc)
         assert r.status_code == 200, f"{row.name}: HTTP {r.status_code} {r.text[:500]}"
         return r.json()
+
+    def _get(self, q: Question, body: dict[str, Any], fmt: str) -> httpx.Response:
+        """A GET question: the body's path fields in the path, the rest as the query."""
+        names = {k for k in body if "{" + k + "}" in q.path}
+        path = q.path.format(**{k: body[k] for k in names})
+        query = {**{k: v for k, v in body.items() if k not in names}, "format": fmt}
+        r = self.h.get(path, params=query)
+        assert r.status_code == 200, f"{path}: HTTP {r.status_code} {r.text[:500]}"
+        return r
 
     def _wait(self, path: str, done: Callable[[dict[str, Any]], bool]) -> None:
         t0 = time.monotonic()
@@ -872,6 +899,8 @@ class Doors:
         body = dict(row.body)
         words = list(q.si_cli if q.si_cli and "physical" in body else q.cli)
         args: list[str] = []
+        if row.question == "figure":  # rsf figure NAME [--quality Q] [--out FILE | --json]
+            words.append(body.pop("name"))
         if row.question == "fit":
             rec = self.tmp / f"{row.name}.csv"
             rec.write_text(body.pop("record"))
@@ -979,6 +1008,70 @@ def test_doors_agree(service: Doors) -> None:
         for line in lines
     ]
     assert not bad, f"{len(bad)} disagreeing cells:\n" + "\n".join(bad)
+
+
+def _figure_rows() -> list[Row]:
+    return [r for r in TABLE if r.question == "figure"]
+
+
+@pytest.mark.parametrize("fmt", ["png", "svg"])
+def test_figure_images_agree(service: Doors, fmt: str) -> None:
+    """The image of every figure row, byte for byte: the library (the figure adapter's data
+    drawn by rsfplots), ``rsf figure NAME --out FILE``, HTTP and the client."""
+    import hashlib
+
+    from rsfapp.adapter.figures import figure_arrays
+    from rsfapp.requests.figures import FigureRequest
+    from rsfplots import render_figure
+
+    q = QUESTIONS["figure"]
+    bad = []
+    for row in _figure_rows():
+        want = render_figure(figure_arrays(FigureRequest.model_validate(row.body)), fmt)
+        assert isinstance(want, bytes) and len(want) > 10_000
+        out = service.tmp / f"{row.name}.{fmt}"
+        argv = [*service.cli_argv(row)[:-1], "--out", str(out)]  # no --json
+        r = subprocess.run(
+            [sys.executable, "-m", "rsfcli.main", *argv],
+            env=service.env,
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert r.returncode == 0, r.stderr[-400:]
+        got = {
+            "cli": out.read_bytes(),
+            "http": service._get(q, row.body, fmt).content,
+            "client": service.c.figure(row.body["name"], fmt, row.body.get("quality")),
+        }
+        for door, blob in got.items():
+            if blob != want:
+                digest = hashlib.sha256(blob).hexdigest()[:12]
+                bad.append(f"{row.name} x {door}: {len(blob)} bytes ({digest}) != library")
+    assert not bad, "\n".join(bad)
+
+
+def test_figure_list_agrees(service: Doors) -> None:
+    """The catalogue of figures: the library, `rsf figure --list --json`, HTTP, the client."""
+    import dataclasses
+
+    from rsfapp.adapter.figures import figure_list
+
+    want = _jsonable(figure_list())
+    r = subprocess.run(
+        [sys.executable, "-m", "rsfcli.main", "figure", "--list", "--json"],
+        env=service.env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stderr[-400:]
+    assert diff(want, json.loads(r.stdout)) == []
+    assert diff(want, service.h.get("/v1/figures").json()) == []
+    got = [dataclasses.asdict(f) for f in service.c.figures()]
+    assert diff(want["figures"], got) == []
 
 
 def test_get_forms(service: Doors) -> None:

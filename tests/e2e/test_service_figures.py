@@ -7,6 +7,7 @@ and sweep diagrams (partial and finished), and the 404/422 problem+json answers.
 
 from __future__ import annotations
 
+import json
 import math
 import struct
 import time
@@ -16,7 +17,7 @@ from typing import Any
 import httpx
 import pytest
 
-from rsfplots import FIGURES
+from rsfapp.requests.figures import FIGURES
 from tests.conftest import Worker
 
 pytestmark = pytest.mark.timeout(180)
@@ -57,7 +58,7 @@ def test_list_figures(c: httpx.Client) -> None:
     for f in body["figures"]:
         assert f["caption"].startswith(FIGURES[f["name"]].label) and len(f["caption"]) > 30
         assert f["url"] == f"/v1/figures/{f['name']}"
-    assert body["formats"] == ["png", "svg"] and "draft" in body["qualities"]
+    assert body["formats"] == ["png", "svg", "json"] and "draft" in body["qualities"]
 
 
 @pytest.mark.parametrize("name", list(FIGURES))
@@ -71,6 +72,19 @@ def test_each_figure_is_a_png(c: httpx.Client, fs_stack, name: str) -> None:
     again = c.get(f"/v1/figures/{name}", params={"quality": "draft", "format": "PNG"})
     assert again.headers["x-cache"] == "hit" and again.content == r.content
     assert f"figure-{name}-draft.png" in images(fs_stack[1])
+
+
+def test_figure_as_json(c: httpx.Client) -> None:
+    """The data of a figure: the figure adapter's answer (the same in this process)."""
+    from rsfapp.adapter.figures import figure
+    from rsfapp.requests.figures import FigureRequest
+
+    r = c.get("/v1/figures/continuum-modes", params={"format": "json", "quality": "draft"})
+    assert r.status_code == 200 and r.headers["content-type"] == "application/json"
+    want = figure(FigureRequest(name="continuum-modes", quality="draft"))
+    assert r.json() == json.loads(json.dumps(want))
+    again = c.get("/v1/figures/continuum-modes", params={"format": "json", "quality": "draft"})
+    assert again.headers["x-cache"] == "hit" and again.content == r.content
 
 
 def test_figure_as_svg(c: httpx.Client) -> None:
@@ -89,7 +103,6 @@ def test_unknown_figure_is_404_listing_names(c: httpx.Client) -> None:
     "query,field",
     [
         ({"format": "gif"}, "format"),
-        ({"format": "json"}, "format"),
         ({"quality": "best"}, "quality"),
     ],
 )
@@ -157,7 +170,7 @@ def test_openapi_documents_formats(c: httpx.Client) -> None:
         ("/v1/trajectory", "post", ["json", "png", "csv"]),
         ("/v1/analytic/u", "post", ["json", "png"]),
         ("/v1/sweeps/{sweep_id}/diagram", "get", ["json", "png"]),
-        ("/v1/figures/{name}", "get", ["png", "svg"]),
+        ("/v1/figures/{name}", "get", ["png", "svg", "json"]),
     ):
         op = spec[path][method]
         fmt = next(p for p in op["parameters"] if p["name"] == "format")

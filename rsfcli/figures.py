@@ -1,0 +1,72 @@
+"""`rsf figure`: a figure of the paper, regenerated from rsfcore through the figure
+question's request model (:class:`rsfapp.requests.figures.FigureRequest`) and adapter
+(:mod:`rsfapp.adapter.figures`), drawn by rsfplots; ``--json`` prints the data (the same
+JSON as ``GET /v1/figures/{name}?format=json``), ``--list`` the catalogue."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import typer
+
+from .common import emit, fail, given, run
+
+__all__ = ["figure_command"]
+
+
+def _print_list() -> None:
+    from rsfapp.requests.figures import FIGURES
+
+    width = max(len(n) for n in FIGURES)
+    for info in FIGURES.values():
+        cap = f"{info.label}: {info.caption}"
+        lines = textwrap.wrap(cap, width=100 - width - 2) or [""]
+        typer.echo(f"{info.name.ljust(width)}  {lines[0]}")
+        for ln in lines[1:]:
+            typer.echo(" " * (width + 2) + ln)
+        if info.note:
+            for ln in textwrap.wrap("note: " + info.note, width=100 - width - 2):
+                typer.echo(" " * (width + 2) + ln)
+
+
+def figure_command(
+    name: str | None, out: Path | None, list_: bool, quality: str | None, as_json: bool
+) -> None:
+    """List the figures (``list_``), print the data of ``name`` (``as_json``) or draw it
+    to ``out`` (default NAME.png).  Exit 2 on a usage error (no or unknown name, an
+    extension other than .png/.svg, an invalid quality), 1 if it could not be computed."""
+    from rsfapp.adapter import figures as adapter
+    from rsfapp.requests.figures import (
+        DEFAULT_FIGURE_FORMAT,
+        FIGURES,
+        IMAGE_FORMATS,
+        FigureRequest,
+    )
+
+    if list_:
+        if as_json:
+            emit(adapter.figure_list(), True, [])
+        else:
+            _print_list()
+        return
+    if not name:
+        fail("give a figure NAME or --list (names: " + ", ".join(FIGURES) + ")")
+        return
+    if name not in FIGURES:
+        fail(f"name: unknown figure {name!r} (valid range: one of " + ", ".join(FIGURES) + ")")
+    body = given(name=name, quality=quality)
+    if as_json and out is None:
+        emit(run(FigureRequest, body, adapter.figure), True, [])
+        return
+    target = Path(out) if out is not None else Path(f"{name}.{DEFAULT_FIGURE_FORMAT}")
+    if target.suffix.lower().lstrip(".") not in IMAGE_FORMATS:
+        fail(f"--out must end in .png or .svg, got {str(target)!r}")
+    data = run(FigureRequest, body, adapter.figure_arrays)
+    from rsfplots import render_figure
+
+    render_figure(data, target)
+    if as_json:
+        emit(run(FigureRequest, body, adapter.figure), True, [])
+    else:
+        typer.echo(f"wrote {target} ({FIGURES[name].label}; quality {data['quality']})")
