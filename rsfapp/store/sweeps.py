@@ -461,11 +461,10 @@ class SweepStore:
     def finish_chunk(self, sweep_id: str, idx: int, complete: bool) -> None:
         """Mark the chunk done (or, if incomplete, cancelled); close the sweep when all done.
 
-        A chunk becomes done only if its block is stored: a worker that finishes a chunk
-        of a sweep purged and re-submitted meanwhile (the same id) must not mark the new
-        sweep's chunk done without its block.  An incomplete chunk of a sweep that is
-        active again (cancelled, then resumed while this worker ran) goes back to
-        pending instead of cancelled, so the resumed sweep can still finish.
+        A chunk becomes done only if its block is stored (:meth:`_mark_done`).  An
+        incomplete chunk of a sweep that is active again (cancelled, then resumed while
+        this worker ran) goes back to pending instead of cancelled, so the resumed sweep
+        can still finish.
         """
         now = time.time()
         with self.db.write() as conn:
@@ -473,37 +472,47 @@ class SweepStore:
             if s is None:
                 return
             if complete:
-                stored = (
-                    select(sweep_blocks.c.idx)
-                    .where(and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
-                    .exists()
+                self._mark_done(conn, sweep_id, idx, now)
+                return
+            conn.execute(
+                update(chunks)
+                .where(and_(_chunk(sweep_id, idx), chunks.c.status == "running"))
+                .values(
+                    status="pending" if s in ACTIVE else "cancelled",
+                    owner=None,
+                    heartbeat=now,
                 )
-                conn.execute(
-                    update(chunks)
-                    .where(and_(_chunk(sweep_id, idx), stored))
-                    .values(status="done", heartbeat=now)
-                )
-            else:
-                conn.execute(
-                    update(chunks)
-                    .where(and_(_chunk(sweep_id, idx), chunks.c.status == "running"))
-                    .values(
-                        status="pending" if s in ACTIVE else "cancelled",
-                        owner=None,
-                        heartbeat=now,
-                    )
-                )
-            left = conn.execute(
-                select(func.count())
-                .select_from(chunks)
-                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status != "done"))
-            ).scalar()
-            if left == 0:
-                conn.execute(
-                    update(sweeps)
-                    .where(and_(sweeps.c.id == sweep_id, sweeps.c.status != "done"))
-                    .values(status="done", finished_at=now)
-                )
+            )
+
+    @staticmethod
+    def _mark_done(conn: Connection, sweep_id: str, idx: int, now: float) -> bool:
+        """Mark chunk ``idx`` done if its block is stored, and the sweep done when every
+        chunk is; True if the sweep is done.  Done only with the block: a worker that
+        finishes a chunk of a sweep purged and re-submitted meanwhile (the same id) must
+        not mark the new sweep's chunk done without its block."""
+        stored = (
+            select(sweep_blocks.c.idx)
+            .where(and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
+            .exists()
+        )
+        conn.execute(
+            update(chunks)
+            .where(and_(_chunk(sweep_id, idx), stored))
+            .values(status="done", heartbeat=now)
+        )
+        left = conn.execute(
+            select(func.count())
+            .select_from(chunks)
+            .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status != "done"))
+        ).scalar()
+        if left:
+            return False
+        conn.execute(
+            update(sweeps)
+            .where(and_(sweeps.c.id == sweep_id, sweeps.c.status != "done"))
+            .values(status="done", finished_at=now)
+        )
+        return True
 
     def complete_chunk(
         self,
@@ -529,20 +538,7 @@ class SweepStore:
                 i0, i1, data, errors = block
                 row = self._block_row(sweep_id, idx, i0, i1, data, errors)
                 stored = insert_ignore(conn, sweep_blocks, [row]) > 0
-            conn.execute(
-                update(chunks).where(_chunk(sweep_id, idx)).values(status="done", heartbeat=now)
-            )
-            left = conn.execute(
-                select(func.count())
-                .select_from(chunks)
-                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status != "done"))
-            ).scalar()
-            if left == 0:
-                conn.execute(
-                    update(sweeps)
-                    .where(and_(sweeps.c.id == sweep_id, sweeps.c.status != "done"))
-                    .values(status="done", finished_at=now)
-                )
+            if self._mark_done(conn, sweep_id, idx, now):
                 return Completed(stored, [])
             todo = self._dispatch(conn, sweep_id, window) if s in ACTIVE else []
             return Completed(stored, todo)
