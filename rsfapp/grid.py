@@ -22,7 +22,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from rsfcore import units
+from rsfcore import limits, units
 from rsfcore.params import ParameterError
 from rsfcore.units import PhysicalInputs
 
@@ -520,7 +520,9 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
         "vo": fx.vo,
         "size": fx.size,
         kappa_param: (
-            fx.kappa if uses_kappa else (1.0 if fx.kappa_ratio is None else fx.kappa_ratio)
+            fx.kappa
+            if uses_kappa
+            else (limits.KAPPA_RATIO.default if fx.kappa_ratio is None else fx.kappa_ratio)
         ),
     }
     if phys is not None:  # the one conversion SI -> dimensionless (rsfcore.units)

@@ -274,7 +274,9 @@ class SweepFixed(_Model):
     kappa_ratio: float | None = F(
         None,
         "null or [0, 1e6]",
-        "kappa/kappa_crit (-); default 1 unless kappa is given or swept.",
+        f"kappa/kappa_crit (-); default {limits.format_number(limits.KAPPA_RATIO.default)} "
+        "(rsfcore.limits.KAPPA_RATIO, as rsfcore.diagram.stability_diagram) unless kappa is "
+        "given or swept.",
         name="kappa_ratio",
         ge=0,
         le=1e6,

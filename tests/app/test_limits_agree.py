@@ -206,3 +206,44 @@ def test_cli_si_options_agree_with_limits(group: str, command: str) -> None:
         if name in by_name:
             assert si_range_text(limit) in (by_name[name].help or ""), (command, name)
     assert by_name["a"].required and by_name["v_star_m_s"].required
+
+
+def test_sweep_and_diagram_defaults_are_the_library_s() -> None:
+    """An omitted fixed parameter of a sweep (POST /v1/sweeps, `rsf diagram`, the client,
+    the dashboard's empty field) means what rsfcore.diagram.stability_diagram's omitted
+    keyword means: b/a, kappa/kappa_crit, eps, v_o and rtol from rsfcore.limits (the sweep
+    defaulted kappa/kappa_crit to 1, the library to 2, until 0.2)."""
+    import inspect
+
+    from rsfapp.grid import expand
+    from rsfcore.diagram import stability_diagram
+
+    lib = {
+        k: p.default
+        for k, p in inspect.signature(stability_diagram).parameters.items()
+        if k in ("ba", "kappa_ratio", "eps", "vo", "rtol")
+    }
+    assert lib == {
+        "ba": limits.BA.default,
+        "kappa_ratio": limits.KAPPA_RATIO.default,
+        "eps": limits.EPS.default,
+        "vo": limits.VO.default,
+        "rtol": limits.RTOL.default,
+    }
+    # two axes that fix nothing else: every fixed value is the model's default
+    req = requests.SweepRequest.model_validate(
+        {"axes": [{"name": "size", "values": [1.0]}, {"name": "eps", "values": [0.1]}]}
+    )
+    spec = expand(req, 10)
+    assert spec.kappa_param == "kappa_ratio"
+    assert {k: spec.fixed[k] for k in ("ba", "kappa_ratio", "vo")} == {
+        k: lib[k] for k in ("ba", "kappa_ratio", "vo")
+    }
+    assert spec.rtol == lib["rtol"]
+    req = requests.SweepRequest.model_validate(
+        {"axes": [{"name": "size", "values": [1.0]}, {"name": "kappa_ratio", "values": [3.0]}]}
+    )
+    assert expand(req, 10).fixed["eps"] == lib["eps"]
+    # the dashboard reads the default from the field's description (OpenAPI)
+    desc = requests.SweepFixed.model_fields["kappa_ratio"].description or ""
+    assert f"default {limits.format_number(lib['kappa_ratio'])} " in desc
