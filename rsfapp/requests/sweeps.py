@@ -274,7 +274,7 @@ class SweepFixed(_Model):
     kappa_ratio: float | None = F(
         None,
         "null or [0, 1e6]",
-        f"kappa/kappa_crit (-); default {limits.format_number(limits.KAPPA_RATIO.default)} "
+        f"kappa/kappa_crit (-); default {limits.KAPPA_RATIO.default:g} "
         "(rsfcore.limits.KAPPA_RATIO, as rsfcore.diagram.stability_diagram) unless kappa is "
         "given or swept.",
         name="kappa_ratio",
