@@ -38,4 +38,7 @@ __all__ = ["NUMERICS_VERSION"]
 #:    kind of a critical size follows the exact signs of kappa - kappa_crit and 1 - x of
 #:    the input doubles (x = 1 - 5.6e-17 is finite, was infinite); kappa = 0 load-point
 #:    jumps are "infinite"; v_o in (0, 1e-300) is rejected.
-NUMERICS_VERSION = "5"
+#: 6: trajectories of a named perturbation at v_o != 1 are sampled in the v_o = 1 frame, as
+#:    their outcome is integrated (samples move at the level of the tolerance; far from
+#:    v_o = 1 the own frame's rounding of the start cost up to 100x the steps).
+NUMERICS_VERSION = "6"

@@ -153,6 +153,44 @@ def test_samples_at_requested_times_match_independent_scipy() -> None:
     assert np.allclose(r.trajectory.psi, sol.y[1], rtol=1e-8, atol=1e-8)
 
 
+def test_samples_far_from_vo_1_match_independent_scipy() -> None:
+    """A named perturbation at v_o far from 1 is sampled in the v_o = 1 frame and mapped back
+    (phi + ln v_o, ln theta - ln v_o, T / v_o; slip and load point unchanged): every column
+    against scipy DOP853 on the plain equations in the trajectory's own frame (the slip as a
+    third component, the load point v_o T).  Tolerance 1e-8 as in the test above (the
+    engine runs at rtol 1e-10; scipy at 1e-12), relative to the column's scale."""
+    from scipy.integrate import solve_ivp
+
+    ba, kappa, eps, vo, dv = 2.0, 2.0, 0.25, 1e-3, 2.0
+    vn = vo * (1.0 + dv)
+
+    def rhs(t: float, y: np.ndarray) -> list[float]:
+        phi, psi, _ = y
+        L = phi + (psi - phi) / ba
+        G = math.expm1(-eps * L) / eps
+        e = math.exp(phi)
+        return [kappa * (vn - e) - ba * G * e, kappa * (vn - e), e]
+
+    times = np.linspace(0.0, 0.6 / vo, 13)
+    r = simulate(Params(ba, kappa, eps, vo), "load-point-jump", dv, times=times)
+    tr = r.trajectory
+    lv = math.log(vo)
+    sol = solve_ivp(
+        rhs, (0, times[-1]), [lv, (1 - ba) * lv, 0.0], method="DOP853", rtol=1e-12,
+        atol=1e-12, t_eval=times,
+    )  # fmt: skip
+    assert np.allclose(tr.T, times, rtol=1e-13, atol=1e-15)
+    assert np.allclose(tr.phi, sol.y[0], rtol=1e-8, atol=1e-8)
+    assert np.allclose(tr.psi, sol.y[1], rtol=1e-8, atol=1e-8)
+    assert np.allclose(tr.ln_theta, (sol.y[1] - sol.y[0]) / ba, rtol=1e-8, atol=1e-8)
+    assert np.allclose(tr.slip, sol.y[2], rtol=1e-8, atol=1e-8)
+    assert np.allclose(tr.load_point, vn * times, rtol=1e-8, atol=1e-8)
+    # n_points (tau sampling) ends at the return time the classification reports
+    r = simulate(Params(ba, kappa, eps, vo), "load-point-jump", 0.5, n_points=9)
+    assert r.outcome == "stable" and r.trajectory is not None
+    assert r.trajectory.T[-1] == pytest.approx(r.return_time, rel=1e-9)
+
+
 def test_sampling_modes_and_t_end() -> None:
     p = Params(2, 2, 0.25, 1)
     r = simulate(p, "velocity-jump", 2.0, n_points=7)
