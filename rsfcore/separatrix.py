@@ -139,6 +139,9 @@ _RELAX_EXPLICIT = False
 #: kappa = 23741 (load-point) on the third (2k + 2k + 50k); the last, unrelaxed, is the
 #: slow safety net (~1e6 at b/a = 1e6)
 _RETRIES = ((0.1, 1.0e6), (0.1, 1.0e6), (0.01, 1.0e3), (0.01, 1.0))
+#: a first run that exhausts the step budget is repeated at 10x the tolerance, up to this
+#: (the answer then reports its own, larger, error estimate)
+_LADDER_RTOL_MAX = 1.0e-10
 #: contraction profile buffer (steps per phase) of the retries; a run with more steps
 #: leaves no profile (the next one relaxes by the linear model)
 _PROF_LEN = 8192
@@ -737,6 +740,21 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
     st, val, err, nr, _ = _separatrix_run(
         kappa, kc, eps, pert, rtol, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
     )
+    if st == S_BUDGET:
+        # the requested tolerance is beyond the step budget (the stiff corner at rtol
+        # <= 1e-12, where RODAS4's order loss makes steps ~ rtol/kappa): the answer at the
+        # tightest tolerance within it, 10x looser at a time up to _LADDER_RTOL_MAX, with
+        # its own error estimate (accuracy_met False) instead of a bisection on classify
+        # (2 - 5 s); retries (tighter still) would run out of budget too
+        r = rtol
+        nr_last = nr
+        while st == S_BUDGET and r * 10.0 <= _LADDER_RTOL_MAX * (1.0 + 1e-9):
+            r *= 10.0
+            st, val, err, nr_last, _ = _separatrix_run(
+                kappa, kc, eps, pert, r, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
+            )
+            nr += nr_last
+        return st, val, err + _rounding_floor(st, val, pert, nr_last), nr
     fl = _rounding_floor(st, val, pert, nr)
     # a retry tightens the integration, not the rounding: none once rounding takes half
     if st != S_OK or err + fl <= rtol * abs(val) or fl > 0.5 * rtol * abs(val):
@@ -755,9 +773,17 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
             pn[cur], prof[1 - cur], na, nb_,
         )  # fmt: skip
         nr += nr2
+        if st2 == S_BUDGET:
+            # every later retry is tighter (a smaller rtol factor or relaxation cap), so
+            # it would run out of budget too (0.3 - 0.5 s each at b/a = kappa = 1e6,
+            # rtol 1e-12): the best run so far stands, with its estimate
+            break
         if st2 == S_OK:
-            st, val, err, nr_run = st2, val2, err2, nr2
-            if err + _rounding_floor(st, val, pert, nr_run) <= rtol * abs(val):
+            fl2 = _rounding_floor(st2, val2, pert, nr2)
+            if err2 + fl2 < err + _rounding_floor(st, val, pert, nr_run):
+                # the run with the smaller error bound is kept (both are bounds)
+                st, val, err, nr_run = st2, val2, err2, nr2
+            if err2 + fl2 <= rtol * abs(val2):
                 break
         na = max(pn[cur, 0], 0)
         nb_ = max(pn[cur, 1], 0)
