@@ -5,9 +5,11 @@ workers acting as two hosts (solo pool, one process each), as tests/e2e/test_mul
 starts them.  Steps:
 
 1. rsfcore alone: ``rsfcore.batch.critical_points`` on the same points, two processes in
-   parallel (the worker cores), parameters generated first and not timed.
+   parallel (the worker cores), parameters generated first and not timed, blocks dealt
+   out alternately; run before the sweep and again after it (the ratio is against the
+   mean: the machine is shared and its load moves).
 2. The sweep: critical sizes over a 3-D grid (kappa_ratio, eps, ba; default "cheap"
-   points: kappa_ratio < 1, decided in closed form), submitted and timed to ``done``;
+   points: kappa_ratio < 1, decided in closed form), submitted and timed to ``done`` (the server's created_at -> finished_at);
    points/s against step 1, bytes stored per point (result blobs; PostgreSQL table size),
    peak RSS of the API and of each worker (psutil, sampled every 0.1 s, process trees).
 3. Downloads, one at a time, each with the API's peak RSS over its idle RSS, time to first
@@ -17,7 +19,7 @@ starts them.  Steps:
 
     python bench/bench_sweep_e2e.py --shape 100 100 100 [--formats netcdf,csv,json]
 
-Prints the figures and writes them as JSON to bench/out/bench_sweep_e2e.json.  Timing
+Prints the figures and writes them as JSON to bench/out/bench_sweep_e2e_<kind>_<n>.json.  Timing
 only: correctness of the same paths is tested in tests/ (multihost e2e, subsets, lazy).
 """
 
@@ -36,7 +38,6 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-import numpy as np
 import psutil
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,6 +54,12 @@ from tests.conftest import (  # noqa: E402
 )
 
 
+def _epoch(iso: str) -> float:
+    from datetime import datetime
+
+    return datetime.fromisoformat(iso.replace("Z", "+00:00")).timestamp()
+
+
 def body(shape: tuple[int, int, int], cheap: bool) -> dict[str, Any]:
     lo, hi = (0.3, 0.95) if cheap else (1.01, 5.0)
     return {
@@ -65,8 +72,8 @@ def body(shape: tuple[int, int, int], cheap: bool) -> dict[str, Any]:
     }
 
 
-def _core_part(args: tuple[dict[str, Any], int, int]) -> tuple[int, float]:
-    b, i0, i1 = args
+def _core_part(args: tuple[dict[str, Any], list[tuple[int, int]]]) -> tuple[int, float, float]:
+    b, parts = args
     from rsfapp.grid import expand
     from rsfapp.requests import SweepRequest
     from rsfcore import batch
@@ -74,22 +81,47 @@ def _core_part(args: tuple[dict[str, Any], int, int]) -> tuple[int, float]:
     spec = expand(SweepRequest(**b), 10**9)
     p = spec.params(0, 8)
     batch.critical_points(p["ba"], p["kappa"], p["eps"], p["vo"], rtol=spec.rtol)  # compile
-    t_all = 0.0
-    step = 1_000_000
-    for a in range(i0, i1, step):
-        p = spec.params(a, min(i1, a + step))
-        t = time.perf_counter()
+    t_all = cpu = 0.0
+    m = 0
+    for i0, i1 in parts:
+        p = spec.params(i0, i1)
+        t, c = time.perf_counter(), time.process_time()
         batch.critical_points(p["ba"], p["kappa"], p["eps"], p["vo"], rtol=spec.rtol)
         t_all += time.perf_counter() - t
-    return i1 - i0, t_all
+        cpu += time.process_time() - c
+        m += i1 - i0
+    return m, t_all, cpu
 
 
-def rsfcore_rate(b: dict[str, Any], n: int, procs: int) -> float:
-    """Points/s of the batch kernel in ``procs`` processes (kernel time only)."""
-    cuts = np.linspace(0, n, procs + 1).astype(int)
+def rsfcore_rate(b: dict[str, Any], n: int, procs: int) -> tuple[float, float]:
+    """Points/s of the batch kernel in ``procs`` processes (kernel time only, parameters
+    generated outside the timing).  The points are dealt out in blocks of
+    min(10^6, n/100) points, block k to process k mod procs, so both processes get the
+    same mix of cheap and slow parts of the grid (contiguous halves would make the
+    slower half the bottleneck and flatter the service).  Returns (points/s of wall
+    time, points per CPU second)."""
+    blk = max(1, min(1_000_000, n // 100))
+    blocks = [(i, min(n, i + blk)) for i in range(0, n, blk)]
     with ProcessPoolExecutor(procs) as ex:
-        res = list(ex.map(_core_part, [(b, int(cuts[k]), int(cuts[k + 1])) for k in range(procs)]))
-    return sum(m for m, _ in res) / max(t for _, t in res)
+        res = list(ex.map(_core_part, [(b, blocks[k::procs]) for k in range(procs)]))
+    pts = sum(r[0] for r in res)
+    return pts / max(r[1] for r in res), pts / sum(r[2] for r in res)
+
+
+def tree_cpu(pid: int) -> float:
+    """CPU seconds (user + system) of a process, its live descendants and the children it
+    has waited for."""
+    try:
+        p = psutil.Process(pid)
+        ps = [p, *p.children(recursive=True)]
+    except psutil.NoSuchProcess:
+        return 0.0
+    total = 0.0
+    for q in ps:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            c = q.cpu_times()
+            total += c.user + c.system + c.children_user + c.children_system
+    return total
 
 
 class RssSampler:
@@ -129,11 +161,17 @@ class RssSampler:
         self._t.join()
 
 
-def download(url: str, params: dict[str, str], api_pid: int) -> dict[str, Any]:
+def download(
+    url: str, params: dict[str, str], api_pid: int, max_s: float | None = None
+) -> dict[str, Any]:
+    """One download: bytes, time to first byte, total time, the API's idle RSS and peak
+    over it.  With ``max_s`` reading stops after that many seconds (the figures are then
+    those of the part read: ``complete`` false, CSV rows per second)."""
     idle = RssSampler.tree_rss(api_pid)
     t0 = time.perf_counter()
     ttfb = None
-    n = 0
+    n = rows = 0
+    complete = True
     with (
         RssSampler({"api": api_pid}) as s,
         httpx.stream("GET", url, params=params, timeout=3600) as r,
@@ -143,13 +181,23 @@ def download(url: str, params: dict[str, str], api_pid: int) -> dict[str, Any]:
             if ttfb is None:
                 ttfb = time.perf_counter() - t0
             n += len(piece)
-    return {
+            rows += piece.count(b"\n")
+            if max_s is not None and time.perf_counter() - t0 > max_s:
+                complete = False
+                break
+    total = time.perf_counter() - t0
+    out = {
         "bytes": n,
+        "complete": complete,
         "ttfb_s": round(ttfb or 0.0, 3),
-        "total_s": round(time.perf_counter() - t0, 2),
+        "total_s": round(total, 2),
+        "mb_per_s": round(n / 1e6 / max(total - (ttfb or 0.0), 1e-9), 2),
         "api_idle_rss_mb": round(idle / 2**20, 1),
         "api_peak_over_idle_mb": round((s.peak["api"] - idle) / 2**20, 1),
     }
+    if params.get("format") == "csv":
+        out["rows_per_s"] = round(rows / max(total - (ttfb or 0.0), 1e-9))
+    return out
 
 
 def main() -> None:
@@ -159,6 +207,13 @@ def main() -> None:
     ap.add_argument("--formats", default="netcdf,csv,json")
     ap.add_argument("--timeout", type=float, default=3600.0)
     ap.add_argument("--no-pair", action="store_true", help="skip two downloads at once")
+    ap.add_argument(
+        "--max-download-s",
+        type=float,
+        default=None,
+        help="stop reading a whole-sweep download after this many seconds (peak RSS and "
+        "first byte are still measured; the rate gives the projected total)",
+    )
     a = ap.parse_args()
     shape = (a.shape[0], a.shape[1], a.shape[2])
     n = shape[0] * shape[1] * shape[2]
@@ -167,9 +222,12 @@ def main() -> None:
     out["load_before"] = os.getloadavg()
     print(f"sweep {shape} = {n:.3g} points ({'cheap' if not a.expensive else 'expensive'})")
 
-    rate_core = rsfcore_rate(b, n, 2)
+    rate_core, cpu_core = rsfcore_rate(b, n, 2)
     out["rsfcore_points_per_s_2_procs"] = round(rate_core)
-    print(f"rsfcore batch kernel, 2 processes: {rate_core:,.0f} points/s")
+    print(
+        f"rsfcore batch kernel, 2 processes: {rate_core:,.0f} points/s, "
+        f"{cpu_core:,.0f} points per CPU second"
+    )
 
     base = Path(tempfile.mkdtemp(prefix="rsf-bench-e2e-"))
     bindir = postgres_bindir()
@@ -210,6 +268,9 @@ def main() -> None:
         w = c.post("/v1/sweeps", json=body((4, 4, 4), not a.expensive)).json()
         while c.get(f"/v1/sweeps/{w['id']}").json()["status"] != "done":
             time.sleep(0.2)
+        pg_pid = int((pg.data / "postmaster.pid").read_text().split()[0])
+        cpu_pids = {**pids, "postgres": pg_pid, "redis": red.pid}
+        cpu0 = {k: tree_cpu(v) for k, v in cpu_pids.items()}
         with RssSampler(pids) as rss:
             t0 = time.perf_counter()
             r = c.post("/v1/sweeps", json=b)
@@ -220,16 +281,41 @@ def main() -> None:
                 if st["status"] == "done":
                     break
                 assert time.perf_counter() - t0 < a.timeout, st
-                time.sleep(0.5)
-            dt = time.perf_counter() - t0
-        out["sweep_s"] = round(dt, 1)
+                time.sleep(0.1)
+            wall = time.perf_counter() - t0
+        # submitted -> last chunk stored, by the server's clock (ms; no polling delay)
+        dt = _epoch(st["finished_at"]) - _epoch(st["created_at"])
+        out["sweep_wall_s"] = round(wall, 2)
+        cpu = {k: round(tree_cpu(v) - cpu0[k], 2) for k, v in cpu_pids.items()}
+        out["sweep_cpu_s"] = cpu
+        out["sweep_s"] = round(dt, 3)
         out["n_chunks"] = st["n_chunks"]
         out["service_points_per_s"] = round(n / dt)
+        # the reference again, right after the sweep (the machine is shared: its load
+        # moves); the ratio is taken against the mean of the two
+        rate_after, cpu_after = rsfcore_rate(b, n, 2)
+        out["rsfcore_points_per_s_2_procs_after"] = round(rate_after)
+        rate_core = 0.5 * (rate_core + rate_after)
         out["service_over_rsfcore"] = round(n / dt / rate_core, 3)
+        # the same in CPU time (independent of the other jobs' load): rsfcore's points per
+        # CPU second of kernel against the service's per CPU second of workers, API,
+        # PostgreSQL and Redis together (and of the workers alone)
+        cpu_core = 0.5 * (cpu_core + cpu_after)
+        out["rsfcore_points_per_cpu_s"] = round(cpu_core)
+        all_cpu = sum(cpu.values())
+        work_cpu = sum(v for k, v in cpu.items() if k.startswith("host-"))
+        out["service_over_rsfcore_cpu"] = round(n / all_cpu / cpu_core, 3)
+        out["workers_over_rsfcore_cpu"] = round(n / work_cpu / cpu_core, 3)
         out["peak_rss_mb"] = {k: round(v / 2**20, 1) for k, v in rss.peak.items()}
         print(
-            f"service: {n / dt:,.0f} points/s in {dt:.1f} s ({st['n_chunks']} chunks) = "
-            f"{out['service_over_rsfcore']:.2f} x rsfcore; peak RSS MB {out['peak_rss_mb']}"
+            f"service: {n / dt:,.0f} points/s in {dt:.2f} s ({st['n_chunks']} chunks) = "
+            f"{out['service_over_rsfcore']:.3f} x rsfcore (mean of {out['rsfcore_points_per_s_2_procs']:,}"
+            f" before and {rate_after:,.0f} points/s after); peak RSS MB {out['peak_rss_mb']}"
+        )
+        print(
+            f"CPU seconds {cpu}: per CPU second {out['service_over_rsfcore_cpu']:.3f} x rsfcore "
+            f"({cpu_core:,.0f} points per CPU s); workers alone "
+            f"{out['workers_over_rsfcore_cpu']:.3f} x"
         )
         from sqlalchemy import create_engine, text
 
@@ -249,7 +335,7 @@ def main() -> None:
         data = f"{url}/v1/sweeps/{sid}/data"
         dl: dict[str, Any] = {}
         for fmt in a.formats.split(","):
-            dl[fmt] = download(data, {"format": fmt}, api.pid)
+            dl[fmt] = download(data, {"format": fmt}, api.pid, a.max_download_s)
             print(f"download {fmt}: {dl[fmt]}")
         k = max(1, shape[0] // 100)
         dl["netcdf_1pct_slice"] = download(
@@ -293,7 +379,8 @@ def main() -> None:
         pg.destroy()
     out["load_after"] = os.getloadavg()
     (ROOT / "bench" / "out").mkdir(exist_ok=True)
-    (ROOT / "bench" / "out" / "bench_sweep_e2e.json").write_text(json.dumps(out, indent=1))
+    tag = f"{'expensive' if a.expensive else 'cheap'}_{n:.0e}".replace("+", "")
+    (ROOT / "bench" / "out" / f"bench_sweep_e2e_{tag}.json").write_text(json.dumps(out, indent=1))
     print(json.dumps(out))
 
 

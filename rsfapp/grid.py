@@ -741,12 +741,13 @@ def _check_combinations(spec: SweepSpec, where: dict[str, str]) -> None:
         raise SpecError(fld, f"kappa = {kr:g}*({ba:g}-1) exceeds 1e6", valid)
 
 
-#: Expected seconds of work per point, for the default chunk size (measured on the
-#: compiled batch kernel, one core: 7-400 us per finite critical size with the
-#: separatrix method, depending on b/a and kappa; negative sizes are classified one by
-#: one, ~100 us; a point decided in closed form, ~0.2 us of kernel plus ~0.1 us of
-#: parameters, encoding and storage).
-_COST_S = {"critical": 3e-5, "classify": 1e-4, "closed_form": 3e-7}
+#: Expected seconds of work per point, for the default chunk size, measured on the
+#: compiled batch kernel on one core of the development machine: a finite critical size
+#: by the separatrix method 60-130 us on average (3000 random points over
+#: kappa/kappa_crit 1.01-5, eps 0-0.6, b/a 1.2-20: 126 us at load 8; up to ~400 us next
+#: to kappa_crit); negative sizes are classified one by one, ~100 us; a point decided in
+#: closed form ~0.2 us of kernel plus ~0.1 us of parameters, encoding and storage.
+_COST_S = {"critical": 1e-4, "classify": 1e-4, "closed_form": 3e-7}
 #: Points of the spec whose kind :func:`cost_per_point` looks at (seeded, spread over
 #: the whole sweep): the estimated fraction of separatrix points is within ~1.5 % (one
 #: standard deviation of a binomial fraction at this size).
@@ -841,7 +842,7 @@ def _negative_sizes(spec: SweepSpec) -> bool:
 def plan_chunks(spec: SweepSpec, settings: Settings, requested: int | None = None) -> int:
     """Points per chunk: ``requested``, else about ``settings.chunk_seconds`` of work at
     the estimated cost per point (:func:`cost_per_point`: a sweep of points decided in
-    closed form gets chunks of up to MAX_CHUNK points, one of separatrix points ~10^4),
+    closed form gets chunks of up to MAX_CHUNK points, one of separatrix points ~2 x 10^4),
     with at least _MIN_CHUNKS chunks, at least 64 chunks unless that leaves less than
     _MIN_CHUNK_S of work in one, whole rows of the grid's trailing axes
     (:func:`aligned_chunk`), and at most ``settings.sweep_max_chunks`` chunks."""

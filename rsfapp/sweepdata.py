@@ -55,6 +55,7 @@ from rsfcore.jsonsafe import finite_or_none
 from rsfcore.params import ParameterError
 
 from .grid import SpecError, SweepSpec, si_to_size
+from .numtext import float_texts, int_texts, json_floats, json_ints
 from .store.sweeps import SweepStore
 from .sweepselect import (
     FILL,
@@ -421,39 +422,33 @@ def csv_rows(
         g = _slab_values(reader, spec, slab, need, errors="failed" in cols)
         a = g.arrays
         done = a["computed"].astype(bool)
-        columns: list[list[str]] = [[str(i) for i in flat.tolist()]]
-        columns += [_reprs(vals[m]) for m in names]
+        columns: list[list[str]] = [int_texts(flat)]
+        columns += [float_texts(vals[m]) for m in names]
         if sizes is not None:
-            columns.append(_reprs(sizes, nan=""))
+            columns.append(float_texts(sizes, nan=""))
         for c in cols:
             x = a[c]
-            if c == "kind":
-                col = _KIND_TEXT[np.where(x >= 0, x + 1, 0)].tolist()
-            elif c == "outcome":
-                col = _OUTCOME_TEXT[np.where(x >= 0, x + 1, 0)].tolist()
-            elif c == "method":
-                col = _METHOD_TEXT[np.where(x >= 0, x + 1, 0)].tolist()
+            if c in _CODE_TEXT:  # codes -> labels (object arrays: tolist only increfs)
+                col = _CODE_TEXT[c][np.maximum(x.astype(np.int64) + 1, 0)].tolist()
             elif c == "failed":
-                col = [str(int(v)) for v in x.tolist()]
+                col = int_texts(x)
             else:
-                col = _reprs(x, nan="")
+                col = float_texts(x, nan="")
             columns.append(_blank(col, done))
             if c == "failed":
                 errs = [""] * flat.size
                 for k, msg in g.errors.items():
                     errs[k] = _quote(msg)
                 columns.append(errs)
-        yield "".join(",".join(row) + "\n" for row in zip(*columns, strict=True))
+        yield "\n".join(map(",".join, zip(*columns, strict=True))) + "\n"
 
 
-_KIND_TEXT = np.array(["", *KINDS])
-_OUTCOME_TEXT = np.array(["", *_OUTCOMES])
-_METHOD_TEXT = np.array(["", *(m.split(":")[0] for m in METHODS)])
-
-
-def _reprs(x: NDArray[Any], nan: str = "") -> list[str]:
-    """Shortest round-trip text of each float ('inf' kept; NaN -> ``nan``)."""
-    return [nan if v != v else repr(v) for v in x.astype(np.float64).tolist()]
+#: CSV text of the codes of ``kind``, ``outcome`` and ``method`` at code + 1 ("" at -1).
+_CODE_TEXT: dict[str, NDArray[np.object_]] = {
+    "kind": np.array(["", *KINDS], dtype=object),
+    "outcome": np.array(["", *_OUTCOMES], dtype=object),
+    "method": np.array(["", *(m.split(":")[0] for m in METHODS)], dtype=object),
+}
 
 
 def _blank(col: list[str], done: NDArray[np.bool_]) -> list[str]:
@@ -483,11 +478,7 @@ def swept_at(spec: SweepSpec, flat: NDArray[np.int64]) -> dict[str, NDArray[np.f
 
 
 def _jlist(a: NDArray[Any], kind: str) -> str:
-    if kind == "f":
-        return (
-            "[" + ",".join(repr(float(x)) if math.isfinite(x) else "null" for x in a.tolist()) + "]"
-        )
-    return json.dumps(a.astype(int).tolist())
+    return json_floats(a) if kind == "f" else json_ints(a)
 
 
 def json_chunks(

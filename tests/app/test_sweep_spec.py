@@ -106,7 +106,7 @@ def test_chunk_plan() -> None:
     )
     assert plan_chunks(cheap, s) == MAX_CHUNK
     assert plan_chunks(cheap, s, 7) == 1000  # at most sweep_max_chunks chunks
-    # the same grid of separatrix points: ~2 s of work a chunk (2 s / 30 us), in rows
+    # the same grid of separatrix points: ~2 s of work a chunk (2 s / 100 us), in rows
     hard = spec_of(
         {
             "axes": [
@@ -118,7 +118,7 @@ def test_chunk_plan() -> None:
         }
     )
     c = plan_chunks(hard, s)
-    assert c == 50_000  # 66,666 points of 30 us, cut to 5 rows of 10^4 (5 divides 100)
+    assert c == 20_000  # 2 rows of 10^4
     assert 1000 <= -(-(10**8) // c) <= s.sweep_max_chunks
 
 
