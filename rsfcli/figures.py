@@ -36,7 +36,6 @@ def figure_command(
     """List the figures (``list_``), print the data of ``name`` (``as_json``) or draw it
     to ``out`` (default NAME.png).  Exit 2 on a usage error (no or unknown name, an
     extension other than .png/.svg, an invalid quality), 1 if it could not be computed."""
-    from rsfapp.adapter import figures as adapter
     from rsfapp.requests.figures import (
         DEFAULT_FIGURE_FORMAT,
         FIGURES,
@@ -44,11 +43,13 @@ def figure_command(
         FigureRequest,
     )
 
+    if list_ and not as_json:  # the catalogue alone: no numerics imported (fast)
+        _print_list()
+        return
+    from rsfapp.adapter import figures as adapter
+
     if list_:
-        if as_json:
-            emit(adapter.figure_list(), True, [])
-        else:
-            _print_list()
+        emit(adapter.figure_list(), True, [])
         return
     if not name:
         fail("give a figure NAME or --list (names: " + ", ".join(FIGURES) + ")")

@@ -18,9 +18,12 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from ._cache import configure as _configure_kernel_cache
+from ._kernel_load import install as _install_lean_kernel_load
 
-# before any kernel module imports numba: one per-user cache of compiled kernels
+# before any kernel module imports numba: one per-user cache of compiled kernels, loaded
+# without numba's whole compiler set-up (rsfcore/_kernel_load.py)
 _configure_kernel_cache()
+_install_lean_kernel_load()
 
 from ._version import NUMERICS_VERSION  # noqa: E402
 

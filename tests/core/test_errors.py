@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -49,3 +50,43 @@ def test_finite_helpers() -> None:
         "a": [None, 1.0],
         "b": None,
     }
+
+
+def _jsonsafe_item_by_item(x: object) -> object:
+    """The reference: jsonsafe as it was before sequences of finite floats were copied
+    whole (every item converted on its own)."""
+    if isinstance(x, dict):
+        return {str(k): _jsonsafe_item_by_item(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonsafe_item_by_item(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return [_jsonsafe_item_by_item(v) for v in x.tolist()]
+    if isinstance(x, (float, np.floating)):
+        return finite_or_none(x)
+    return x
+
+
+@pytest.mark.parametrize(
+    "value",
+    [
+        [1.0, 2.5, -3.0],
+        (1.0, 2.0),
+        [],
+        [1.0, float("nan")],
+        [1.0, float("inf"), -float("inf")],
+        [1e308, 1e308],  # a finite sequence whose sum overflows
+        [np.float64(1.5), 2.0, np.float64(np.inf)],
+        [1.0, 2],
+        np.array([1.0, 2.0, 3.0]),
+        np.array([1.0, np.nan]),
+        np.array([[1.0, 2.0], [3.0, np.inf]]),
+        np.array([[1.0, 2.0], [3.0, 4.0]]),
+        np.zeros(0),
+        {"r": np.linspace(0.0, 1.0, 10_001), "s": [0.5] * 1000 + [float("nan")]},
+    ],
+)
+def test_jsonsafe_fast_paths_agree_with_item_by_item(value: object) -> None:
+    out = jsonsafe(value)
+    ref = _jsonsafe_item_by_item(value)
+    assert out == ref
+    assert json.dumps(out, allow_nan=False) == json.dumps(ref, allow_nan=False)
