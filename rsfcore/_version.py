@@ -41,4 +41,8 @@ __all__ = ["NUMERICS_VERSION"]
 #: 6: trajectories of a named perturbation at v_o != 1 are sampled in the v_o = 1 frame, as
 #:    their outcome is integrated (samples move at the level of the tolerance; far from
 #:    v_o = 1 the own frame's rounding of the start cost up to 100x the steps).
+#:    Separatrix: runs at no looser than rtol 1e-6 (critical sizes asked at rtol 1e-3 ..
+#:    1e-6 move within their claims); a first run beyond the step budget is repeated 10x
+#:    looser (was: bisection on classify); of the retries the run with the smaller error
+#:    bound is kept.
 NUMERICS_VERSION = "6"

@@ -142,6 +142,11 @@ _RETRIES = ((0.1, 1.0e6), (0.1, 1.0e6), (0.01, 1.0e3), (0.01, 1.0))
 #: a first run that exhausts the step budget is repeated at 10x the tolerance, up to this
 #: (the answer then reports its own, larger, error estimate)
 _LADDER_RTOL_MAX = 1.0e-10
+#: separatrix runs use no looser tolerance than this: at b/a = 6e5, kappa = 1e6 a run at
+#: rtol 1e-3 ran out of its budget (2.4e6 right-hand sides, 0.5 s; no RODAS4 relaxation
+#: there) where one at 1e-6 takes 2.4e3 (0.2 ms); non-stiff runs cost ~2x more at 1e-6
+#: than at 1e-3 (DOP853 is of order 8), a few hundredths of a ms
+_RUN_RTOL_MAX = 1.0e-6
 #: contraction profile buffer (steps per phase) of the retries; a run with more steps
 #: leaves no profile (the next one relaxes by the linear model)
 _PROF_LEN = 8192
@@ -737,8 +742,11 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
     # run's profile instead of the linear model
     tiny = np.empty((2, 2, 1))
     tiny_n = np.zeros(2, dtype=np.int64)
+    # runs at no looser than _RUN_RTOL_MAX (the requested rtol is what the answer is
+    # checked against): in the stiff corner a loose tolerance ran out of budget
+    rr = min(rtol, _RUN_RTOL_MAX)
     st, val, err, nr, _ = _separatrix_run(
-        kappa, kc, eps, pert, rtol, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
+        kappa, kc, eps, pert, rr, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
     )
     if st == S_BUDGET:
         # the requested tolerance is beyond the step budget (the stiff corner at rtol
@@ -746,7 +754,7 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
         # tightest tolerance within it, 10x looser at a time up to _LADDER_RTOL_MAX, with
         # its own error estimate (accuracy_met False) instead of a bisection on classify
         # (2 - 5 s); retries (tighter still) would run out of budget too
-        r = rtol
+        r = rr
         nr_last = nr
         while st == S_BUDGET and r * 10.0 <= _LADDER_RTOL_MAX * (1.0 + 1e-9):
             r *= 10.0
@@ -769,7 +777,7 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
         pn[cur, 0] = 0
         pn[cur, 1] = 0
         st2, val2, err2, nr2, _ = _separatrix_run(
-            kappa, kc, eps, pert, rtol * _RETRIES[i][0], K, _RETRIES[i][1], True, prof[cur],
+            kappa, kc, eps, pert, rr * _RETRIES[i][0], K, _RETRIES[i][1], True, prof[cur],
             pn[cur], prof[1 - cur], na, nb_,
         )  # fmt: skip
         nr += nr2
