@@ -84,8 +84,8 @@ async function runFit(ev) {
   if (form.elements.fit_stiffness.checked) body.fit_stiffness = true;
   const law = form.elements.law.value;
   if (law) body.law = law;
-  const k = num(form, "stiffness_per_m");
-  if (k !== null) body.stiffness_per_m = k;
+  const k = num(form, "k_friction_per_m");
+  if (k !== null) body.k_friction_per_m = k;
   $("#fit-submit").disabled = true;
   busy(status, "queued for fitting\u2026");
   const t0 = performance.now();

@@ -413,6 +413,9 @@ TABLE: list[Row] = [
             "rtol": 1e-9,
         },
     ),
+    # no kappa or kappa_ratio: the sweep's default kappa/kappa_crit (2, rsfcore.limits) is the
+    # single query's default kappa = 2 at the default b/a = 2 (the sweep used 1 until 0.2)
+    Row("sweep-defaults", "sweep", {"axes": [{"name": "eps", "values": [0.1, 0.6]}]}),
     Row(
         "sweep-size",
         "sweep",
