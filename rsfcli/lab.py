@@ -33,14 +33,14 @@ from typing import Any
 import typer
 
 from rsfapp.requests import ClassifyRequest, PhysicalSI, TrajectoryRequest
-from rsfapp.requests.fits import FitRequest
+from rsfapp.requests.fits import FitRequest, PosteriorOptions
 from rsfapp.requests.protocols import (
     LoadHistoryRequest,
     SlideHoldSlideRequest,
     VelocityStepRequest,
 )
 
-from .common import echo_lines, emit, fail, given, json_value, model_option, run
+from .common import echo_lines, emit, fail, given, json_value, model_default, model_option, run
 
 __all__ = ["si_app", "protocol_app", "fit_command"]
 
@@ -557,8 +557,11 @@ def fit_command(
     decimal: str | None = model_option(FitRequest, "decimal"),
     smooth: int | None = model_option(FitRequest, "smooth"),
     time_budget_s: float | None = model_option(FitRequest, "time_budget_s", "--time-budget-s"),
-    compare: bool = typer.Option(
-        True, "--compare/--no-compare", help="Fit every law and compare them (AIC/BIC)."
+    compare: bool | None = typer.Option(
+        None,
+        "--compare/--no-compare",
+        help="Fit every law and compare them (AIC/BIC). Default: "
+        f"{model_default(FitRequest, 'compare')}.",
     ),
     samples: int | None = model_option(FitRequest, "uncertainty_samples", "--uncertainty-samples"),
     series: bool = typer.Option(
@@ -567,7 +570,15 @@ def fit_command(
     posterior_steps: int | None = typer.Option(
         None,
         "--posterior-steps",
-        help="Also sample the posterior with emcee (32 walkers, this many steps, a quarter burnt).",
+        help="Also sample the posterior with emcee: posterior.n_steps, steps per walker "
+        f"[10, 100000] (posterior.n_walkers {model_default(PosteriorOptions, 'n_walkers')} "
+        f"walkers, thin {model_default(PosteriorOptions, 'thin')}).",
+    ),
+    posterior_burn: int | None = typer.Option(
+        None,
+        "--posterior-burn",
+        help="posterior.burn: steps discarded, < --posterior-steps. Default: "
+        f"{model_default(PosteriorOptions, 'burn')}.",
     ),
     out: Path | None = typer.Option(
         None,
@@ -585,7 +596,7 @@ def fit_command(
 
     if not file.is_file():
         _fail(f"file: {str(file)!r} is not a readable file")
-    body: dict[str, Any] = {"record": file.read_text(encoding="utf-8-sig"), "compare": compare}
+    body: dict[str, Any] = {"record": file.read_text(encoding="utf-8-sig")}
     opt: dict[str, Any] = {
         "uncertainty_samples": samples,
         "time_budget_s": time_budget_s,
@@ -599,6 +610,7 @@ def fit_command(
         "nagata_c": nagata_c,
         "rtol": rtol,
         "seed": seed,
+        "compare": compare,
         "columns": json_value("columns", columns),
         "steps": step or None,
         "windows": [_pair(w, "window", i) for i, w in enumerate(window or [])] or None,
@@ -617,8 +629,8 @@ def fit_command(
             body["columns"] = parse_column_map(column)
         except ValueError as exc:
             _fail(str(exc))
-    if posterior_steps is not None:
-        body["posterior"] = {"n_steps": posterior_steps, "burn": posterior_steps // 4}
+    if posterior_steps is not None or posterior_burn is not None:
+        body["posterior"] = given(n_steps=posterior_steps, burn=posterior_burn)
     d = _run(FitRequest, body, adapter.fit)
 
     def plot(r: dict[str, Any]) -> bytes:

@@ -247,3 +247,41 @@ def test_sweep_and_diagram_defaults_are_the_library_s() -> None:
     # the dashboard reads the default from the field's description (OpenAPI)
     desc = requests.SweepFixed.model_fields["kappa_ratio"].description or ""
     assert f"default {limits.format_number(lib['kappa_ratio'])} " in desc
+
+
+def test_cli_fit_leaves_compare_and_burn_to_the_model(
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`rsf fit` sends compare and posterior.burn only when given, so an omitted one is
+    the request model's (compare true, burn 500: the library's sample_posterior default);
+    --posterior-steps N used to burn N // 4."""
+    import inspect
+
+    from typer.testing import CliRunner
+
+    import rsfcli.lab as lab
+    from rsfapp.requests.fits import FitRequest, PosteriorOptions
+    from rsfcore.fit import sample_posterior
+
+    bodies: list[dict[str, Any]] = []
+
+    def fake_run(model: Any, body: dict[str, Any], fn: Any) -> dict[str, Any]:
+        bodies.append(body)
+        raise typer.Exit(code=0)
+
+    monkeypatch.setattr(lab, "_run", fake_run)
+    rec = tmp_path / "r.csv"
+    rec.write_text("t_s,v_lp_m_s,mu\n0,1e-6,0.6\n1,1e-6,0.6\n")
+    r = CliRunner().invoke(cli, ["fit", str(rec), "--posterior-steps", "4000", "--json"])
+    assert r.exit_code == 0, r.output
+    body = bodies[-1]
+    assert "compare" not in body and body["posterior"] == {"n_steps": 4000}
+    req = FitRequest.model_validate(body)
+    assert req.compare is True and req.posterior is not None and req.posterior.burn == 500
+    assert inspect.signature(sample_posterior).parameters["burn"].default == req.posterior.burn
+    assert PosteriorOptions.model_fields["burn"].default == 500
+    r = CliRunner().invoke(
+        cli, ["fit", str(rec), "--no-compare", "--law", "aging", "--posterior-burn", "7"]
+    )
+    assert r.exit_code == 0, r.output
+    assert bodies[-1]["compare"] is False and bodies[-1]["posterior"] == {"burn": 7}
