@@ -27,7 +27,8 @@ huge excursion near eps*kappa -> kappa_crit.
 Integrator: the explicit Runge-Kutta pair of Dormand & Prince of order 8(5,3) (Hairer,
 Norsett & Wanner, Solving ODEs I, Sec. II.10) with its 7th-order dense output.  The
 tableau is this project's copy of the published coefficients (rsfcore.ode.dop853_tableau);
-stages, error norm, step-size controller, dense output and the Illinois root finder are
+stages, error norm, step-size controller, dense output, the Illinois root finder (events) and
+the Newton inversion of the time component (samples at given T) are
 the shared kernels of rsfcore.ode.rk (also used by the separatrix integrator,
 rsfcore.separatrix); this module holds the right-hand side and the driver with its events.
 
@@ -918,30 +919,30 @@ def integrate(
                 if x_lim < 1.0:
                     rk.dense_eval(F, y, x_lim, ftmp)
                     T_lim = ftmp[2]
+                # c T increases along the step: each sample time by safeguarded Newton on
+                # the T component, bracketed below by the previous sample and started from
+                # the previous sample's slope (or the secant across the step)
+                x_lo = 0.0
+                T_lo = y[2]
+                slope = 0.0
                 while i_T < n_T and sample_T[i_T] <= T_lim:
-                    xs = _root(
-                        F,
-                        y,
-                        2,
-                        sample_T[i_T],
-                        0.0,
-                        x_lim,
-                        y[2] - sample_T[i_T],
-                        T_lim - sample_T[i_T],
-                        tmp,
-                        ftmp,
-                        ba,
-                        kappa,
-                        eps,
-                        vo,
-                        c,
-                        lnc,
+                    tgt = sample_T[i_T]
+                    if slope > 0.0:
+                        xg = x_lo + (tgt - T_lo) / slope
+                    elif T_lim > T_lo:
+                        xg = x_lo + (x_lim - x_lo) * (tgt - T_lo) / (T_lim - T_lo)
+                    else:
+                        xg = 0.5 * (x_lo + x_lim)
+                    xs, slope = rk.dense_invert(
+                        F, y[2], 2, tgt, x_lo, x_lim, T_lo - tgt, T_lim - tgt, xg
                     )
                     rk.dense_eval(F, y, xs, tmp)
                     for j in range(n):
                         samples[n_filled, j] = tmp[j]
                     n_filled += 1
                     i_T += 1
+                    x_lo = xs
+                    T_lo = tgt
 
         if stop_status >= 0:
             # samples at the stop time itself (lost to rounding of the located stop)

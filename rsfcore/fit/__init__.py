@@ -16,6 +16,7 @@ from .core import (
     DEFAULT_BOUNDS,
     REJECT_DELTA_AIC,
     STABILITY_STATUSES,
+    STIFFNESS_MISMATCH,
     TIME_BUDGET_S,
     FitResult,
     FitStatus,
@@ -52,6 +53,7 @@ from .stability import REGIMES, CriticalAnswer, Spread, StabilityAnswer, stabili
 __all__ = [
     "DEFAULT_BOUNDS",
     "REJECT_DELTA_AIC",
+    "STIFFNESS_MISMATCH",
     "STABILITY_STATUSES",
     "TIME_BUDGET_S",
     "plausibility",

@@ -5,9 +5,15 @@ Method: bounded non-linear least squares (scipy.optimize.least_squares, trust-re
 reflective) of the friction residuals mu_model - mu_data, with the compiled forward model
 of rsfcore.fit.model (rsfcore.engine's DOP853 for a finite machine stiffness, the exact
 closed form for an infinitely stiff one).  Fitted coordinates are (mu0, a, b, ln Dc,
-[eps], [ln k], [trend]); the Jacobian is by forward differences (steps 1e-6 in these
-coordinates) during the iterations and at the solution (relative error ~1e-6, far below
-what a standard error needs); optimiser tolerances ftol = xtol = gtol = 1e-10 (a tighter
+[eps], [ln k], [trend]); the Jacobian, during the iterations and at the solution, is
+ForwardModel.jacobian: the friction is linear in mu0, a, b and the trend apart from the
+states' dependence on (b/a, ln kappa, ln(V0/Dc), eps), so only those 2-4 directions are
+differenced (forward, steps 1e-6; relative error ~1e-5, 1e-4 near kappa_crit, far below
+what a standard error needs) and the columns follow by the chain rule: 3 forward runs per
+Jacobian for a, b, Dc, k, instead of one per fitted parameter (bench/bench_fit.py: the
+fits take 1.3-1.9x fewer runs; results moved by <= 3e-4 standard errors, the optimiser's
+tolerance); a trial run that does not complete falls back to forward differences in
+every coordinate (steps 1e-6).  Optimiser tolerances ftol = xtol = gtol = 1e-10 (a tighter
 1e-14 took 2x the forward runs on a noisy record for changes below 1e-6 of a standard
 error; noise-free records are still recovered to ~1e-13).
 
@@ -68,6 +74,7 @@ __all__ = [
     "attach_stability",
     "DEFAULT_BOUNDS",
     "REJECT_DELTA_AIC",
+    "STIFFNESS_MISMATCH",
     "TIME_BUDGET_S",
     "STABILITY_STATUSES",
     "plausibility",
@@ -112,7 +119,11 @@ class FitStatus(StrEnum):
         (see FitResult.message and .identified); no stability answer is given.
     SUSPECT: determined, but values implausible for a lab (Dc above a millimetre, slip rates
         above a centimetre per second, a velocity step by more than 1e4, friction outside
-        [0, 3]): the message names the likely unit slip.  The stability answer carries it.
+        [0, 3]): the message names the likely unit slip; or a stiffness the user gave (or
+        a rigid machine) that the record contradicts: refitted with k free, the record
+        determines a k differing by more than STIFFNESS_MISMATCH and lowers the AIC by
+        more than REJECT_DELTA_AIC; the message names that k and the option to fit it.
+        The stability answer carries the warning.
     REJECTED: determined, but the law comparison rejects this law (its AIC is more than
         REJECT_DELTA_AIC above the best law's): the message names the law the record
         supports.  The stability answer carries the warning.
@@ -730,6 +741,49 @@ def plausibility(rec: Record, params: Mapping[str, float]) -> list[str]:
     return out
 
 
+#: A given stiffness is contradicted by the record when the fit with k free determines a k
+#: differing from it by more than this factor (either way; any finite k for a rigid
+#: machine) and lowers the AIC by more than REJECT_DELTA_AIC.  5 %: on a 1201-sample
+#: record (noise 1e-4, k = 1000 /m = 2 k_crit) a stiffness given 10 % high biased a by
+#: +8.8 % at 3.4x the noise's misfit; the factor keeps forward-model-level differences
+#: (an independent solver's record, k recovered to 1e-8) from ever counting.
+STIFFNESS_MISMATCH = 1.05
+
+
+def _stiffness_contradiction(
+    mode: str, k_given: float, aic: float, free: FitResult, sigma_Pa: float | None
+) -> str:
+    """The sentence naming the record's stiffness when it contradicts the given one ("" if
+    not): ``free`` is the same fit with k fitted (from the given k or the loading slope)."""
+    if free.status not in (FitStatus.OK, FitStatus.SUSPECT) or not free.converged:
+        return ""
+    k = free.params["k_per_m"]
+    d_aic = aic - free.aic
+    if not (math.isfinite(k) and d_aic > REJECT_DELTA_AIC):
+        return ""
+    if mode != "rigid" and 1.0 / STIFFNESS_MISMATCH <= k / k_given <= STIFFNESS_MISMATCH:
+        return ""
+    se = free.stderr.get("k_per_m")
+    est = f"k = {_num(k)}" + (f" +- {_num(se)}" if se is not None else "") + " /m"
+    if sigma_Pa:
+        est += f" (= {_num(k * sigma_Pa)} Pa/m)"
+    given = (
+        "an infinitely stiff machine (rigid)"
+        if mode == "rigid"
+        else f"the given stiffness k = {_num(k_given)} /m"
+        + (f" (= {_num(k_given * sigma_Pa)} Pa/m)" if sigma_Pa else "")
+    )
+    option = (
+        "give no stiffness to fit it (CLI: without --rigid)"
+        if mode == "rigid"
+        else "fit it (fit_stiffness=true; CLI --fit-stiffness), or check the machine's stiffness"
+    )
+    return (
+        f"the record contradicts {given}: fitted with the stiffness free, {est}, the AIC is "
+        f"{_num(d_aic)} units lower (beyond {_num(REJECT_DELTA_AIC)}); {option}."
+    )
+
+
 def _num(x: float) -> str:
     """A plain number for messages (4 significant digits, no numpy repr)."""
     return f"{float(x):.4g}"
@@ -773,6 +827,8 @@ def _fit_record(
     max_nfev = int(check_range("max_nfev", max_nfev, 1, 100_000))
     time_budget_s = check_range("time_budget_s", time_budget_s, 0.0, 3600.0, lo_open=True)
     k_given, fit_k, mode, sig = _stiffness_choice(stiffness, fit_stiffness, k_Pa_per_m, sigma_Pa)
+    windows = None if windows is None else list(windows)  # used twice (stiffness check)
+    steps = None if steps is None else list(steps)
     used = _used_mask(rec, windows, steps)
     bnd = dict(DEFAULT_BOUNDS)
     if lw is Law.NAGATA:
@@ -827,6 +883,8 @@ def _fit_record(
     mu_data = rec.mu
     inv_xlp = 1.0 / max(float(np.max(np.abs(rec.load_point_m))), 1e-300)
     cache: dict[bytes, NDArray[np.float64]] = {}
+    # (phi, ln theta) of complete runs by x, for the Jacobian at an evaluated point
+    states: dict[bytes, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
     deadline = t_start + time_budget_s
     best: list[Any] = [math.inf, x0.copy()]
 
@@ -837,8 +895,15 @@ def _fit_record(
         if time.perf_counter() > deadline:
             raise _OutOfTime
         p = model.full(_from_x(names, x))
-        m, n_ok = model.friction(p)
+        phi, lth, n_ok = model.states(*model.engine_params(p))
+        m = p["mu0"] + p["a"] * phi + p["b"] * lth
+        if p["trend_per_m"] != 0.0:
+            m = m + p["trend_per_m"] * model.x_lp
         r = m - mu_data
+        if len(states) > 8:
+            states.clear()
+        if n_ok == rec.n:
+            states[key] = (phi, lth)
         if n_ok < rec.n:
             r[n_ok:] = _PENALTY
         bad = ~np.isfinite(r)
@@ -897,6 +962,14 @@ def _fit_record(
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         r0 = resid(x)
+        base = states.get(x.tobytes())
+        if base is not None and bool(np.all(np.isfinite(r0))):
+            if time.perf_counter() > deadline:
+                raise _OutOfTime
+            Jm = model.jacobian(model.full(_from_x(names, x)), names, base)
+            if Jm is not None and bool(np.all(np.isfinite(Jm))):
+                return Jm if used is None else Jm[used]
+        # a run that does not complete (penalised samples): differences in every coordinate
         h = _fd_steps(names, x, lb, ub, inv_xlp)
         J = np.empty((r0.shape[0], len(names)))
         for j in range(len(names)):
@@ -1114,6 +1187,53 @@ def _fit_record(
             status = FitStatus.SUSPECT
             warnings.extend(slips)
             message = "Suspect (values implausible for a lab): " + " ".join(slips) + " " + message
+
+    # A stiffness the user gave (or a rigid machine) that the record contradicts: refit
+    # with k free from this solution; a clearly different k that the record determines
+    # and prefers by more than REJECT_DELTA_AIC makes the fit SUSPECT (never a plain ok).
+    if (
+        mode != "fitted"
+        and complete
+        and converged
+        and not out_of_time
+        and not start_message
+        and status in (FitStatus.OK, FitStatus.SUSPECT, FitStatus.ILL_CONDITIONED)
+    ):
+        start = {nm: p_hat[nm] for nm in names}
+        free = _fit_record(
+            rec,
+            lw,
+            stiffness=None if mode == "rigid" else k_given,
+            fit_stiffness=True,
+            k_Pa_per_m=None,
+            sigma_Pa=sig,
+            trend=trend,
+            windows=windows,
+            steps=steps,
+            nagata_c=nagata_c,
+            initial=start,
+            bounds=bounds,
+            rtol=rtol,
+            max_rel_stderr=max_rel_stderr,
+            max_condition=max_condition,
+            max_nonlinearity=max_nonlinearity,
+            misfit_floor=misfit_floor,
+            uncertainty_samples=0,
+            seed=seed,
+            max_nfev=max_nfev,
+            time_budget_s=max(1e-3, t_start + time_budget_s - time.perf_counter()),
+            stability=False,
+        )
+        why = _stiffness_contradiction(mode, k_given, aic, free, sig)
+        if why:
+            warnings.append(why)
+            if status is FitStatus.OK:
+                status = FitStatus.SUSPECT
+                message = "Suspect (the machine stiffness is contradicted by the record): " + why
+                message += f" Converged: rms misfit {rms:.3g} over {n} samples with {p} fitted"
+                message += " parameters."
+            else:
+                message = why[0].upper() + why[1:] + " " + message
 
     params = dict(p_hat)
     params["b_minus_a"] = p_hat["b"] - p_hat["a"]

@@ -183,23 +183,129 @@ class ForwardModel:
         return c * self.x_lp if c != 0.0 else 0.0
 
     # -- evaluation -------------------------------------------------------------------
+    def engine_params(self, p: dict[str, float]) -> tuple[float, float, float, float]:
+        """(b/a, kappa = k Dc/a, eps, s = V0/Dc [1/s]): all the dimensionless states depend on.
+
+        phi = ln(V/V0) and ln(V0 theta/Dc) at the samples are functions of these four
+        (T = s t); the friction is mu0 + a phi + b ln(V0 theta/Dc) + trend x_lp.
+        kappa is inf for an infinitely stiff machine."""
+        a = p["a"]
+        return p["b"] / a, p["k_per_m"] * p["Dc_m"] / a, p["eps"], self.V0 / p["Dc_m"]
+
+    def states(
+        self, ba: float, kappa: float, eps: float, scale: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+        """(phi, ln(V0 theta/Dc), index of the first missing sample (n when complete)) at
+        the samples for the engine parameters of :meth:`engine_params` (one forward run)."""
+        self.n_evals += 1
+        if math.isinf(kappa):
+            phi, lth = self._stiff(eps, scale)
+            return phi, lth, self.record.n
+        phi, lth, n_ok, _ = self._engine(ba, kappa, eps, scale)
+        return phi, lth, n_ok
+
     def friction(self, p: dict[str, float]) -> tuple[NDArray[np.float64], int]:
         """Model friction at the record's samples and the index of the first missing sample
         (n when complete).  ``p`` holds all six parameters."""
-        self.n_evals += 1
-        if math.isinf(p["k_per_m"]):
-            phi, lth = self._stiff(p)
-            return p["mu0"] + p["a"] * phi + p["b"] * lth + self._trend(p), self.record.n
-        phi, lth, n_ok, _ = self._engine(p)
+        phi, lth, n_ok = self.states(*self.engine_params(p))
         return p["mu0"] + p["a"] * phi + p["b"] * lth + self._trend(p), n_ok
+
+    def jacobian(
+        self,
+        p: dict[str, float],
+        names: tuple[str, ...],
+        base: tuple[NDArray[np.float64], NDArray[np.float64]],
+        step: float = 1e-6,
+    ) -> NDArray[np.float64] | None:
+        """d mu/d x at the samples (n, len(names)) in the fitted coordinates (mu0, a, b,
+        ln Dc, eps, ln k, trend_per_m), or None when a perturbed run does not complete.
+
+        The friction mu0 + a phi(q) + b lth(q) + trend x_lp is linear in mu0, a, b and the
+        trend apart from the states' dependence on q = (b/a, ln kappa, ln s, eps)
+        (:meth:`engine_params`), so the states are differenced along those directions
+        only (forward differences, steps ``step`` max(|b/a|, 1), ``step``, ``step`` and
+        -``step`` for eps near 1; 2 or 3 runs, 1 for an infinitely stiff machine and
+        one more when eps varies) and the columns follow by the chain rule.  ``base`` is
+        (phi, lth) at ``p`` (from :meth:`states`).  Against forward differences in every
+        fitted coordinate (one run per parameter) the columns agree to the difference
+        quotients' own error (~1e-6 relative; tests/core/test_fit.py).
+        """
+        a, b = p["a"], p["b"]
+        ba, kappa, eps, scale = self.engine_params(p)
+        phi0, lth0 = base
+        law = self.spec.law
+        eps_varies = "eps" in names or law is Law.NAGATA
+        rigid = math.isinf(kappa)
+        # q directions: 0 = b/a, 1 = ln kappa, 2 = ln s, 3 = eps
+        dirs = [] if rigid else [0, 1]
+        dirs.append(2)
+        if eps_varies:
+            dirs.append(3)
+        dphi: dict[int, NDArray[np.float64]] = {}
+        dlth: dict[int, NDArray[np.float64]] = {}
+        n = self.record.n
+        for d in dirs:
+            q = [ba, kappa, eps, scale]
+            if d == 0:
+                h = step * max(abs(ba), 1.0)
+                q[0] = ba + h
+            elif d == 1:
+                h = step
+                q[1] = kappa * math.exp(h)
+            elif d == 2:
+                h = step
+                q[3] = scale * math.exp(h)
+            else:
+                h = step if eps + step <= 1.0 else -step
+                q[2] = eps + h
+            phi, lth, n_ok = self.states(q[0], q[1], q[2], q[3])
+            if n_ok < n:
+                return None
+            dphi[d] = (phi - phi0) / h
+            dlth[d] = (lth - lth0) / h
+        # dq/dx per fitted coordinate: {direction: derivative}
+        deps_da = deps_db = 0.0
+        if law is Law.NAGATA:
+            c = self.spec.nagata_c
+            den = (b + c * a) ** 2
+            deps_da, deps_db = -b * c / den, c * a / den
+        J = np.empty((n, len(names)))
+        for j, nm in enumerate(names):
+            if nm == "mu0":
+                J[:, j] = 1.0
+                continue
+            if nm == "trend_per_m":
+                J[:, j] = self.x_lp
+                continue
+            chain: dict[int, float] = {}
+            direct: NDArray[np.float64] | None = None
+            if nm == "a":
+                chain = {0: -ba / a, 1: -1.0 / a, 3: deps_da}
+                direct = phi0
+            elif nm == "b":
+                chain = {0: 1.0 / a, 3: deps_db}
+                direct = lth0
+            elif nm == "Dc_m":
+                chain = {1: 1.0, 2: -1.0}
+            elif nm == "k_per_m":
+                chain = {1: 1.0}
+            elif nm == "eps":
+                chain = {3: 1.0}
+            col = np.zeros(n) if direct is None else direct.copy()
+            for d, w in chain.items():
+                if w != 0.0 and d in dphi:
+                    col += w * (a * dphi[d] + b * dlth[d])
+            J[:, j] = col
+        return J
 
     def simulate(self, p: dict[str, float]) -> Simulation:
         """Friction, slip rate and state at the samples (for plots and checks)."""
-        if math.isinf(p["k_per_m"]):
-            phi, lth = self._stiff(p)
+        ba, kappa, eps, scale = self.engine_params(p)
+        if math.isinf(kappa):
+            phi, lth = self._stiff(eps, scale)
             n_ok, steps = self.record.n, 0
         else:
-            phi, lth, n_ok, steps = self._engine(p)
+            phi, lth, n_ok, steps = self._engine(ba, kappa, eps, scale)
         mu = p["mu0"] + p["a"] * phi + p["b"] * lth + self._trend(p)
         with np.errstate(over="ignore", under="ignore"):
             V = self.V0 * np.exp(np.minimum(phi, 700.0))
@@ -210,9 +316,9 @@ class ForwardModel:
             th[n_ok:] = np.nan
         return Simulation(mu=mu, V_m_s=V, theta_s=th, complete=n_ok == self.record.n, n_steps=steps)
 
-    def _stiff(self, p: dict[str, float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Closed form for k = inf: phi = ln(v_lp/V0), L from the exact solution per segment."""
-        Dc, eps = p["Dc_m"], p["eps"]
+    def _stiff(self, eps: float, scale: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Closed form for k = inf: phi = ln(v_lp/V0), L from the exact solution per segment
+        (scale = V0/Dc [1/s])."""
         n = self.record.n
         phi = np.empty(n)
         lth = np.empty(n)
@@ -223,9 +329,10 @@ class ForwardModel:
             ph = math.log(v / self.V0)
             if j > 0:
                 L0 += ph - math.log(self.v_seg[j - 1] / self.V0)  # theta continuous across the step
-            x = (t[i0:i1] - t[i0]) * (v / Dc)
+            rate = (v / self.V0) * scale  # v/Dc
+            x = (t[i0:i1] - t[i0]) * rate
             t_end = t[i1] if i1 < n else t[-1]
-            x_end = (t_end - t[i0]) * (v / Dc)
+            x_end = (t_end - t[i0]) * rate
             if eps == 0.0:
                 L = L0 * np.exp(-x)
                 L_end = L0 * math.exp(-x_end)
@@ -239,13 +346,10 @@ class ForwardModel:
         return phi, lth
 
     def _engine(
-        self, p: dict[str, float]
+        self, ba: float, kappa: float, eps: float, scale: float
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], int, int]:
-        """Segment by segment with rsfcore.engine.run (3-component state phi, ln theta, T)."""
-        a, b, Dc, eps, k = p["a"], p["b"], p["Dc_m"], p["eps"], p["k_per_m"]
-        ba = b / a
-        kappa = k * Dc / a
-        scale = self.V0 / Dc  # T = V0 t/Dc
+        """Segment by segment with rsfcore.engine.run (3-component state phi, ln theta, T;
+        T = scale t)."""
         n = self.record.n
         phi = np.zeros(n)
         lth = np.zeros(n)

@@ -2,7 +2,8 @@
 
 * :mod:`rsfcore.ode.dop853_tableau`: the published Dormand-Prince 8(5,3) coefficients.
 * :mod:`rsfcore.ode.rk`: stage, solution, error norm, step-size controller, starting
-  step, dense output, Illinois root finder and stiffness indicator as numba kernels,
+  step, dense output, Illinois root finder, Newton inversion of a monotone component
+  (samples at given times) and stiffness indicator as numba kernels,
   used by the spring-slider engine (rsfcore.engine) and the separatrix integrator
   (rsfcore.separatrix).
 * :mod:`rsfcore.ode.rodas4_tableau`: the published RODAS4 coefficients of the engine's

@@ -229,6 +229,60 @@ CASES = [
 ]
 
 
+@pytest.mark.parametrize(
+    "law, k, trend",
+    [
+        ("aging", 800.0, 0.0),
+        ("slip", 2000.0, 0.0),
+        ("eps", 2000.0, 20.0),
+        ("nagata", 800.0, 0.0),
+        ("eps", math.inf, 0.0),
+    ],
+)
+def test_jacobian_by_engine_directions_equals_central_differences(
+    law: str, k: float, trend: float
+) -> None:
+    """ForwardModel.jacobian (forward differences along b/a, ln kappa, ln s, eps and the
+    chain rule; 2-4 runs) against central differences in every fitted coordinate (mu0, a,
+    b, ln Dc, eps, ln k, trend; 2 runs each, step 1e-4: truncation error ~1e-8 relative).
+    The forward differences' own error is the forward model's step-sequence noise
+    (~1e-9 in phi under a 1e-6 change of a parameter) over the step 1e-6.  Measured,
+    relative to each column's largest entry: 5e-13 .. 1.2e-5 for aging, slip, eps and the
+    rigid machine, 1e-4 for the Nagata record near kappa_crit (k = 800 /m; per-coordinate
+    forward differences, the fit's former Jacobian, 3e-5 there); allowed 3e-4.  A wrong
+    chain-rule term is an O(1) error."""
+    eps = {"aging": 1.0, "slip": 0.0, "eps": 0.5, "nagata": nagata_eps(A, B, 2.0)}[law]
+    rec = synthetic_record(*design(), **TRUE, eps=eps, k_per_m=k, trend_per_m=trend)
+    fit_k = math.isfinite(k)
+    spec = ModelSpec(Law(law), fit_k, k, trend=trend != 0.0)
+    model = ForwardModel(rec, spec)
+    names = spec.fitted
+    p = model.full(
+        {**TRUE, "eps": eps, "k_per_m": k, "trend_per_m": trend}
+        if law == "eps"
+        else {**TRUE, "k_per_m": k, "trend_per_m": trend}
+    )
+    phi, lth, n_ok = model.states(*model.engine_params(p))
+    assert n_ok == rec.n
+    J = model.jacobian(p, names, (phi, lth))
+    assert J is not None and J.shape == (rec.n, len(names))
+    log = ("Dc_m", "k_per_m")
+    for j, nm in enumerate(names):
+        h = 1e-4
+        mus = []
+        for sgn in (1.0, -1.0):
+            q = {n: p[n] for n in names}
+            q[nm] = q[nm] * math.exp(sgn * h) if nm in log else q[nm] + sgn * h * max(abs(q[nm]), A)
+            mu, n_q = model.friction(model.full(q))
+            assert n_q == rec.n
+            mus.append(mu)
+        step = 2.0 * h * (1.0 if nm in log else max(abs(p[nm]), A))
+        ref = (mus[0] - mus[1]) / step
+        scale = float(np.max(np.abs(ref)))
+        assert scale > 0.0, nm
+        assert float(np.max(np.abs(J[:, j] - ref))) < 3e-4 * scale, nm
+
+
 @pytest.mark.parametrize("law, eps, k, fit_k", CASES)
 def test_noise_free_recovery(law: str, eps: float, k: float, fit_k: bool) -> None:
     """Synthetic records from the forward model (rtol 1e-10): the fit recovers the true
@@ -596,6 +650,63 @@ def test_unresolved_stiffness_is_not_ok_and_names_the_options() -> None:
     assert "k = " in res.message  # the estimate, a plain number
     assert "np." not in res.message
     assert fit_record(rigid, "aging", stiffness=math.inf, uncertainty_samples=0).ok
+
+
+def _named_k(message: str) -> float:
+    """The stiffness [1/m] a contradiction message names ("... stiffness free, k = X")."""
+    import re
+
+    m = re.search(r"stiffness free, k = ([0-9.e+-]+)", message)
+    assert m is not None, message
+    return float(m.group(1))
+
+
+def test_given_stiffness_the_record_contradicts_is_never_plain_ok() -> None:
+    """The soft machine (k = 1000 /m = 2 k_crit) fitted as rigid, or with k given 3x or
+    10 % too stiff: the fit with k free lowers the AIC by far more than 10 (measured
+    ~9e3, 8e3 and 1e3 on 1201-sample records), so the status is not ok and the message
+    names the record's stiffness (within 1 %: its standard error is 0.08 %) and the
+    option to fit it; the stability answer of a suspect fit carries the warning.  The
+    right stiffness (3 noise seeds: a false alarm needs chi^2_1 > 12, p = 5e-4), a rigid
+    record fitted as rigid and a noise-free record with the right k stay ok."""
+    rec = _soft_record()
+    # as rigid, this record also leaves a and Dc undetermined (ill_conditioned): the
+    # message leads with the stiffness, not with sampling advice
+    res = fit_record(rec, "aging", stiffness=math.inf, uncertainty_samples=0)
+    assert res.status is FitStatus.ILL_CONDITIONED, res.message
+    assert res.message.startswith("The record contradicts an infinitely stiff machine")
+    assert "without --rigid" in res.message
+    assert _named_k(res.message) == pytest.approx(1000.0, rel=0.01)
+    # a longer record (30 s per velocity) determines every parameter as rigid: suspect
+    t = np.linspace(0.0, 90.0, 1201)
+    v = np.where(t < 30, 1e-6, np.where(t < 60, 1e-5, 1e-6))
+    longer = synthetic_record(t, v, **SOFT, noise=1e-4, seed=1)
+    res = fit_record(longer, "aging", stiffness=math.inf, uncertainty_samples=20)
+    assert res.status is FitStatus.SUSPECT, res.message
+    assert "contradicts an infinitely stiff machine" in res.message
+    assert _named_k(res.message) == pytest.approx(1000.0, rel=0.01)
+    assert res.stability is not None and res.stability.warning is not None
+    assert "contradicts" in res.stability.warning
+    for given in (3000.0, 1100.0):
+        res = fit_record(rec, "aging", stiffness=given, uncertainty_samples=0)
+        assert res.status is FitStatus.SUSPECT, (given, res.message)
+        assert f"the given stiffness k = {given:g} /m" in res.message
+        assert "--fit-stiffness" in res.message
+        assert _named_k(res.message) == pytest.approx(1000.0, rel=0.01)
+        assert res.warnings and "contradicts" in res.warnings[-1]
+    # in Pa/m too when sigma is given
+    res = fit_record(rec, "aging", k_Pa_per_m=3000.0 * 1e7, sigma_Pa=1e7, uncertainty_samples=0)
+    assert res.status is FitStatus.SUSPECT and "Pa/m" in res.message
+    for seed in (1, 2, 3):
+        ok = synthetic_record(rec.t_s, rec.v_lp_m_s, **SOFT, noise=1e-4, seed=seed)
+        res = fit_record(ok, "aging", stiffness=1000.0, uncertainty_samples=0)
+        assert res.status is FitStatus.OK, res.message
+    rigid = synthetic_record(
+        rec.t_s, rec.v_lp_m_s, **{**SOFT, "k_per_m": math.inf}, noise=1e-4, seed=1
+    )
+    assert fit_record(rigid, "aging", stiffness=math.inf, uncertainty_samples=0).ok
+    clean = _soft_record(noise=0.0)
+    assert fit_record(clean, "aging", stiffness=1000.0, uncertainty_samples=0).ok
 
 
 def test_stiffness_in_pa_per_m_and_critical_stiffness_in_both() -> None:
