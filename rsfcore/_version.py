@@ -45,4 +45,10 @@ __all__ = ["NUMERICS_VERSION"]
 #:    1e-6 move within their claims); a first run beyond the step budget is repeated 10x
 #:    looser (was: bisection on classify); of the retries the run with the smaller error
 #:    bound is kept.
+#:    Samples at given physical times are located on the dense output by safeguarded Newton
+#:    on the time component instead of the Illinois search (sampled states move at the
+#:    level of rounding; 6x cheaper per sample); fits difference the states only along
+#:    b/a, ln kappa, ln(V0/Dc) and eps (fitted values move within the optimiser's
+#:    tolerance, <= 3e-4 standard errors on bench/bench_fit.py's records), and a stiffness
+#:    given for a record that contradicts it makes the fit suspect.
 NUMERICS_VERSION = "6"
