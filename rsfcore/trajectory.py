@@ -998,6 +998,7 @@ def _simulate(
             integrator=integ,
             fast_leg=method == "auto",
         )
+    plan_run = plan  # (the separatrix side may replace the plan below)
     tsc = math.exp(-frame_shift)  # frame time -> T
     status: Status | None
     y_end: NDArray[np.float64] | None
@@ -1117,6 +1118,15 @@ def _simulate(
             integ,
             fast_leg=method == "auto",
             shift=shift,
+            # the classification run is the run that sets the samples' extent when it is
+            # the same run (same frame, no t_end, finished within its budget)
+            res0=res
+            if res is not None
+            and t_end is None
+            and shift == frame_shift
+            and plan is plan_run
+            and res.status != Status.BUDGET
+            else None,
         )
 
     return TrajectoryResult(
@@ -1163,11 +1173,13 @@ def _sample(
     integrator: Integrator = Integrator.AUTO,
     fast_leg: bool = True,
     shift: float = 0.0,
+    res0: EngineResult | None = None,
 ) -> Trajectory:
     """Samples of the run from (phi0, psi0) with p; ``shift`` = ln v_o when p and the start
     are the v_o = 1 frame of a run at v_o (t_end and times are given in T and scaled to the
     frame, T' = v_o T; the samples are mapped back: phi + ln v_o, ln theta - ln v_o,
-    T'/v_o; slip and load-point displacement are the same in both frames)."""
+    T'/v_o; slip and load-point displacement are the same in both frames).  ``res0``: the
+    run without samples that sets their extent, when the caller already has it."""
     if sampling not in ("tau", "time"):
         raise ParameterError("sampling", sampling, "'tau' or 'time'")
     scale = math.exp(shift)  # T' = scale T
@@ -1195,7 +1207,8 @@ def _sample(
         # the extent of the samples from a run like theirs (same frame, steps and legs:
         # where a leg is entered shifts tau by O(1) per unit of phi above the threshold, so
         # the classification's tau_end, from its own frame, does not fit)
-        res0, _ = run(t_end=te, stop_on_return=sor)
+        if res0 is None:
+            res0, _ = run(t_end=te, stop_on_return=sor)
         tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         if sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
