@@ -147,6 +147,8 @@ _LADDER_RTOL_MAX = 1.0e-10
 #: there) where one at 1e-6 takes 2.4e3 (0.2 ms); non-stiff runs cost ~2x more at 1e-6
 #: than at 1e-3 (DOP853 is of order 8), a few hundredths of a ms
 _RUN_RTOL_MAX = 1.0e-6
+#: no retries after a first run that took more right-hand sides than this (~30 ms)
+_RETRY_NR_MAX = 200_000
 #: contraction profile buffer (steps per phase) of the retries; a run with more steps
 #: leaves no profile (the next one relaxes by the linear model)
 _PROF_LEN = 8192
@@ -764,8 +766,16 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
             nr += nr_last
         return st, val, err + _rounding_floor(st, val, pert, nr_last), nr
     fl = _rounding_floor(st, val, pert, nr)
-    # a retry tightens the integration, not the rounding: none once rounding takes half
-    if st != S_OK or err + fl <= rtol * abs(val) or fl > 0.5 * rtol * abs(val):
+    # a retry tightens the integration, not the rounding: none once rounding takes half;
+    # none after a first run of more than _RETRY_NR_MAX right-hand sides (a tighter run
+    # costs more and ran out of budget in every such case measured: 0.5 s more at
+    # b/a = kappa = 1e6, rtol 1e-13)
+    if (
+        st != S_OK
+        or err + fl <= rtol * abs(val)
+        or fl > 0.5 * rtol * abs(val)
+        or nr > _RETRY_NR_MAX
+    ):
         return st, val, err + fl, nr
     prof = np.empty((2, 2, 2, _PROF_LEN))
     pn = np.zeros((2, 2), dtype=np.int64)
