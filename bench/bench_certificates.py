@@ -28,6 +28,7 @@ rtol, and the same starts at rtol 1e-13 (the reference).  Checks:
 Timing: p50 / p99 / max per rtol decade and the slowest queries with their parameters.
 
     python bench/bench_certificates.py [--n 800] [--seed 2211] [--json out.json]
+        [--checkpoint run.jsonl] [--summary-only] [--points 3,17]
 """
 
 from __future__ import annotations
@@ -101,14 +102,66 @@ def close(a: float | None, b: float | None, acc: float, acc_ref: float, peak: bo
     return abs(a - b) <= (acc + acc_ref) * scale * (1.0 + 1e-9) + 4e-16 * scale
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--n", type=int, default=800, help="parameter points")
-    ap.add_argument("--seed", type=int, default=2211)
-    ap.add_argument("--json", default="")
-    a = ap.parse_args()
-    rng = np.random.default_rng(a.seed)
-    times: list[tuple[float, float, str]] = []  # (seconds, rtol, description)
+def run_point(seed: int, i: int) -> list[dict[str, Any]]:
+    """All queries of parameter point i (its own generator: a run can be resumed)."""
+    rng = np.random.default_rng([seed, i])
+    p = sample_point(rng)
+    recs: list[dict[str, Any]] = []
+    for pert in (VJ, LJ):
+        if pert == LJ and p.vo == 0.0:
+            continue
+        rt_c = rtol_draw(rng)
+        crit, dt, err = timed(rc.critical_perturbation, p, pert, rtol=rt_c)
+        base = {"i": i, "pert": pert, "p": p.as_dict()}
+        recs.append({**base, "q": "critical", "rtol": rt_c, "dt": dt, "err": err})
+        if err or crit.kind != "finite" or crit.log_critical_size is None:
+            continue
+        lc = crit.log_critical_size
+        recs[-1].update(lc=lc, acc=crit.rel_accuracy, size=crit.critical_size)
+        if pert == VJ and not lc > 0.0:
+            continue
+        ac = crit.rel_accuracy
+        # sizes as log sizes: d for a velocity jump, ln(1 + dv) for a load-point jump
+        for f in sorted([-f for f in FRACTIONS] + list(FRACTIONS)):
+            if abs(f) <= 4.0 * ac:
+                continue
+            if pert == VJ:
+                lg = lc * (1.0 + f)
+            else:
+                dvc = crit.critical_size
+                if dvc is not None and math.isfinite(dvc) and lc < 700.0:
+                    lg = math.log1p(dvc * (1.0 + f))
+                else:
+                    lg = lc + math.log1p(f)  # dv (1 + f) for dv >> 1
+            rt = rtol_draw(rng)
+            row: dict[str, Any] = {**base, "q": "classify", "f": f, "lg": lg, "rtol": rt}
+            for tag, r in (("", rt), ("ref_", REF_RTOL)):
+                res, dt, err = timed(rc.classify, p, pert, log_size=lg, rtol=r)
+                row[tag + "dt"] = dt
+                row[tag + "err"] = err
+                if res is not None:
+                    for k in FIELDS:
+                        v = getattr(res, k)
+                        row[tag + k] = v if not isinstance(v, float) or math.isfinite(v) else None
+            recs.append(row)
+    return recs
+
+
+FIELDS = (
+    "outcome",
+    "certificate",
+    "complete",
+    "rel_accuracy",
+    "blowup_time",
+    "return_time",
+    "peak_time",
+    "peak_phi",
+    "n_steps",
+)
+
+
+def summarise(rows: list[dict[str, Any]], wall: float, label: str) -> dict[str, Any]:
+    """Counts per category, worst ratio, timing (from the checkpoint records)."""
     counts = dict(
         queries=0,
         contradiction=0,
@@ -122,108 +175,92 @@ def main() -> None:
     )
     examples: dict[str, list[str]] = {k: [] for k in counts}
     worst_ratio = 0.0
+    times: list[tuple[float, float, str]] = []
 
     def note(kind: str, text: str) -> None:
         counts[kind] += 1
-        if len(examples[kind]) < 8:
+        if len(examples[kind]) < 40:
             examples[kind].append(text)
 
-    t_start = time.perf_counter()
-    for _ in range(a.n):
-        p = sample_point(rng)
-        for pert in (VJ, LJ):
-            if pert == LJ and p.vo == 0.0:
-                continue
-            rt_c = rtol_draw(rng)
-            crit, dt, err = timed(rc.critical_perturbation, p, pert, rtol=rt_c)
+    series: dict[tuple[int, str], list[str | None]] = {}
+    for row in rows:
+        pd = row["p"]
+        if row["q"] == "critical":
             counts["queries"] += 1
-            times.append((dt, rt_c, f"critical {pert} {p.as_dict()} rtol={rt_c:.3g}"))
+            desc = f"critical {row['pert']} {pd} rtol={row['rtol']:.3g}"
+            times.append((row["dt"], row["rtol"], desc))
+            err = row["err"]
             if err:
                 note(
-                    "other_exceptions" if not err.startswith("Param") else "parameter_errors",
-                    f"critical {pert} {p.as_dict()}: {err}",
+                    "parameter_errors" if err.startswith("Param") else "other_exceptions",
+                    f"{desc}: {err}",
                 )
+            continue
+        counts["queries"] += 2
+        f, rt = row["f"], row["rtol"]
+        desc = f"classify {row['pert']} {pd} log_size={row['lg']!r} (f={f:g}) rtol={rt:.3g}"
+        times.append((row["dt"], rt, desc))
+        times.append((row["ref_dt"], REF_RTOL, desc + " [reference]"))
+        key = (row["i"], row["pert"])
+        for tag in ("", "ref_"):
+            err = row[tag + "err"]
+            if not err:
                 continue
-            if crit.kind != "finite" or crit.log_critical_size is None:
+            d = desc + (" [reference]" if tag else "")
+            if err == "UndecidedError:not_certified":
+                note("not_certified", d)
+            elif err.startswith("ParameterError"):
+                note("parameter_errors", d + " " + err)
+            else:
+                note("other_exceptions", d + " " + err)
+        if row["err"]:
+            series.setdefault(key, []).append(None)
+            continue
+        out = row["outcome"]
+        series.setdefault(key, []).append(out)
+        side = "stable" if f < 0 else "unstable"
+        if out != side:
+            note("contradiction", f"{desc}: {out} ({row['certificate']})")
+        has_ref = not row["ref_err"]
+        if has_ref and row["complete"] and out != row["ref_outcome"]:
+            if out != side:
+                note("wrong_complete", f"{desc}: {out} vs ref {row['ref_outcome']}")
+            else:
+                note(
+                    "wrong_vs_ref_only",
+                    f"{desc}: ref {row['ref_outcome']} ({row['ref_certificate']})",
+                )
+        if has_ref and row["complete"] and row["ref_complete"] and out == row["ref_outcome"]:
+            for name in ("blowup_time", "return_time", "peak_time", "peak_phi"):
+                va, vb = row[name], row["ref_" + name]
+                acc, acc_ref = row["rel_accuracy"], row["ref_rel_accuracy"]
+                if not close(va, vb, acc, acc_ref, name == "peak_phi"):
+                    scale = max(abs(vb), 1.0) if name == "peak_phi" else abs(vb)
+                    ratio = abs(va - vb) / scale / max(acc + acc_ref, 1e-300)
+                    worst_ratio = max(worst_ratio, ratio)
+                    note(
+                        "bound_violations",
+                        f"{desc}: {name} {va!r} vs {vb!r}, claim {acc:.2g} + ref {acc_ref:.2g}"
+                        f" ({ratio:.3g}x)",
+                    )
+    for key, outs in series.items():
+        seen_unstable = False
+        for o in outs:
+            if o is None:
                 continue
-            lc = crit.log_critical_size
-            if pert == VJ and not lc > 0.0:
-                continue
-            ac = crit.rel_accuracy
-            # sizes as log sizes: d for a velocity jump, ln(1 + dv) for a load-point jump
-            rows = []
-            for f in sorted([-f for f in FRACTIONS] + list(FRACTIONS)):
-                if abs(f) <= 4.0 * ac:
-                    continue
-                if pert == VJ:
-                    lg = lc * (1.0 + f)
-                else:
-                    dvc = crit.critical_size
-                    if dvc is not None and math.isfinite(dvc) and lc < 700.0:
-                        lg = math.log1p(dvc * (1.0 + f))
-                    else:
-                        lg = lc + math.log1p(f)  # dv (1 + f) for dv >> 1
-                rows.append((f, lg))
-            outs = []
-            for f, lg in rows:
-                rt = rtol_draw(rng)
-                res, dt, err = timed(rc.classify, p, pert, log_size=lg, rtol=rt)
-                counts["queries"] += 1
-                desc = f"classify {pert} {p.as_dict()} log_size={lg!r} (f={f:g}) rtol={rt:.3g}"
-                times.append((dt, rt, desc))
-                ref, dt2, err2 = timed(rc.classify, p, pert, log_size=lg, rtol=REF_RTOL)
-                counts["queries"] += 1
-                times.append((dt2, REF_RTOL, desc + " [reference]"))
-                if err:
-                    if err == "UndecidedError:not_certified":
-                        note("not_certified", desc)
-                    elif err.startswith("ParameterError"):
-                        note("parameter_errors", desc + " " + err)
-                    else:
-                        note("other_exceptions", desc + " " + err)
-                    outs.append(None)
-                    continue
-                outs.append(res.outcome)
-                side = "stable" if f < 0 else "unstable"
-                if res.outcome != side:
-                    note("contradiction", f"{desc}: {res.outcome} ({res.certificate})")
-                if ref is not None and res.complete and res.outcome != ref.outcome:
-                    if res.outcome != side:
-                        note("wrong_complete", f"{desc}: {res.outcome} vs ref {ref.outcome}")
-                    else:
-                        note("wrong_vs_ref_only", f"{desc}: ref {ref.outcome} ({ref.certificate})")
-                if ref is not None and res.complete and ref.complete and res.outcome == ref.outcome:
-                    for name in ("blowup_time", "return_time", "peak_time", "peak_phi"):
-                        va, vb = getattr(res, name), getattr(ref, name)
-                        if not close(
-                            va, vb, res.rel_accuracy, ref.rel_accuracy, name == "peak_phi"
-                        ):
-                            scale = max(abs(vb), 1.0) if name == "peak_phi" else abs(vb)
-                            ratio = abs(va - vb) / scale / max(res.rel_accuracy, 1e-300)
-                            worst_ratio = max(worst_ratio, ratio)
-                            note(
-                                "bound_violations",
-                                f"{desc}: {name} {va!r} vs {vb!r}, claim {res.rel_accuracy:.2g}"
-                                f" ({ratio:.3g}x)",
-                            )
-            seen_unstable = False
-            for o in outs:
-                if o is None:
-                    continue
-                if o == "unstable":
-                    seen_unstable = True
-                elif seen_unstable:
-                    note("non_monotone", f"{pert} {p.as_dict()}: {outs}")
-                    break
-    wall = time.perf_counter() - t_start
+            if o == "unstable":
+                seen_unstable = True
+            elif seen_unstable:
+                note("non_monotone", f"{key}: {outs}")
+                break
     arr = np.array([t for t, _, _ in times])
-    print(f"queries {counts['queries']} in {wall:.1f} s (seed {a.seed}, n {a.n})")
+    print(f"queries {counts['queries']} in {wall:.1f} s ({label})")
     for k, v in counts.items():
         if k != "queries":
             print(f"  {k:20s} {v}")
-            for ex in examples[k]:
+            for ex in examples[k][:12]:
                 print(f"      {ex}")
-    print(f"  worst bound ratio (delivered/claimed) {worst_ratio:.3g}")
+    print(f"  worst bound ratio (delivered/claimed incl. the reference's claim) {worst_ratio:.3g}")
     print("time per query [ms]: p50 / p99 / max, by rtol decade")
     for lo in range(-13, -2):
         sel = np.array([lo <= math.log10(r) < lo + 1 for _, r, _ in times])
@@ -240,11 +277,52 @@ def main() -> None:
     print("slowest 12:")
     for t, _, d in sorted(times, key=lambda z: -z[0])[:12]:
         print(f"  {t * 1e3:9.1f} ms  {d}")
+    return {"counts": counts, "examples": examples, "worst_ratio": worst_ratio}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--n", type=int, default=800, help="parameter points")
+    ap.add_argument("--seed", type=int, default=2211)
+    ap.add_argument("--json", default="", help="write the summary here")
+    ap.add_argument(
+        "--checkpoint",
+        default="",
+        help="JSON-lines file of per-query records, appended point by point; a rerun"
+        " skips the points already in it (resume), --summary-only just reads it",
+    )
+    ap.add_argument("--summary-only", action="store_true")
+    ap.add_argument(
+        "--points", default="", help="comma-separated point indices to run (a failing subset)"
+    )
+    a = ap.parse_args()
+    rows: list[dict[str, Any]] = []
+    done: set[int] = set()
+    if a.checkpoint:
+        try:
+            with open(a.checkpoint) as fh:
+                for line in fh:
+                    rec = json.loads(line)
+                    rows.extend(rec["rows"])
+                    done.add(rec["i"])
+        except FileNotFoundError:
+            pass
+    t_start = time.perf_counter()
+    idx = [int(s) for s in a.points.split(",")] if a.points else list(range(a.n))
+    if not a.summary_only:
+        for i in idx:
+            if i in done:
+                continue
+            recs = run_point(a.seed, i)
+            rows.extend(recs)
+            if a.checkpoint:
+                with open(a.checkpoint, "a") as fh:
+                    fh.write(json.dumps({"i": i, "rows": recs}) + "\n")
+    wall = time.perf_counter() - t_start
+    out = summarise(rows, wall, f"seed {a.seed}, n {a.n}, {len(idx)} points, this run's wall")
     if a.json:
         with open(a.json, "w") as fh:
-            json.dump(
-                {"counts": counts, "examples": examples, "worst_ratio": worst_ratio}, fh, indent=1
-            )
+            json.dump(out, fh, indent=1)
 
 
 if __name__ == "__main__":
