@@ -38,7 +38,8 @@ Events located on every accepted step with the dense output:
   * local maxima of phi (d phi/dtau = 0) and of psi (d psi/dtau = 0, where V = V_o),
     giving the true peaks of slip rate and friction, never sampled ones;
   * optional stop at a given T;
-  * blow-up: phi - ln c > phi_stop, after which the remaining time is < e^-phi_stop.
+  * blow-up: phi - ln c > phi_stop, after which the remaining time is < e^-phi_stop
+    (blowup_tail).
 
 References: Ciardo & Viesca (the system, `eq:psi_T`, `eq:phi_T`); E. Hairer, S. P. Norsett,
 G. Wanner, Solving Ordinary Differential Equations I, 2nd ed., Springer 1993 (DOP853,
@@ -1078,7 +1079,11 @@ def blowup_tail(phi: float, L: float, ba: float, kappa: float, eps: float) -> fl
     """Dimensionless time left to blow-up after the engine stopped at phi - ln c > phi_stop.
 
     For phi >> ln v_o, d phi/dT = e^phi r with r = -(b/a) G(L) - kappa > 0 on a runaway,
-    so the remaining time is e^-phi / r (relative error O(e^-phi), < 1e-17 at phi = 40).
+    so the remaining time is e^-phi / r, with L held at its value at the stop.  L is not
+    fixed: dL/dphi = (r + G(L))/r is O(1), so this tail is only good to O(1) of itself
+    (measured 0.1 of it at b/a = 8478, kappa = 2e5), and the caller must stop far enough
+    above the start that the tail is negligible (rsfcore.trajectory stops PHI_STOP above
+    both ln c and the start: tail < e^-40 of the blow-up time).
     """
     from .laws import G
 
