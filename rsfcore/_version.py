@@ -51,4 +51,11 @@ __all__ = ["NUMERICS_VERSION"]
 #:    b/a, ln kappa, ln(V0/Dc) and eps (fitted values move within the optimiser's
 #:    tolerance, <= 3e-4 standard errors on bench/bench_fit.py's records), and a stiffness
 #:    given for a record that contradicts it makes the fit suspect.
+#:    rel_accuracy of classify/trajectory fields is a bound on the issue 22 stress run: a
+#:    run ends PHI_STOP above its start too (blow-up times of starts above ln v_o move: by
+#:    ~1e-6 for a start 30 above, 4.4x where the start was already above the old threshold
+#:    and the whole time was the fixed-L tail, which is O(1) of itself off), and
+#:    a third run checks claims where errors do not scale with rtol (rtol < 1e-11, peaks
+#:    above phi - ln v_o = 50, claims above 1e-2), so those claims rise (outcomes are
+#:    unchanged).
 NUMERICS_VERSION = "6"
