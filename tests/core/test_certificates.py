@@ -311,3 +311,21 @@ def test_plateau_peak_time_claim_is_a_bound() -> None:
     for rtol in (1e-4, 1e-6, 1e-8, 1e-9, 1e-10):
         r = classify(p, LJ, 700.0, rtol=rtol)
         assert _within_claims(r, ref) == [], rtol
+
+
+def test_blowup_time_of_a_start_above_phi_stop() -> None:
+    # issue 22 stress run (seed 2611): a velocity jump d = 84.6 at v_o = 1.6e-30 starts above
+    # the old blow-up threshold (phi - ln v_o > 40), so the engine stopped at once and the
+    # whole blow-up time was the fixed-L tail: 2.85e-10 at rtol 1.8e-10 and 2.849e-10 at
+    # 1e-13, agreeing with each other (claim 1.8e-3) and 4.4x the true 6.41e-11.  Referee:
+    # the v_o = 0 equations (the load-point term is e^-150 of the others at phi - ln v_o >
+    # 150) integrated by scipy.
+    p = Params(3664.6853432661705, 309722.20955376525, 0.0, 1.5774289946625907e-30)
+    lg = 84.62296914585082
+    for rtol in (1e-4, 1.8e-10, 1e-13):
+        r = classify(p, VJ, log_size=lg, rtol=rtol)
+        assert r.outcome == "unstable" and r.blowup_time is not None
+        phi0, psi0 = r.start
+        ref = _vo0_blowup_time_referee(p, phi0, phi0 + (psi0 - phi0) / p.ba)
+        assert 6.40e-11 < ref < 6.42e-11
+        assert abs(r.blowup_time - ref) <= r.rel_accuracy * ref, rtol
