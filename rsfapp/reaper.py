@@ -1,7 +1,7 @@
 """Chunk leases and the reaper: a lost worker host costs seconds, not a restart.
 
-* :class:`Lease`: while a worker process computes a chunk, a thread renews the chunk's
-  lease (its ``heartbeat``) every ``RSF_LEASE_S / 3`` seconds.
+* :class:`Lease`: while a worker process computes a chunk, the process's renewal thread
+  renews the chunk's lease (its ``heartbeat``) every ``RSF_LEASE_S / 3`` seconds.
 * :class:`Reaper`: a thread in every worker's main process.  Every
   :func:`scan_interval` seconds it refreshes this worker's row in the worker registry
   (for /health), requeues the running chunks whose lease expired (their worker died,
@@ -44,8 +44,63 @@ def scan_interval(lease_s: float) -> float:
     return max(0.2, min(lease_s / 10.0, 2.0))
 
 
+class _Renewer:
+    """One daemon thread per process that renews every :class:`Lease` entered in it,
+    each ``every`` seconds after the last renewal.  Started at the first lease (again
+    after a fork: the child has none of its parent's threads) and kept: entering and
+    leaving a lease only touches a dict under a lock, where a thread per lease cost a
+    start and a join, each waiting for the OS to schedule it (5-10 ms per chunk on a
+    loaded machine)."""
+
+    #: Longest sleep of the thread [s]: a lease due later than its planned wake-up needs
+    #: no notification (which would make the thread take the GIL from the computing
+    #: thread at once: ~one switch interval, 5 ms, per chunk).
+    IDLE_S = 1.0
+
+    def __init__(self) -> None:
+        self._cv = threading.Condition()
+        self._due: dict[int, tuple[float, Lease]] = {}
+        self._pid = -1
+        self._wake = 0.0
+
+    def add(self, lease: Lease) -> None:
+        with self._cv:
+            if self._pid != os.getpid():
+                self._pid = os.getpid()
+                self._due.clear()
+                self._wake = 0.0
+                threading.Thread(target=self._run, name="rsf-lease", daemon=True).start()
+            due = time.monotonic() + lease.every
+            self._due[id(lease)] = (due, lease)
+            if due < self._wake:
+                self._cv.notify()
+
+    def remove(self, lease: Lease) -> None:
+        with self._cv:
+            self._due.pop(id(lease), None)
+
+    def _run(self) -> None:
+        while True:
+            with self._cv:
+                now = time.monotonic()
+                due = [ls for t, ls in self._due.values() if t <= now]
+                for ls in due:
+                    self._due[id(ls)] = (now + ls.every, ls)
+                if not due:
+                    nxt = min((t for t, _ in self._due.values()), default=now + self.IDLE_S)
+                    self._wake = min(nxt, now + self.IDLE_S)
+                    self._cv.wait(max(0.0, self._wake - now))
+                    continue
+            for ls in due:  # outside the lock: a renewal is a database transaction
+                ls.renew_once()
+
+
+_RENEWER = _Renewer()
+
+
 class Lease:
-    """Context manager renewing a lease in a background thread while a chunk runs.
+    """Context manager renewing a lease while a chunk runs (from the process's one
+    renewal thread, :class:`_Renewer`).
 
     Args:
         renew: called every ``every`` seconds; returns False once the lease is lost
@@ -56,27 +111,24 @@ class Lease:
     def __init__(self, renew: Callable[[], bool], every: float) -> None:
         self.renew, self.every = renew, every
         self.lost = False
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="rsf-lease", daemon=True)
 
-    def _run(self) -> None:
-        while not self._stop.wait(self.every):
-            try:
-                if not self.renew():
-                    self.lost = True
-                    return
-            except Exception as exc:  # noqa: BLE001 - database down: try again next time
-                log.warning("lease renewal failed: %s", str(exc).splitlines()[0])
+    def renew_once(self) -> None:
+        """One renewal (called by the renewal thread); a lost lease is not renewed again."""
+        try:
+            if not self.renew():
+                self.lost = True
+                _RENEWER.remove(self)
+        except Exception as exc:  # noqa: BLE001 - database down: try again next time
+            log.warning("lease renewal failed: %s", str(exc).splitlines()[0])
 
     def __enter__(self) -> Lease:
-        self._thread.start()
+        _RENEWER.add(self)
         return self
 
     def __exit__(
         self, _t: type[BaseException] | None, _e: BaseException | None, _tb: TracebackType | None
     ) -> None:
-        self._stop.set()
-        self._thread.join(timeout=5)
+        _RENEWER.remove(self)
 
 
 class TickResult(NamedTuple):
