@@ -195,6 +195,38 @@ def queries_for(
     return done
 
 
+#: the documented corners where a query may take over 10 ms (docs/accuracy.md)
+CORNERS = (
+    "stiff machine (kappa >= 1e3, kappa_crit >= 1e3), rtol <= 1e-10",
+    "stiff machine (kappa >= 1e3, kappa_crit >= 1e3), rtol > 1e-10",
+    "kappa < kappa_crit (linear instability, times beyond reach)",
+    "near a boundary (b/a - 1 < 1e-6, or x = eps kappa/kappa_crit > 0.99)",
+    "other",
+)
+
+
+def corner_of(q: Q) -> str:
+    """The documented corner a query belongs to (the first that applies)."""
+    p = q.params
+    kc = p.ba - 1.0
+    if p.kappa >= 1e3 and kc >= 1e3:
+        return CORNERS[0] if q.rtol <= 1e-10 else CORNERS[1]
+    if p.kappa < kc and p.vo > 0.0:
+        return CORNERS[2]
+    if kc < 1e-6 or p.eps * p.kappa / kc > 0.99:
+        return CORNERS[3]
+    return CORNERS[4]
+
+
+def corner_summary(slow: list[Q]) -> list[tuple[str, int, float]]:
+    """(corner, queries over 10 ms, worst seconds) for every corner."""
+    out = []
+    for c in CORNERS:
+        ts = [q.seconds for q in slow if corner_of(q) == c]
+        out.append((c, len(ts), max(ts, default=0.0)))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=40, help="random points of each sampling")
@@ -252,6 +284,9 @@ def main() -> None:
             print(
                 f"  {q.seconds * 1e3:9.1f} ms  {q.label()}\n               -> {q.info or q.error}"
             )
+    print("\nqueries over 10 ms by corner (docs/accuracy.md, 'Speed of single queries'):")
+    for name, n, worst in corner_summary(slow_all):
+        print(f"  {name:<58} {n:>5}  worst {worst * 1e3:8.1f} ms")
     bad = [q for q in allq if q.error and not q.error.startswith(("Param", "Undecided"))]
     und = [q for q in allq if q.error.startswith("Undecided")]
     print(f"\nUndecidedError answers (timed): {len(und)}; other exceptions: {len(bad)}")
