@@ -774,9 +774,9 @@ def _stiffness_contradiction(
         + (f" (= {_num(k_given * sigma_Pa)} Pa/m)" if sigma_Pa else "")
     )
     option = (
-        "give no stiffness to fit it (CLI: without --rigid)"
+        "give no stiffness to fit it (rigid_machine false; CLI without --rigid)"
         if mode == "rigid"
-        else "fit it (fit_stiffness=true; CLI --fit-stiffness), or check the machine's stiffness"
+        else "fit it (fit_stiffness true; CLI --fit-stiffness), or check the machine's stiffness"
     )
     return (
         f"the record contradicts {given}: fitted with the stiffness free, {est}, the AIC is "
