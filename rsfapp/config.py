@@ -32,7 +32,9 @@ class Settings(BaseSettings):
         cache_url: SQLAlchemy URL of the result cache and sweep bookkeeping; empty =
             ``sqlite:///<data_dir>/cache.sqlite3``.  Use ``postgresql+psycopg://...``
             when workers run on several hosts (SQLite needs one shared local disk).
-        chunk_seconds: target duration of one sweep chunk [s], (0, 600].
+        chunk_seconds: target duration of one sweep chunk [s], (0, 600], at the cost per
+            point estimated from a sample of the sweep (rsfapp.grid.plan_chunks; chunks of
+            at most 10^6 points).
         sweep_max_points: largest accepted sweep (points), >= 1; default 1e8 (a sweep
             is chunked lazily: nothing per point is created before it is computed).
         sweep_max_scattered: largest number of scattered points in one request (they

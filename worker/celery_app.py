@@ -2,7 +2,7 @@
 
 The app itself comes from :func:`rsfapp.queue.make_app` (the API sends with the same
 configuration); this module registers the tasks (:mod:`worker.tasks`) and the signal
-handlers: memory reuse (:mod:`worker.memory`) and warm-up of rsfcore's kernels before
+handlers: memory reuse (:mod:`rsfapp.memory`) and warm-up of rsfcore's kernels before
 the pool forks; when a worker is ready,
 requeueing of sweep chunks that no live worker holds (the filesystem broker deletes a
 message once delivered, so work held by a killed worker is resent here) and the start
@@ -18,12 +18,11 @@ from celery.signals import worker_init, worker_ready, worker_shutdown
 
 from rsfapp import metrics
 from rsfapp.config import get_settings
+from rsfapp.memory import keep_freed_memory
 from rsfapp.queue import Queue, make_app
 from rsfapp.reaper import Reaper
 from rsfapp.store import stores_for
 from rsfapp.warmup import warm_up
-
-from .memory import keep_freed_memory
 
 __all__ = ["app"]
 log = logging.getLogger("rsf.worker")
@@ -34,7 +33,7 @@ app.conf.include = ["worker.tasks"]
 
 @worker_init.connect  # type: ignore[untyped-decorator]
 def _warm_up(**_kw: object) -> None:
-    """Keep freed chunk memory for reuse (:mod:`worker.memory`) and load rsfcore's
+    """Keep freed chunk memory for reuse (:mod:`rsfapp.memory`) and load rsfcore's
     compiled kernels once, before the pool forks."""
     keep_freed_memory()
     warm_up()

@@ -40,6 +40,7 @@ from rsfapp import sweepdata, sweepselect
 from rsfapp.adapter import numerics_version
 from rsfapp.grid import SweepSpec, expand, plan_chunks
 from rsfapp.keys import cache_key
+from rsfapp.memory import give_back
 from rsfapp.queue import Queue
 from rsfapp.requests import SweepRequest
 from rsfapp.store import SweepStore
@@ -333,11 +334,13 @@ def _busy() -> Response:
 
 
 def _released(pieces: Iterator[Any]) -> Iterator[Any]:
-    """``pieces``, releasing the download slot when done, failed or abandoned."""
+    """``pieces``, releasing the download slot when done, failed or abandoned, and the
+    download's freed memory to the system (:func:`rsfapp.memory.give_back`)."""
     try:
         yield from pieces
     finally:
         _downloads.release()
+        give_back()
 
 
 @router.get(

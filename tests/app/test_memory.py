@@ -1,4 +1,4 @@
-"""worker.memory: glibc keeps freed chunk arrays for reuse (fewer page faults per chunk),
+"""rsfapp.memory: glibc keeps freed chunk arrays for reuse (fewer page faults per chunk),
 checked in a fresh process by counting minor page faults over repeated allocations."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ _PROBE = """
 import resource, sys
 import numpy as np
 if sys.argv[1] == "1":
-    from worker.memory import keep_freed_memory
+    from rsfapp.memory import keep_freed_memory
     assert keep_freed_memory()
 def faults():
     return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
@@ -46,3 +46,29 @@ def test_freed_arrays_are_reused_without_page_faults() -> None:
     default, reused = _faults(False), _faults(True)
     assert default > 10 * 2048  # at least 8 MiB touched afresh per chunk: what this fixes
     assert reused < default / 10
+
+
+_TRIM = """
+import threading
+import numpy as np
+import psutil
+from rsfapp.memory import give_back
+def work():
+    arrays = [np.ones(512) for _ in range(50_000)]  # 4 KiB each, ~200 MiB in this thread's arena
+    del arrays
+t = threading.Thread(target=work)
+t.start()
+t.join()
+before = psutil.Process().memory_info().rss
+give_back()
+print(before - psutil.Process().memory_info().rss)
+"""
+
+
+def test_give_back_returns_a_threads_freed_memory() -> None:
+    """~200 MiB freed by a finished thread stay in its malloc arena (resident) until
+    give_back returns them: more than half must go back."""
+    if not sys.platform.startswith("linux"):
+        return
+    out = subprocess.run([sys.executable, "-c", _TRIM], capture_output=True, text=True, check=True)
+    assert int(out.stdout.split()[-1]) > 100 * 2**20
