@@ -1209,7 +1209,10 @@ def _simulate(
 def _frame_ok(vo: float, t_end: float | None, times: Sequence[float] | None) -> bool:
     """The requested times T scale to the v_o = 1 frame (T' = v_o T) without overflow or
     loss to underflow (else the trajectory is sampled in its own frame)."""
-    ts = [] if times is None else [float(t) for t in times if t > 0.0]
+    try:
+        ts = [] if times is None else [float(t) for t in times if float(t) > 0.0]
+    except (TypeError, ValueError):
+        return False  # (the own frame's checks name the field)
     if t_end is not None:
         ts.append(float(t_end))
     return all(1e-290 < t * vo < 1e300 for t in ts)
