@@ -22,6 +22,8 @@ rtol, and the same starts at rtol 1e-13 (the reference).  Checks:
    disagree, from the critical size's side: the referee);
 4. bound: every time and peak within its rel_accuracy of the reference (plus the
    reference's own claim);
+   The trajectory (simulate, 16 samples) at s_c (1 -/+ 1e-2) and the query's rtol: the
+   same outcome as classify (else trajectory_differs), no NaN, fields within its claim;
 5. exceptions other than ParameterError and UndecidedError(reason="not_certified")
    (an uncertified answer that says so is counted apart).
 
@@ -46,6 +48,8 @@ from rsfcore.errors import ParameterError, UndecidedError
 
 VJ, LJ = "velocity-jump", "load-point-jump"
 FRACTIONS = (0.1, 1e-2, 1e-3)
+#: at s_c (1 -/+ this) the trajectory (simulate with 16 samples) is asked too
+TRAJECTORY_FRACTION = 1e-2
 REF_RTOL = 1e-13
 
 
@@ -135,14 +139,23 @@ def run_point(seed: int, i: int) -> list[dict[str, Any]]:
                     lg = lc + math.log1p(f)  # dv (1 + f) for dv >> 1
             rt = rtol_draw(rng)
             row: dict[str, Any] = {**base, "q": "classify", "f": f, "lg": lg, "rtol": rt}
-            for tag, r in (("", rt), ("ref_", REF_RTOL)):
-                res, dt, err = timed(rc.classify, p, pert, log_size=lg, rtol=r)
+            runs: list[tuple[str, Any, dict[str, Any]]] = [
+                ("", rc.classify, {"rtol": rt}),
+                ("ref_", rc.classify, {"rtol": REF_RTOL}),
+            ]
+            if abs(f) == TRAJECTORY_FRACTION:  # the trajectory's fields, at the same rtol
+                runs.append(("traj_", rc.simulate, {"rtol": rt, "n_points": 16}))
+            for tag, fn, kw in runs:
+                res, dt, err = timed(fn, p, pert, log_size=lg, **kw)
                 row[tag + "dt"] = dt
                 row[tag + "err"] = err
                 if res is not None:
                     for k in FIELDS:
                         v = getattr(res, k)
                         row[tag + k] = v if not isinstance(v, float) or math.isfinite(v) else None
+                    if res.trajectory is not None:
+                        tr = res.trajectory
+                        row[tag + "nan"] = bool(np.isnan(tr.phi).any() or np.isnan(tr.T).any())
             recs.append(row)
     return recs
 
@@ -169,6 +182,7 @@ def summarise(rows: list[dict[str, Any]], wall: float, label: str) -> dict[str, 
         wrong_complete=0,
         wrong_vs_ref_only=0,
         bound_violations=0,
+        trajectory_differs=0,
         not_certified=0,
         other_exceptions=0,
         parameter_errors=0,
@@ -230,18 +244,35 @@ def summarise(rows: list[dict[str, Any]], wall: float, label: str) -> dict[str, 
                     "wrong_vs_ref_only",
                     f"{desc}: ref {row['ref_outcome']} ({row['ref_certificate']})",
                 )
-        if has_ref and row["complete"] and row["ref_complete"] and out == row["ref_outcome"]:
+        tags = [""]
+        if "traj_dt" in row:
+            counts["queries"] += 1
+            times.append((row["traj_dt"], rt, desc + " [trajectory]"))
+            terr = row["traj_err"]
+            if terr == "UndecidedError:not_certified":
+                note("not_certified", desc + " [trajectory]")
+            elif terr or row.get("traj_nan"):
+                note("other_exceptions", f"{desc} [trajectory] {terr or 'NaN in samples'}")
+            elif row["traj_outcome"] != out:
+                note("trajectory_differs", f"{desc}: {row['traj_outcome']} vs classify {out}")
+            else:
+                tags.append("traj_")
+        for tag in tags:
+            if not (has_ref and row[tag + "complete"] and row["ref_complete"]):
+                continue
+            if row[tag + "outcome"] != row["ref_outcome"]:
+                continue
             for name in ("blowup_time", "return_time", "peak_time", "peak_phi"):
-                va, vb = row[name], row["ref_" + name]
-                acc, acc_ref = row["rel_accuracy"], row["ref_rel_accuracy"]
+                va, vb = row[tag + name], row["ref_" + name]
+                acc, acc_ref = row[tag + "rel_accuracy"], row["ref_rel_accuracy"]
                 if not close(va, vb, acc, acc_ref, name == "peak_phi"):
                     scale = max(abs(vb), 1.0) if name == "peak_phi" else abs(vb)
                     ratio = abs(va - vb) / scale / max(acc + acc_ref, 1e-300)
                     worst_ratio = max(worst_ratio, ratio)
                     note(
                         "bound_violations",
-                        f"{desc}: {name} {va!r} vs {vb!r}, claim {acc:.2g} + ref {acc_ref:.2g}"
-                        f" ({ratio:.3g}x)",
+                        f"{desc}{' [trajectory]' if tag else ''}: {name} {va!r} vs {vb!r},"
+                        f" claim {acc:.2g} + ref {acc_ref:.2g} ({ratio:.3g}x)",
                     )
     for key, outs in series.items():
         seen_unstable = False
