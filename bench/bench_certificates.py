@@ -9,7 +9,12 @@ Own sampling and seeds (independent of bench/bench_stress.py), over the whole va
 * eps: 10 % 0, 10 % 1, 30 % uniform, the rest from the x placement;
 * v_o: 10 % exactly 0, else 10^U(-300, 300) on a quarter of the points, 10^U(-40, 40)
   on the rest;
-* rtol of every query log-uniform in [1e-13, 1e-3]; both perturbations.
+* rtol of every query log-uniform in [1e-13, 1e-3]; both perturbations;
+* on 6 % of the points kappa is replaced by 0 or 10^U(-300, -15) (TINY_KAPPA_SHARE).
+
+Where the critical size is "zero" or "infinite", classify at two positive sizes (d in
+10^U(-3, 1), dv in 10^U(-3, 2)) must give the kind's side (unstable, stable), each
+against its rtol 1e-13 run as below.
 
 Per (point, perturbation) with a finite critical size s_c (rel_accuracy a_c): classify at
 s_c (1 -/+ f), f in {0.1, 1e-2, 1e-3} where f > 4 a_c (through log_size), each at its own
@@ -50,6 +55,9 @@ VJ, LJ = "velocity-jump", "load-point-jump"
 FRACTIONS = (0.1, 1e-2, 1e-3)
 #: at s_c (1 -/+ this) the trajectory (simulate with 16 samples) is asked too
 TRAJECTORY_FRACTION = 1e-2
+#: share of points whose kappa is replaced by 0 (a fifth) or 10^U(-300, -15) (kind "zero"
+#: for a velocity jump: classify at two sizes must say unstable)
+TINY_KAPPA_SHARE = 0.06
 REF_RTOL = 1e-13
 
 
@@ -110,6 +118,10 @@ def run_point(seed: int, i: int) -> list[dict[str, Any]]:
     """All queries of parameter point i (its own generator: a run can be resumed)."""
     rng = np.random.default_rng([seed, i])
     p = sample_point(rng)
+    # a second generator for what sample_point does not draw (the main stream is unchanged)
+    rng2 = np.random.default_rng([seed, i, 1])
+    if rng2.random() < TINY_KAPPA_SHARE:  # kappa = 0 or 10^U(-300, -15)
+        p = p.with_(kappa=0.0 if rng2.random() < 0.2 else 10.0 ** rng2.uniform(-300, -15))
     recs: list[dict[str, Any]] = []
     for pert in (VJ, LJ):
         if pert == LJ and p.vo == 0.0:
@@ -118,6 +130,14 @@ def run_point(seed: int, i: int) -> list[dict[str, Any]]:
         crit, dt, err = timed(rc.critical_perturbation, p, pert, rtol=rt_c)
         base = {"i": i, "pert": pert, "p": p.as_dict()}
         recs.append({**base, "q": "critical", "rtol": rt_c, "dt": dt, "err": err})
+        if not err and crit.kind in ("zero", "infinite"):
+            # every positive size is on one side: classify at sizes drawn across decades
+            side = "unstable" if crit.kind == "zero" else "stable"
+            for _ in range(2):
+                sz = 10.0 ** rng2.uniform(-3, 1) if pert == VJ else 10.0 ** rng2.uniform(-3, 2)
+                lg = sz if pert == VJ else math.log1p(sz)
+                recs.append(_classify_row(p, pert, base, 0.0, lg, rtol_draw(rng2), side))
+            continue
         if err or crit.kind != "finite" or crit.log_critical_size is None:
             continue
         lc = crit.log_critical_size
@@ -137,27 +157,34 @@ def run_point(seed: int, i: int) -> list[dict[str, Any]]:
                     lg = math.log1p(dvc * (1.0 + f))
                 else:
                     lg = lc + math.log1p(f)  # dv (1 + f) for dv >> 1
-            rt = rtol_draw(rng)
-            row: dict[str, Any] = {**base, "q": "classify", "f": f, "lg": lg, "rtol": rt}
-            runs: list[tuple[str, Any, dict[str, Any]]] = [
-                ("", rc.classify, {"rtol": rt}),
-                ("ref_", rc.classify, {"rtol": REF_RTOL}),
-            ]
-            if abs(f) == TRAJECTORY_FRACTION:  # the trajectory's fields, at the same rtol
-                runs.append(("traj_", rc.simulate, {"rtol": rt, "n_points": 16}))
-            for tag, fn, kw in runs:
-                res, dt, err = timed(fn, p, pert, log_size=lg, **kw)
-                row[tag + "dt"] = dt
-                row[tag + "err"] = err
-                if res is not None:
-                    for k in FIELDS:
-                        v = getattr(res, k)
-                        row[tag + k] = v if not isinstance(v, float) or math.isfinite(v) else None
-                    if res.trajectory is not None:
-                        tr = res.trajectory
-                        row[tag + "nan"] = bool(np.isnan(tr.phi).any() or np.isnan(tr.T).any())
-            recs.append(row)
+            side = "stable" if f < 0 else "unstable"
+            recs.append(_classify_row(p, pert, base, f, lg, rtol_draw(rng), side))
     return recs
+
+
+def _classify_row(
+    p: rc.Params, pert: str, base: dict[str, Any], f: float, lg: float, rt: float, side: str
+) -> dict[str, Any]:
+    """classify at (rt, REF_RTOL) and, at |f| = TRAJECTORY_FRACTION, simulate at rt."""
+    row: dict[str, Any] = {**base, "q": "classify", "f": f, "lg": lg, "rtol": rt, "side": side}
+    runs: list[tuple[str, Any, dict[str, Any]]] = [
+        ("", rc.classify, {"rtol": rt}),
+        ("ref_", rc.classify, {"rtol": REF_RTOL}),
+    ]
+    if abs(f) == TRAJECTORY_FRACTION:  # the trajectory's fields, at the same rtol
+        runs.append(("traj_", rc.simulate, {"rtol": rt, "n_points": 16}))
+    for tag, fn, kw in runs:
+        res, dt, err = timed(fn, p, pert, log_size=lg, **kw)
+        row[tag + "dt"] = dt
+        row[tag + "err"] = err
+        if res is not None:
+            for k in FIELDS:
+                v = getattr(res, k)
+                row[tag + k] = v if not isinstance(v, float) or math.isfinite(v) else None
+            if res.trajectory is not None:
+                tr = res.trajectory
+                row[tag + "nan"] = bool(np.isnan(tr.phi).any() or np.isnan(tr.T).any())
+    return row
 
 
 FIELDS = (
@@ -232,7 +259,7 @@ def summarise(rows: list[dict[str, Any]], wall: float, label: str) -> dict[str, 
             continue
         out = row["outcome"]
         series.setdefault(key, []).append(out)
-        side = "stable" if f < 0 else "unstable"
+        side = row.get("side") or ("stable" if f < 0 else "unstable")
         if out != side:
             note("contradiction", f"{desc}: {out} ({row['certificate']})")
         has_ref = not row["ref_err"]
