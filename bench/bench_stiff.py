@@ -60,11 +60,10 @@ def _rsfcore_state(p: Params, dv: float, rtol: float, integrator: str) -> tuple[
     vo = p.vo * (1.0 + dv)
     phi0 = math.log(p.vo)
     # (phi, ln theta, T) like the scipy runs; the run stops at T_END on its dense output
-    res = engine.run(
-        np.array([phi0, -phi0, 0.0]), p.ba, p.kappa, p.eps, vo, rtol, rtol, math.inf, False,
-        False, T_END, 40.0, 10_000_000, 0.0, np.empty(0), np.empty(0), np.empty((0, 5)),
-        _INTEGRATORS[integrator],
-    )  # fmt: skip
+    opts = engine.EngineOptions(
+        rtol=rtol, atol=rtol, t_end=T_END, integrator=_INTEGRATORS[integrator]
+    )
+    res = engine.run(np.array([phi0, -phi0, 0.0]), p.ba, p.kappa, p.eps, vo, opts)
     assert res.status == engine.Status.T_END
     return np.array([res.y_end[0], res.y_end[1]]), res.n_steps
 

@@ -28,9 +28,10 @@ Integrator: the explicit Runge-Kutta pair of Dormand & Prince of order 8(5,3) (H
 Norsett & Wanner, Solving ODEs I, Sec. II.10) with its 7th-order dense output.  The
 tableau is this project's copy of the published coefficients (rsfcore.ode.dop853_tableau);
 stages, error norm, step-size controller, dense output, the Illinois root finder (events) and
-the Newton inversion of the time component (samples at given T) are
-the shared kernels of rsfcore.ode.rk (also used by the separatrix integrator,
-rsfcore.separatrix); this module holds the right-hand side and the driver with its events.
+the Newton inversion of the time component (samples at given T) are the shared kernels of
+rsfcore.ode.rk; stiff phases take RODAS4 steps from rsfcore.ode.rodas4 (both also used by
+the separatrix integrator, rsfcore.separatrix); this module holds the right-hand side, its
+Jacobian and the driver with its events.
 
 Events located on every accepted step with the dense output:
   * runaway certificate: L = phi + ln theta > L* (absorbing; see laws.py);
@@ -59,12 +60,12 @@ from numpy.typing import NDArray
 from .excursion import PHI_LEG
 from .excursion import fast_leg as _fast_leg
 from .laws import EXP_CLIP, G_clipped
-from .ode import rk
-from .ode import rodas4_tableau as _ro
+from .ode import rk, rodas4
 
 __all__ = [
     "Status",
     "Integrator",
+    "EngineOptions",
     "EngineResult",
     "run",
     "integrate",
@@ -74,6 +75,8 @@ __all__ = [
 ]
 
 NSTATE = 5
+_EMPTY = np.empty(0)
+_EMPTY2 = np.empty((0, NSTATE))
 _I_PHI, _I_LTH, _I_T, _I_S, _I_SO = 0, 1, 2, 3, 4
 _NS = rk.N_STAGES  # stages of the step proper
 _NSE = rk.N_STAGES_EXTENDED  # stages with the dense-output extension
@@ -108,8 +111,9 @@ STATUS: dict[int, str] = {int(s): s.text for s in Status}
 _STATUS_OF: dict[int, Status] = {int(s): s for s in Status}
 
 # ints for the compiled kernel (numba freezes module-level ints as constants).
-# The kernels of rsfcore.ode.rk are inlined into integrate(); numba's cache does not see
-# edits there, so touch this file (or clear NUMBA_CACHE_DIR) after changing rk.py.
+# The kernels of rsfcore.ode.rk and rsfcore.ode.rodas4 are inlined into integrate(); numba's
+# cache does not see edits there, so touch this file (or clear NUMBA_CACHE_DIR) after
+# changing rk.py or rodas4.py.
 _T_END = int(Status.T_END)
 _RUNAWAY = int(Status.RUNAWAY)
 _RETURNED = int(Status.RETURNED)
@@ -166,6 +170,60 @@ class EngineResult(NamedTuple):
     n_stiff_steps: int = 0
     n_jacobians: int = 0
     n_legs: int = 0
+
+
+class EngineOptions(NamedTuple):
+    """How one :func:`integrate` run goes: tolerances, certificates, stops, budget, method.
+
+    One named structure instead of a dozen positional arguments; numba types it as a
+    named tuple, so the compiled kernel reads the fields by name.  Every field must have
+    its declared type (float64, bool, int64) when it reaches the kernel, or numba compiles
+    another specialisation: :func:`run` coerces with :meth:`typed`.
+
+    Attributes:
+        rtol, atol: local error tolerances (DOP853 8(5,3) norm / RODAS4 norm) on phi and
+            L; T is controlled in relative terms only.  Validated by the caller
+            (rsfcore.limits.RTOL: [1e-13, 1e-3]).
+        Lstar: L* of laws.L_star (inf when no runaway is possible).
+        check_runaway: stop the stability question at L > L* (then integrate to blow-up).
+        stop_on_return: stop when phi crosses ln v_o downward after being above it
+            (v_o > 0), or, for v_o = 0 or kappa = 0, once phi has passed its maximum.
+        t_end: stop at this T (inf for none).
+        phi_stop: blow-up threshold on phi - ln c (remaining time < e^-phi_stop).
+        max_steps: budget of accepted + rejected steps.
+        eq_tol: with stop_on_return and v_o > 0, also stop (Status.CONVERGED) once both
+            |phi - ln v_o| and |L| fall below eq_tol without a crossing (0: never).
+        integrator: an :class:`Integrator` code (0 DOP853, 1 automatic, 2 RODAS4).
+        fast_leg: take fast-slip legs in closed form (rsfcore.excursion).
+    """
+
+    rtol: float
+    atol: float
+    Lstar: float = math.inf
+    check_runaway: bool = False
+    stop_on_return: bool = False
+    t_end: float = math.inf
+    phi_stop: float = 40.0
+    max_steps: int = 10_000_000
+    eq_tol: float = 0.0
+    integrator: int = 1
+    fast_leg: bool = False
+
+    def typed(self) -> EngineOptions:
+        """The same options with every field coerced to its declared type."""
+        return EngineOptions(
+            float(self.rtol),
+            float(self.atol),
+            float(self.Lstar),
+            bool(self.check_runaway),
+            bool(self.stop_on_return),
+            float(self.t_end),
+            float(self.phi_stop),
+            int(self.max_steps),
+            float(self.eq_tol),
+            int(self.integrator),
+            bool(self.fast_leg),
+        )
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -279,7 +337,7 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
 
 
 # ------------------------------------------------------------------------------------------
-# Stiff phases: analytic Jacobian and the Rosenbrock method RODAS4 (rsfcore.ode.rodas4_tableau)
+# Stiff phases: the analytic Jacobian for the Rosenbrock method RODAS4 (rsfcore.ode.rodas4)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -340,204 +398,25 @@ def _jacobian(y, J, ba, kappa, eps, vo, c, lnc):
         J[4, 1] = load * id_l
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _ros_solve(r, out, m00, m01, m10, m11, inv_det, J, fac):
-    """Solve (fac I - J) out = r for the block structure of J (2 x 2 block, quadratures)."""
-    k0 = (m11 * r[0] - m01 * r[1]) * inv_det
-    k1 = (m00 * r[1] - m10 * r[0]) * inv_det
-    out[0] = k0
-    out[1] = k1
-    for i in range(2, r.shape[0]):
-        out[i] = (r[i] + J[i, 0] * k0 + J[i, 1] * k1) / fac
-
-
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _rodas_step(y, f0, h, J, R, tmp, ftmp, rhs, ynew, fnew, ba, kappa, eps, vo, c, lnc):
-    """One RODAS4 step of length h from (y, f0 = f(y)) with the Jacobian J at y.
-
-    Fills R (6, n) with the stage increments k_1..k_6, ynew and fnew = f(ynew) (6
-    right-hand sides).  k_6 is the embedded error estimate.  Returns False when the
-    matrix I/(h gamma) - J is singular (the caller then shrinks the step).
-    """
-    n = y.shape[0]
-    fac = 1.0 / (h * _ro.gamma)
-    m00 = fac - J[0, 0]
-    m01 = -J[0, 1]
-    m10 = -J[1, 0]
-    m11 = fac - J[1, 1]
-    det = m00 * m11 - m01 * m10
-    if not (det != 0.0 and math.isfinite(det)):
-        return False
-    inv_det = 1.0 / det
-    _ros_solve(f0, R[0], m00, m01, m10, m11, inv_det, J, fac)
-    # stage 2
-    for j in range(n):
-        tmp[j] = y[j] + _ro.a21 * R[0, j]
-    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-    hc1 = _ro.c21 / h
-    for j in range(n):
-        rhs[j] = ftmp[j] + hc1 * R[0, j]
-    _ros_solve(rhs, R[1], m00, m01, m10, m11, inv_det, J, fac)
-    # stage 3
-    for j in range(n):
-        tmp[j] = y[j] + _ro.a31 * R[0, j] + _ro.a32 * R[1, j]
-    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-    hc1 = _ro.c31 / h
-    hc2 = _ro.c32 / h
-    for j in range(n):
-        rhs[j] = ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j]
-    _ros_solve(rhs, R[2], m00, m01, m10, m11, inv_det, J, fac)
-    # stage 4
-    for j in range(n):
-        tmp[j] = y[j] + _ro.a41 * R[0, j] + _ro.a42 * R[1, j] + _ro.a43 * R[2, j]
-    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-    hc1 = _ro.c41 / h
-    hc2 = _ro.c42 / h
-    hc3 = _ro.c43 / h
-    for j in range(n):
-        rhs[j] = ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j] + hc3 * R[2, j]
-    _ros_solve(rhs, R[3], m00, m01, m10, m11, inv_det, J, fac)
-    # stage 5
-    for j in range(n):
-        tmp[j] = (
-            y[j] + _ro.a51 * R[0, j] + _ro.a52 * R[1, j] + _ro.a53 * R[2, j] + _ro.a54 * R[3, j]
-        )
-    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-    hc1 = _ro.c51 / h
-    hc2 = _ro.c52 / h
-    hc3 = _ro.c53 / h
-    hc4 = _ro.c54 / h
-    for j in range(n):
-        rhs[j] = ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j] + hc3 * R[2, j] + hc4 * R[3, j]
-    _ros_solve(rhs, R[4], m00, m01, m10, m11, inv_det, J, fac)
-    # stage 6 at the embedded solution y5 + k5
-    for j in range(n):
-        tmp[j] += R[4, j]
-    _rhs(tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-    hc1 = _ro.c61 / h
-    hc2 = _ro.c62 / h
-    hc3 = _ro.c63 / h
-    hc4 = _ro.c64 / h
-    hc5 = _ro.c65 / h
-    for j in range(n):
-        rhs[j] = (
-            ftmp[j] + hc1 * R[0, j] + hc2 * R[1, j] + hc3 * R[2, j] + hc4 * R[3, j] + hc5 * R[4, j]
-        )
-    _ros_solve(rhs, R[5], m00, m01, m10, m11, inv_det, J, fac)
-    for j in range(n):
-        ynew[j] = tmp[j] + R[5, j]
-    _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
-    return True
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _rodas_error(R, f0, f1, h, sc):
-    """max of two weighted RMS norms over (phi, ln theta, T): the step's embedded estimate
-    k_6, and the distance at mid-step between the cubic Hermite interpolant (the dense
-    output used for events) and RODAS' own continuous extension, both O(h^4): bounding it
-    keeps located events and samples as accurate as the steps."""
-    e_step = 0.0
-    e_dense = 0.0
-    for j in range(3):
-        d2 = (
-            _ro.d21 * R[0, j]
-            + _ro.d22 * R[1, j]
-            + _ro.d23 * R[2, j]
-            + _ro.d24 * R[3, j]
-            + _ro.d25 * R[4, j]
-        )
-        d3 = (
-            _ro.d31 * R[0, j]
-            + _ro.d32 * R[1, j]
-            + _ro.d33 * R[2, j]
-            + _ro.d34 * R[3, j]
-            + _ro.d35 * R[4, j]
-        )
-        dd = 0.125 * h * (f0[j] - f1[j]) - 0.25 * d2 - 0.125 * d3
-        e_step += (R[5, j] / sc[j]) ** 2
-        e_dense += (dd / sc[j]) ** 2
-    return math.sqrt(max(e_step, e_dense) / 3.0)
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _hermite_coeffs(y0, y1, f0, f1, h, F):
-    """Dense output of a Rosenbrock step in the layout of rk.dense_eval: the cubic Hermite
-    interpolant of (y0, f0) and (y1, f1) (higher coefficients zero)."""
-    for j in range(y0.shape[0]):
-        dy = y1[j] - y0[j]
-        F[0, j] = dy
-        F[1, j] = h * f0[j] - dy
-        F[2, j] = 2.0 * dy - h * (f1[j] + f0[j])
-        for r in range(3, 7):
-            F[r, j] = 0.0
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _ros_factor(err):
-    """h_new/h from an error of order-4 Rosenbrock (rodas.f: safety 0.9, ratio in [0.2, 6])."""
-    return 1.0 / max(1.0 / 6.0, min(5.0, err**0.25 / 0.9))
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _spectral_radius(J):
-    """Largest |eigenvalue| of the 2 x 2 block of J (the stiff part of the system)."""
-    tr = J[0, 0] + J[1, 1]
-    det = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
-    disc = 0.25 * tr * tr - det
-    if disc >= 0.0:
-        s = math.sqrt(disc)
-        return max(abs(0.5 * tr + s), abs(0.5 * tr - s))
-    return math.sqrt(abs(det))
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def integrate(
-    y0,
-    ba,
-    kappa,
-    eps,
-    vo,
-    rtol,
-    atol,
-    Lstar,
-    check_runaway,
-    stop_on_return,
-    t_end,
-    phi_stop,
-    max_steps,
-    eq_tol,
-    sample_tau,
-    sample_T_in,
-    samples,
-    integrator=1,
-    fast_leg=False,
-):
+def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
     """Integrate from y0 = (phi, ln theta, T, s, s_o) until a certificate or a stop.
 
     Args:
         y0: initial state (5,) = (phi, ln theta, T, s, s_o), or (3,) without slip and
             load point (classification only: ~25% cheaper); T usually 0.
         ba, kappa, eps, vo: parameters (validated by the caller).
-        rtol, atol: local error tolerances on every component (DOP853 8(5,3) norm).
-        Lstar: L* of laws.L_star (inf when no runaway is possible).
-        check_runaway: stop the stability question at L > L* (then integrate to blow-up).
-        stop_on_return: stop when phi crosses ln v_o downward after being above it
-            (v_o > 0), or, for v_o = 0 or kappa = 0, once phi has passed its maximum.
-        t_end: stop at this T (inf for none).
-        phi_stop: blow-up threshold on phi - ln c (remaining time < e^-phi_stop).
-        max_steps: budget of accepted + rejected steps.
-        eq_tol: with stop_on_return and v_o > 0, also stop (status 6) once both
-            |phi - ln v_o| and |L| fall below eq_tol without a crossing.
+        opts: an :class:`EngineOptions` (fields of their declared types: see
+            :meth:`EngineOptions.typed`).  Its ``integrator``: 0 = DOP853 only;
+            1 = automatic (DOP853, switching to RODAS4 when Hairer's stiffness test fires
+            15 times in a row, and back when h |lambda| < 2 for 20 steps); 2 = RODAS4
+            only.  Its ``fast_leg``: take the fast-slip leg of an excursion above
+            phi - ln c = PHI_LEG in closed form (rsfcore.excursion) instead of stepping
+            through it; tau does not advance over a leg, so no hybrid-time sample falls
+            inside one (samples in T do not either: a leg lasts < e^-50 of the time scale).
         sample_tau: sorted hybrid-time values at which to record the state (may be empty).
         sample_T: sorted physical-time values T at which to record the state (may be empty).
         samples: output array (len(sample_tau) + len(sample_T), 5) filled in order.
-        integrator: 0 = DOP853 only; 1 = automatic (DOP853, switching to RODAS4 when
-            Hairer's stiffness test fires 15 times in a row, and back when h |lambda| < 2
-            for 20 steps); 2 = RODAS4 only.
-        fast_leg: take the fast-slip leg of an excursion above phi - ln c = PHI_LEG in
-            closed form (rsfcore.excursion) instead of stepping through it.  tau does not
-            advance over a leg, so no hybrid-time sample falls inside one (samples in T
-            do not either: a leg lasts < e^-50 of the time scale).
 
     Returns:
         (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, peak_psi, peak_psi_T,
@@ -547,6 +426,17 @@ def integrate(
         accepted steps of the normalised local error estimate times rtol (an a-posteriori
         accuracy indicator).
     """
+    rtol = opts.rtol
+    atol = opts.atol
+    Lstar = opts.Lstar
+    check_runaway = opts.check_runaway
+    stop_on_return = opts.stop_on_return
+    t_end = opts.t_end
+    phi_stop = opts.phi_stop
+    max_steps = opts.max_steps
+    eq_tol = opts.eq_tol
+    integrator = opts.integrator
+    fast_leg = opts.fast_leg
     n = y0.shape[0]  # 5, or 3 = (phi, ln theta, T) when slip and load point are not wanted
     c = vo if vo > 0.0 else 1.0
     lnc = math.log(c)
@@ -577,9 +467,10 @@ def integrate(
     fnew = np.empty(n)
     ye = np.empty(n)  # state and slope at the end of the usable part of a step
     fe = np.empty(n)
-    R = np.empty((6, n))  # RODAS4 stage increments
-    J = np.empty((n, 2))  # Jacobian columns d f/d phi, d f/d ln theta
-    rhs = np.empty(n)
+    R = np.empty((rodas4.N_STAGES, n))  # RODAS4 stage increments
+    J = np.empty((n, 2))  # Jacobian columns d f/d phi, d f/d L
+    rbuf = np.empty(n)
+    args = (ba, kappa, eps, vo, c, lnc)  # of _rhs after (state, out), for rodas4.step
 
     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
     h = _initial_h(y, f, tmp, ftmp, rtol, atol, ba, kappa, eps, vo, c, lnc)
@@ -664,7 +555,7 @@ def integrate(
             # ---- one RODAS4 step (stiff phase) ----------------------------------
             _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
             n_jac += 1
-            ok = _rodas_step(y, f, h, J, R, tmp, ftmp, rhs, ynew, fnew, ba, kappa, eps, vo, c, lnc)
+            ok = rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
             n_rhs += 6
             err = math.inf
             if ok:
@@ -677,16 +568,16 @@ def integrate(
                         sc[j] = rk.error_scale(
                             y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf
                         )
-                    err = _rodas_error(R, f, fnew, h, sc)
+                    err = rodas4.error_norm(R, f, fnew, h, sc, 0, 3, True)
             if not (err <= 1.0):
                 n_rej += 1
-                h *= _ros_factor(err) if math.isfinite(err) else rk.MIN_FACTOR
+                h *= rodas4.reject_factor(err)
                 rejected_last = True
                 if not (h > 1e-300):
                     status = _STEP_UNDERFLOW
                     break
                 continue
-            _hermite_coeffs(y, ynew, f, fnew, h, F)
+            rodas4.hermite_coeffs(y, ynew, f, fnew, h, F)
             n_stiff_steps += 1
         else:
             # ---- one DOP853 step --------------------------------------------------
@@ -983,19 +874,14 @@ def integrate(
             f[j] = fnew[j]
         if stiff:
             # RODAS4 controller with Gustafsson's predictive correction (rodas.f)
-            fac = _ros_factor(err)
-            if h_acc_prev > 0.0:
-                gus = (h_acc_prev / h) * (max(err, 1e-12) ** 2 / err_acc_prev) ** 0.25 / 0.9
-                fac = min(fac, 1.0 / max(1.0 / 6.0, min(5.0, gus)))
-            if rejected_last:
-                fac = min(1.0, fac)
+            fac, err_c = rodas4.accept_factor(err, h, h_acc_prev, err_acc_prev, rejected_last)
             h_acc_prev = h
-            err_acc_prev = max(1e-2, err)
+            err_acc_prev = err_c
             rejected_last = False
             h *= fac
             if integrator == 1:
                 # back to DOP853 once the step is well inside its stability region
-                n_easy = n_easy + 1 if h * _spectral_radius(J) < 2.0 else 0
+                n_easy = n_easy + 1 if h * rodas4.spectral_radius(J) < 2.0 else 0
                 if n_easy >= 20:
                     stiff = False
                     n_stiff_hits = 0
@@ -1099,48 +985,18 @@ def run(
     kappa: float,
     eps: float,
     vo: float,
-    rtol: float,
-    atol: float,
-    Lstar: float,
-    check_runaway: bool,
-    stop_on_return: bool,
-    t_end: float,
-    phi_stop: float,
-    max_steps: int,
-    eq_tol: float,
-    sample_tau: NDArray[np.float64],
-    sample_T: NDArray[np.float64],
-    samples: NDArray[np.float64],
-    integrator: int = 1,
-    fast_leg: bool = False,
+    opts: EngineOptions,
+    sample_tau: NDArray[np.float64] = _EMPTY,
+    sample_T: NDArray[np.float64] = _EMPTY,
+    samples: NDArray[np.float64] = _EMPTY2,
 ) -> EngineResult:
     """:func:`integrate` with its result as an :class:`EngineResult` (status a :class:`Status`).
 
     Same arguments as :func:`integrate` (validated by the caller: rsfcore.trajectory,
-    rsfcore.protocols); ``integrator`` one of :class:`Integrator` (default AUTO).  The
-    compiled kernel itself returns a plain tuple of ints and floats; this thin wrapper
-    names it.
+    rsfcore.protocols, rsfcore.fit); ``opts`` is coerced to its declared field types
+    (:meth:`EngineOptions.typed`).  The compiled kernel itself returns a plain tuple of
+    ints and floats; this thin wrapper names it.
     """
-    res = integrate(
-        y0,
-        ba,
-        kappa,
-        eps,
-        vo,
-        rtol,
-        atol,
-        Lstar,
-        check_runaway,
-        stop_on_return,
-        t_end,
-        phi_stop,
-        max_steps,
-        eq_tol,
-        sample_tau,
-        sample_T,
-        samples,
-        int(integrator),
-        bool(fast_leg),
-    )
+    res = integrate(y0, ba, kappa, eps, vo, opts.typed(), sample_tau, sample_T, samples)
     # the kernel already returns Python ints and floats: only the status is wrapped
     return EngineResult(_STATUS_OF[res[0]], *res[1:])

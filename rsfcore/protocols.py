@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 
 from . import limits as lim
 from .analytic import delta_tau
-from .engine import EngineResult, Status, blowup_tail, run
+from .engine import EngineOptions, EngineResult, Status, blowup_tail, run
 from .errors import IntegrationBudgetError
 from .jsonsafe import finite_list, finite_or_none
 from .laws import L_star
@@ -263,25 +263,17 @@ def _run(
 ) -> tuple[EngineResult, NDArray[np.float64]]:
     n = sample_T.shape[0] + sample_tau.shape[0]
     samples = np.empty((n, 5)) if n else _EMPTY2
-    res = run(
-        np.ascontiguousarray(y0, dtype=np.float64),
-        c.ba,
-        c.kappa,
-        c.eps,
-        c.vo,
-        c.rtol,
-        c.rtol,
-        c.Ls,
-        True,
-        False,
-        t_end,
-        PHI_STOP,
-        MAX_STEPS,
-        0.0,
-        sample_tau,
-        sample_T,
-        samples,
+    opts = EngineOptions(
+        rtol=c.rtol,
+        atol=c.rtol,
+        Lstar=c.Ls,
+        check_runaway=True,
+        t_end=t_end,
+        phi_stop=PHI_STOP,
+        max_steps=MAX_STEPS,
     )
+    y = np.ascontiguousarray(y0, dtype=np.float64)
+    res = run(y, c.ba, c.kappa, c.eps, c.vo, opts, sample_tau, sample_T, samples)
     return res, samples[: res.n_filled]
 
 

@@ -14,9 +14,10 @@ neighbours.  Near L = 0 (where d s_theta/ds = G(L) = 0) the roles are swapped:
 
 The velocity-jump critical size is u at s_theta = 0; the load-point jump's is
 expm1(s_theta) at u = 0 (module docstring of rsfcore.critical for the derivation and
-the measured accuracy).  Both phases are integrated by :func:`_dop853_scalar`, a scalar
-driver over the shared DOP853 kernels of rsfcore.ode.rk (the same stage, error norm and
-controller as the spring-slider engine), with steps capped (``_H_MAX``) because the
+the measured accuracy).  Both phases are integrated by :func:`_scalar_run`, one scalar
+driver (events, landing, error propagation) over the shared DOP853 kernels of
+rsfcore.ode.rk and the RODAS4 kernels of rsfcore.ode.rodas4 (the same methods as the
+spring-slider engine), with steps capped (``_H_MAX``) because the
 embedded error estimate under-estimates long steps on this problem.
 
 The stiff corner (kappa large, e.g. b/a = kappa = 1e6): the separatrix attracts its
@@ -24,7 +25,7 @@ neighbours at a rate ~kappa (d(rhs)/du of (A) is ~ -kappa e^(s_theta - u)/|G(u)|
 DOP853's steps are limited by stability and the old driver ran out of its 2e5 steps
 (bisection fallback, 0.2 - 0.6 s) or took 2e6 right-hand sides.  Now:
 
-* DOP853 hands over to RODAS4 (:func:`_rodas_scalar`: L-stable, the scalar ODE as the
+* DOP853 hands over to RODAS4 (:func:`_scalar_run` with RODAS4 steps: L-stable, the scalar ODE as the
   pair (x, y) with x' = 1 and the analytic Jacobian) once its steps are stability-limited
   (Hairer's test with the analytic d(rhs)/dy), and back where the problem stops being
   stiff before the end;
@@ -64,8 +65,7 @@ import numpy as np
 # (numba's cache does not track callees in other modules: this file was touched when
 # rsfcore.laws.L_star began deciding x >= 1 on the exact 1 - x, NUMERICS_VERSION 5)
 from .laws import G, L_star
-from .ode import rk
-from .ode import rodas4_tableau as _ro
+from .ode import rk, rodas4
 
 __all__ = [
     "SeparatrixStatus",
@@ -78,13 +78,18 @@ __all__ = [
     "S_NO_START",
     "S_STIFF",
     "N_WORK",
+    "STIFF_HJ",
+    "STIFF_RUN",
     "asym_coeffs",
+    "dfdx",
+    "dfdy",
     "separatrix_critical",
     "separatrix_explicit",
 ]
 
-# The kernels of rsfcore.ode.rk are inlined into _dop853_scalar; numba's cache does not
-# see edits there, so touch this file (or clear NUMBA_CACHE_DIR) after changing rk.py.
+# The kernels of rsfcore.ode.rk and rsfcore.ode.rodas4 are inlined into _scalar_run; numba's
+# cache does not see edits there, so touch this file (or clear NUMBA_CACHE_DIR) after
+# changing rk.py or rodas4.py.
 
 #: length of the stage workspace K the drivers take (13 stages: 12 + f at the step end)
 N_WORK = rk.N_STAGES + 1
@@ -112,14 +117,14 @@ _MAX_STEPS = 200_000
 _PHI_FROZEN = 60.0
 #: ulp(1): the rounding unit of s_theta relative to its size
 _ULP1 = 2.220446049250313e-16
-#: stiffness switch: DOP853 hands over to RODAS4 after _STIFF_RUN accepted steps with
-#: h |d(rhs)/dy| > _STIFF_HJ (not interrupted by 6 in a row below it) (DOP853's stability interval on the negative real
+#: stiffness switch: DOP853 hands over to RODAS4 after STIFF_RUN accepted steps with
+#: h |d(rhs)/dy| > STIFF_HJ (not interrupted by 6 in a row below it) (DOP853's stability interval on the negative real
 #: axis ends near -6, so such steps are limited by stability, not accuracy; where kappa is
 #: large the separatrix attracts at a rate ~kappa and explicit steps shrink like 1/kappa)
-_STIFF_HJ = 2.0
-_STIFF_RUN = 10
+STIFF_HJ = 2.0
+STIFF_RUN = 10
 #: largest relaxation of RODAS4's local tolerance where later contraction damps the
-#: errors (:func:`_rodas_scalar`); the propagated estimate checks the outcome
+#: errors (:func:`_scalar_run`); the propagated estimate checks the outcome
 _RELAX_CAP = 1.0e6
 _RELAX_RATE = 0.25
 #: the relaxed tolerance never exceeds this (relax_cap <= _RELAX_TOL_MAX/rtol): farther
@@ -223,7 +228,7 @@ def _f_u(u, t, kappa, kc, eps):
 
 
 @nb.njit(cache=True, nogil=True)
-def _jac(mode, x, y, kappa, kc, eps):
+def dfdy(mode, x, y, kappa, kc, eps):
     """d(rhs)/dy of (A) (mode 0) or (B) (mode 1), analytic; used to propagate error estimates."""
     g = G(y if mode == 0 else x, eps)
     if mode == 0:
@@ -238,7 +243,7 @@ def _jac(mode, x, y, kappa, kc, eps):
 
 
 @nb.njit(cache=True, nogil=True)
-def _dfdx(mode, x, y, kappa, kc, eps):
+def dfdx(mode, x, y, kappa, kc, eps):
     """d(rhs)/dx of (A) (mode 0, x = s_theta) or (B) (mode 1, x = u), analytic (RODAS4)."""
     if mode == 0:
         # f = kappa expm1(t - u)/G(u) - kc: d/dt = kappa e^(t - u)/G(u)
@@ -259,8 +264,21 @@ def _rhs(mode, x, y, kappa, kc, eps):
     return _f_u(x, y, kappa, kc, eps)
 
 
+#: the method of a scalar run (:func:`_scalar_run`)
+_EXPLICIT = 0  # DOP853 (rsfcore.ode.rk)
+_ROSENBROCK = 1  # RODAS4 (rsfcore.ode.rodas4)
+
+
+@nb.njit(cache=True, nogil=True)
+def _pair_rhs(z, out, mode, kappa, kc, eps):
+    """The scalar ODE as the autonomous pair z = (x, y): (x', y') = (1, f(x, y))."""
+    out[0] = 1.0
+    out[1] = _rhs(mode, z[0], z[1], kappa, kc, eps)
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _dop853_scalar(
+def _scalar_run(
+    method,
     mode,
     x0,
     y0,
@@ -276,48 +294,88 @@ def _dop853_scalar(
     K,
     h_max,
     err0,
-    detect_stiff,
     relax_cap,
+    y_stop,
+    switch,
     rec,
     rec_n,
     use,
     use_n,
     tail,
 ):
-    """Integrate the scalar ODE (mode 0: (A), mode 1: (B)) from (x0, y0) towards x_end.
+    """Integrate the scalar ODE (mode 0: (A), mode 1: (B)) from (x0, y0) towards x_end
+    with DOP853 (method _EXPLICIT) or RODAS4 (method _ROSENBROCK).
 
-    K: workspace of N_WORK = 13 floats (the stages).  Error weight per step:
-    atol + rtol * min(max(|y|, |y_new|), ycap) (rk.error_scale).  Steps are capped at
-    h_max.  Stops exactly at x_end, or (mode 0 with switch_slope > 0) after the first
-    accepted step whose end slope |dy/dx| exceeds switch_slope.
-    Returns (status, x, y, err_prop, n_rhs, h).  err_prop is the propagated absolute
-    error estimate, starting from err0: after each accepted step err <- err * exp(h J) +
-    |local error estimate|, with h J the less contractive of the analytic d(rhs)/dy at the
-    step ends (the separatrix attracts: J h < 0, old errors shrink).  With detect_stiff,
-    returns S_STIFF at the end of an accepted step once _STIFF_RUN consecutive steps had
-    h |J| > _STIFF_HJ (the caller continues with :func:`_rodas_scalar`).  relax_cap > 1:
-    local tolerance relaxed where later contraction damps the errors (:func:`_relax`,
-    never for x_end infinite), only if _RELAX_EXPLICIT (off).
+    One driver, one set of events for both methods:
+
+    * error weight per step atol + rtol min(max(|y|, |y_new|), ycap) (rk.error_scale),
+      with rtol and atol multiplied by the relaxation factor (below); steps capped at
+      h_max; the last step lands exactly on x_end (stretched by up to 30 % unless the last
+      attempt was rejected; error control rejects it if that was too much);
+    * stops at x_end, or (switch_slope > 0) after the first accepted step whose end slope
+      |dy/dx| exceeds switch_slope, or (RODAS4, y_stop finite) where y crosses y_stop
+      (located by the Illinois method on the length of the last step, each trial one RODAS4
+      step from its start; returns the crossing x and y = y_stop);
+    * the propagated absolute error estimate, from err0: after each accepted step
+      err <- err exp(h J) + |local error estimate|, with h J the less contractive of the
+      analytic d(rhs)/dy at the step ends (the separatrix attracts: J h < 0, old errors
+      shrink); the contraction profile is recorded in rec/rec_n (:func:`_record`);
+    * relaxation: with a profile of an earlier run (use/use_n > 1, tail) the factor of
+      :func:`_relax_profile`; otherwise, RODAS4 only (and DOP853 if _RELAX_EXPLICIT), the
+      linear model of :func:`_relax` (relax_cap itself when x_end is infinite); relax_cap
+      is capped so that the relaxed tolerance stays <= _RELAX_TOL_MAX;
+    * switch: DOP853 returns S_STIFF at the end of an accepted step once STIFF_RUN
+      consecutive steps had h |J| > STIFF_HJ (not interrupted by 6 in a row below it:
+      Hairer's counting in dop853.f); RODAS4 returns S_STIFF before a step once
+      _RELAX_RATE |J| rem < 1 (little damping left before x_end: DOP853, whose 8th order
+      needs few steps for the tight tolerance such undamped errors need, finishes).
+
+    DOP853: the shared kernels of rsfcore.ode.rk on K (N_WORK = 13 floats, the stages),
+    elementary controller.  RODAS4: rsfcore.ode.rodas4 on the autonomous pair (x, y),
+    x' = 1 (:func:`_pair_rhs`), whose Jacobian [[0, 0], [df/dx, df/dy]] is analytic
+    (:func:`dfdx`, :func:`dfdy`): L-stable, so where the separatrix attracts at a rate
+    ~kappa the step is limited by accuracy, not stability; rodas.f's controller without
+    the predictive correction.  RODAS4 loses order on this stiff problem (a local error
+    ~h/kappa, as on the Prothero-Robinson test problem), so tight tolerances need short
+    steps; the relaxation makes that cheap where the errors die out anyway.
+
+    Returns (status, x, y, err_prop, n_rhs, h).
     """
-    Kw = K.reshape((K.shape[0], 1))  # the shared kernels take (stages, components)
+    stiff = method == _ROSENBROCK
+    Kw = K.reshape((K.shape[0], 1))  # the shared DOP853 kernels take (stages, components)
     relax_cap = min(relax_cap, max(1.0, _RELAX_TOL_MAX / rtol))
     sc = np.empty(1)
+    # RODAS4 workspace: the pair state, its slope, stages, Jacobian columns (n = 2)
+    W = np.zeros((16, 2))
+    R = W[0:6]
+    z = W[6]
+    fz = W[7]
+    tmp = W[8]
+    ftmp = W[9]
+    buf = W[10]
+    znew = W[11]
+    fznew = W[12]
+    scz = W[13]
+    Jz = W[14:16]  # row 0 (d x'/d(x, y)) stays 0
+    args = (mode, kappa, kc, eps)
     x = x0
     y = y0
     direction = 1.0 if x_end >= x0 else -1.0
     f = _rhs(mode, x, y, kappa, kc, eps)
     n_rhs = 1
     if not math.isfinite(f):
-        return S_NO_START, x, y, 0.0, n_rhs, h0
+        return S_NO_START, x, y, err0, n_rhs, h0
     if rec_n[0] == 0:
         _record(rec, rec_n, x, 0.0)
     h = min(abs(h0), h_max)
     err_sum = err0
-    J = _jac(mode, x, y, kappa, kc, eps)
+    J = dfdy(mode, x, y, kappa, kc, eps)
+    fx = dfdx(mode, x, y, kappa, kc, eps) if stiff else 0.0
     n = 0
     n_stiff = 0
     n_easy = 0
     last_rejected = False
+    stop = stiff and math.isfinite(y_stop)
     while n < _MAX_STEPS:
         n += 1
         rem = (x_end - x) * direction
@@ -325,41 +383,91 @@ def _dop853_scalar(
             return S_OK, x, y, err_sum, n_rhs, h
         final = False
         if h >= rem or (1.3 * h >= rem and not last_rejected):
-            # land exactly on x_end (stretching the step by up to 30 % unless the last
-            # attempt was rejected; error control rejects it if that was too much)
             h = rem
             final = True
         hs = h * direction
-        Kw[0, 0] = f
-        ok = True
-        for s in range(1, rk.N_STAGES):
-            k = _rhs(mode, x + _C[s] * hs, y + hs * rk.stage_sum(Kw, s, 0), kappa, kc, eps)
-            if not math.isfinite(k):
-                ok = False
-                break
-            Kw[s, 0] = k
-        n_rhs += rk.N_STAGES
+        if stiff and switch and math.isfinite(rem) and _RELAX_RATE * abs(J) * rem < 1.0:
+            return S_STIFF, x, y, err_sum, n_rhs, h
+        if use_n > 1:
+            relax = _relax_profile(x, direction, relax_cap, use, use_n, tail)
+        elif stiff or _RELAX_EXPLICIT:
+            relax = _relax(relax_cap, J, rem, stiff)
+        else:
+            relax = 1.0
         ynew = 0.0
-        fnew = 0.0
+        fnew = math.nan
         err = math.inf
-        if ok:
-            ynew = y + hs * rk.solution_sum(Kw, 0)
-            fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
-            if math.isfinite(fnew) and math.isfinite(ynew):
-                Kw[rk.N_STAGES, 0] = fnew
-                if use_n > 1:
-                    relax = _relax_profile(x, direction, relax_cap, use, use_n, tail)
-                else:
-                    relax = _relax(relax_cap, J, rem, False) if _RELAX_EXPLICIT else 1.0
-                sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
-                err = rk.error_norm(Kw, h, sc, 1)
+        if stiff:
+            z[0] = x
+            z[1] = y
+            fz[0] = 1.0
+            fz[1] = f
+            Jz[1, 0] = fx
+            Jz[1, 1] = J
+            ok = rodas4.step(_pair_rhs, args, z, fz, hs, Jz, R, tmp, ftmp, buf, znew, fznew)
+            ynew = znew[1]
+            fnew = fznew[1]
+            scz[1] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
+            sc[0] = scz[1]
+            if ok:
+                n_rhs += rodas4.N_STAGES
+                if math.isfinite(ynew) and math.isfinite(fnew):
+                    err = rodas4.error_norm(R, fz, fznew, hs, scz, 1, 2, False)
+        else:
+            Kw[0, 0] = f
+            ok = True
+            for s in range(1, rk.N_STAGES):
+                k = _rhs(mode, x + _C[s] * hs, y + hs * rk.stage_sum(Kw, s, 0), kappa, kc, eps)
+                if not math.isfinite(k):
+                    ok = False
+                    break
+                Kw[s, 0] = k
+            n_rhs += rk.N_STAGES
+            if ok:
+                ynew = y + hs * rk.solution_sum(Kw, 0)
+                fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
+                if math.isfinite(fnew) and math.isfinite(ynew):
+                    Kw[rk.N_STAGES, 0] = fnew
+                    sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
+                    err = rk.error_norm(Kw, h, sc, 1)
         if not (err <= 1.0):
-            h *= rk.reject_factor(err)
+            h *= rodas4.reject_factor(err) if stiff else rk.reject_factor(err)
             last_rejected = True
             if h < 1e-15 * max(1.0, abs(x)):
                 return S_UNDERFLOW, x, y, err_sum, n_rhs, h
             continue
-        Jn = _jac(mode, x + hs, ynew, kappa, kc, eps)
+        if stop and (ynew - y_stop) * (y - y_stop) <= 0.0 and ynew != y:
+            # Illinois on the step length: g(s) = y(x + s) - y_stop, g(0) = y - y_stop
+            s0 = 0.0
+            g0 = y - y_stop
+            s1 = hs
+            g1 = ynew - y_stop
+            xs = x + hs
+            e_loc = abs(R[5, 1])
+            for _ in range(60):
+                sm = s1 - g1 * (s1 - s0) / (g1 - g0)
+                if not (min(s0, s1) < sm < max(s0, s1)):
+                    sm = 0.5 * (s0 + s1)
+                okm = rodas4.step(_pair_rhs, args, z, fz, sm, Jz, R, tmp, ftmp, buf, znew, fznew)
+                if not okm:
+                    break
+                n_rhs += rodas4.N_STAGES
+                ym = znew[1]
+                if not math.isfinite(ym):
+                    break
+                gm = ym - y_stop
+                xs = x + sm
+                e_loc = abs(R[5, 1])
+                if gm == 0.0 or abs(s1 - s0) <= 1e-15 * max(abs(x), 1.0):
+                    break
+                if gm * g1 < 0.0:
+                    s0, g0 = s1, g1
+                else:
+                    g0 *= 0.5
+                s1, g1 = sm, gm
+            prop = max(hs * J, 0.0)
+            return S_OK, xs, y_stop, err_sum * math.exp(min(prop, 50.0)) + e_loc, n_rhs, h
+        Jn = dfdy(mode, x + hs, ynew, kappa, kc, eps)
         # least contractive end of the step (a trapezoid over-contracts on long steps)
         prop = max(hs * J, hs * Jn)
         err_sum = err_sum * math.exp(min(prop, 50.0)) + err * sc[0]
@@ -368,24 +476,30 @@ def _dop853_scalar(
         x = x_end if final else x + hs
         y = ynew
         f = fnew
+        if stiff:
+            fx = dfdx(mode, x, y, kappa, kc, eps)
         if final:
             return S_OK, x, y, err_sum, n_rhs, h
         if switch_slope > 0.0 and abs(f) > switch_slope:
             return S_OK, x, y, err_sum, n_rhs, h
-        if detect_stiff:
-            # Hairer's counting (dop853.f): _STIFF_RUN stiff steps, reset after 6 in a row
-            # that are not
-            if h * abs(J) > _STIFF_HJ:
-                n_stiff += 1
-                n_easy = 0
-                if n_stiff >= _STIFF_RUN:
-                    return S_STIFF, x, y, err_sum, n_rhs, h
-            else:
-                n_easy += 1
-                if n_easy >= 6:
-                    n_stiff = 0
-        # elementary controller (no predictive correction: h_prev = 0); err = 0 gives 10
-        fac, _ = rk.accept_factor(err, h, 0.0, 1.0, last_rejected)
+        if stiff:
+            # rodas.f's controller (no predictive correction: h_prev = 0)
+            fac, _ = rodas4.accept_factor(err, h, 0.0, 1.0, last_rejected)
+        else:
+            if switch:
+                # Hairer's counting (dop853.f): STIFF_RUN stiff steps, reset after 6 in a
+                # row that are not
+                if h * abs(J) > STIFF_HJ:
+                    n_stiff += 1
+                    n_easy = 0
+                    if n_stiff >= STIFF_RUN:
+                        return S_STIFF, x, y, err_sum, n_rhs, h
+                else:
+                    n_easy += 1
+                    if n_easy >= 6:
+                        n_stiff = 0
+            # elementary controller (no predictive correction: h_prev = 0); err = 0 gives 10
+            fac, _ = rk.accept_factor(err, h, 0.0, 1.0, last_rejected)
         last_rejected = False
         h = min(h * fac, h_max)
     return S_BUDGET, x, y, err_sum, n_rhs, h
@@ -456,225 +570,6 @@ def _record(rec, rec_n, x, lam_step):
     rec_n[0] = i + 1
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _ros_solve(fac, fx, fy, rx, ry):
-    """(k_x, k_y) solving (fac I - J) k = r for J = [[0, 0], [fx, fy]] (x' = 1)."""
-    kx = rx / fac
-    return kx, (ry + fx * kx) / (fac - fy)
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _rodas_step(mode, x, y, f, fx, fy, hs, kappa, kc, eps):
-    """One RODAS4 step of signed length hs from (x, y) with f = rhs, fx, fy its partials there.
-
-    Returns (ok, y_new, k6): the 4th-order solution and RODAS's embedded error estimate
-    (the error of its 3rd-order solution); ok False when a stage left the ODE's domain."""
-    fac = 1.0 / (hs * _ro.gamma)
-    if not (math.isfinite(fy) and math.isfinite(fx) and (fac - fy) != 0.0):
-        return False, y, math.inf
-    k1x, k1y = _ros_solve(fac, fx, fy, 1.0, f)
-    g2 = _rhs(mode, x + _ro.a21 * k1x, y + _ro.a21 * k1y, kappa, kc, eps)
-    k2x, k2y = _ros_solve(fac, fx, fy, 1.0 + _ro.c21 / hs * k1x, g2 + _ro.c21 / hs * k1y)
-    g3 = _rhs(
-        mode, x + _ro.a31 * k1x + _ro.a32 * k2x, y + _ro.a31 * k1y + _ro.a32 * k2y, kappa, kc, eps
-    )
-    k3x, k3y = _ros_solve(
-        fac,
-        fx,
-        fy,
-        1.0 + (_ro.c31 * k1x + _ro.c32 * k2x) / hs,
-        g3 + (_ro.c31 * k1y + _ro.c32 * k2y) / hs,
-    )
-    g4 = _rhs(
-        mode,
-        x + _ro.a41 * k1x + _ro.a42 * k2x + _ro.a43 * k3x,
-        y + _ro.a41 * k1y + _ro.a42 * k2y + _ro.a43 * k3y,
-        kappa,
-        kc,
-        eps,
-    )
-    k4x, k4y = _ros_solve(
-        fac,
-        fx,
-        fy,
-        1.0 + (_ro.c41 * k1x + _ro.c42 * k2x + _ro.c43 * k3x) / hs,
-        g4 + (_ro.c41 * k1y + _ro.c42 * k2y + _ro.c43 * k3y) / hs,
-    )
-    z5x = x + _ro.a51 * k1x + _ro.a52 * k2x + _ro.a53 * k3x + _ro.a54 * k4x
-    z5y = y + _ro.a51 * k1y + _ro.a52 * k2y + _ro.a53 * k3y + _ro.a54 * k4y
-    g5 = _rhs(mode, z5x, z5y, kappa, kc, eps)
-    k5x, k5y = _ros_solve(
-        fac,
-        fx,
-        fy,
-        1.0 + (_ro.c51 * k1x + _ro.c52 * k2x + _ro.c53 * k3x + _ro.c54 * k4x) / hs,
-        g5 + (_ro.c51 * k1y + _ro.c52 * k2y + _ro.c53 * k3y + _ro.c54 * k4y) / hs,
-    )
-    # stage 6 at the embedded (3rd-order) solution z5 + k5; k6 is its error
-    z6x = z5x + k5x
-    z6y = z5y + k5y
-    g6 = _rhs(mode, z6x, z6y, kappa, kc, eps)
-    rx = 1.0 + (_ro.c61 * k1x + _ro.c62 * k2x + _ro.c63 * k3x + _ro.c64 * k4x + _ro.c65 * k5x) / hs
-    ry = g6 + (_ro.c61 * k1y + _ro.c62 * k2y + _ro.c63 * k3y + _ro.c64 * k4y + _ro.c65 * k5y) / hs
-    _, k6y = _ros_solve(fac, fx, fy, rx, ry)
-    ynew = z6y + k6y
-    ok = math.isfinite(g2 + g3 + g4 + g5 + g6) and math.isfinite(ynew)
-    return ok, ynew, k6y
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _rodas_scalar(
-    mode,
-    x0,
-    y0,
-    x_end,
-    kappa,
-    kc,
-    eps,
-    rtol,
-    atol,
-    ycap,
-    switch_slope,
-    h0,
-    h_max,
-    err0,
-    relax_cap,
-    y_stop,
-    handback,
-    rec,
-    rec_n,
-    use,
-    use_n,
-    tail,
-):
-    """RODAS4 (rsfcore.ode.rodas4_tableau) for the scalar ODE (mode 0: (A), mode 1: (B)).
-
-    The non-autonomous scalar problem y' = f(x, y) is integrated as the autonomous pair
-    (x, y), x' = 1, whose Jacobian [[0, 0], [df/dx, df/dy]] is analytic (:func:`_jac`,
-    :func:`_dfdx`), so each stage costs one right-hand side and a 2 x 2 triangular solve.
-    L-stable: where the separatrix attracts at a rate ~kappa the step is limited by
-    accuracy, not stability.  Same arguments, error weight, landing on x_end, switch_slope
-    stop, step cap and propagated error estimate (from err0) as :func:`_dop853_scalar`.
-
-    relax_cap > 1: the local tolerance is multiplied by min(relax_cap, exp(|J| rem / 2)),
-    rem = |x_end - x| (relax_cap itself when x_end is infinite): an error made here is
-    damped by about exp(-integral of |J|) before the end, which is exp(-|J| rem/2) when
-    |J| falls linearly to 0 at the end (phase (B) near u = 0).  Where this is optimistic
-    the propagated estimate (which uses the actual J of every step) shows it; callers
-    check it and retry with relax_cap = 1.
-
-    y_stop finite: stop where y crosses y_stop (located by the Illinois method on the
-    length of the last step, each trial one RODAS4 step from its start); returns the
-    crossing x and y = y_stop.
-
-    handback: return S_STIFF once |J| rem/4 < 1 (little damping left before x_end): the
-    caller finishes with DOP853, whose 8th order needs few steps for the tight tolerance
-    that such undamped errors need.
-
-    Returns (status, x, y, err_prop, n_rhs, h).  RODAS4 loses order on this stiff problem
-    (a local error ~h/kappa, as on the Prothero-Robinson test problem, where Steinebach's
-    RODAS4P would not), so tight tolerances need short steps; the relaxation makes that
-    cheap where the errors die out anyway.
-    """
-    x = x0
-    y = y0
-    relax_cap = min(relax_cap, max(1.0, _RELAX_TOL_MAX / rtol))
-    direction = 1.0 if x_end >= x0 else -1.0
-    f = _rhs(mode, x, y, kappa, kc, eps)
-    n_rhs = 1
-    if not math.isfinite(f):
-        return S_NO_START, x, y, err0, n_rhs, h0
-    if rec_n[0] == 0:
-        _record(rec, rec_n, x, 0.0)
-    h = min(abs(h0), h_max)
-    err_sum = err0
-    fy = _jac(mode, x, y, kappa, kc, eps)
-    fx = _dfdx(mode, x, y, kappa, kc, eps)
-    n = 0
-    last_rejected = False
-    stop = math.isfinite(y_stop)
-    while n < _MAX_STEPS:
-        n += 1
-        rem = (x_end - x) * direction
-        if rem <= 0.0:
-            return S_OK, x, y, err_sum, n_rhs, h
-        final = False
-        if h >= rem or (1.3 * h >= rem and not last_rejected):
-            h = rem
-            final = True
-        hs = h * direction
-        if handback and math.isfinite(rem) and _RELAX_RATE * abs(fy) * rem < 1.0:
-            return S_STIFF, x, y, err_sum, n_rhs, h
-        if use_n > 1:
-            relax = _relax_profile(x, direction, relax_cap, use, use_n, tail)
-        else:
-            relax = _relax(relax_cap, fy, rem, True)
-        ok, ynew, k6 = _rodas_step(mode, x, y, f, fx, fy, hs, kappa, kc, eps)
-        n_rhs += 5
-        err = math.inf
-        fnew = math.nan
-        sc = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
-        if ok:
-            fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
-            n_rhs += 1
-            if math.isfinite(fnew):
-                err = abs(k6) / sc
-        if not (err <= 1.0):
-            h *= 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err**-0.25)
-            last_rejected = True
-            if h < 1e-15 * max(1.0, abs(x)):
-                return S_UNDERFLOW, x, y, err_sum, n_rhs, h
-            continue
-        if stop and (ynew - y_stop) * (y - y_stop) <= 0.0 and ynew != y:
-            # Illinois on the step length: g(s) = y(x + s) - y_stop, g(0) = y - y_stop
-            s0 = 0.0
-            g0 = y - y_stop
-            s1 = hs
-            g1 = ynew - y_stop
-            xs = x + hs
-            e_loc = abs(k6)
-            for _ in range(60):
-                sm = s1 - g1 * (s1 - s0) / (g1 - g0)
-                if not (min(s0, s1) < sm < max(s0, s1)):
-                    sm = 0.5 * (s0 + s1)
-                okm, ym, km = _rodas_step(mode, x, y, f, fx, fy, sm, kappa, kc, eps)
-                n_rhs += 5
-                if not okm:
-                    break
-                gm = ym - y_stop
-                xs = x + sm
-                e_loc = abs(km)
-                if gm == 0.0 or abs(s1 - s0) <= 1e-15 * max(abs(x), 1.0):
-                    break
-                if gm * g1 < 0.0:
-                    s0, g0 = s1, g1
-                else:
-                    g0 *= 0.5
-                s1, g1 = sm, gm
-            prop = max(hs * fy, 0.0)
-            return S_OK, xs, y_stop, err_sum * math.exp(min(prop, 50.0)) + e_loc, n_rhs, h
-        fyn = _jac(mode, x + hs, ynew, kappa, kc, eps)
-        prop = max(hs * fy, hs * fyn)
-        err_sum = err_sum * math.exp(min(prop, 50.0)) + err * sc
-        _record(rec, rec_n, x + hs, max(0.0, -0.5 * (hs * fy + hs * fyn)))
-        x = x_end if final else x + hs
-        y = ynew
-        f = fnew
-        fy = fyn
-        fx = _dfdx(mode, x, y, kappa, kc, eps)
-        if final:
-            return S_OK, x, y, err_sum, n_rhs, h
-        if switch_slope > 0.0 and abs(f) > switch_slope:
-            return S_OK, x, y, err_sum, n_rhs, h
-        # rodas.f controller: safety 0.9, factor in [0.2, 6]; no growth after a rejection
-        fac_h = 1.0 / max(1.0 / 6.0, min(5.0, max(err, 1e-12) ** 0.25 / 0.9))
-        if last_rejected:
-            fac_h = min(1.0, fac_h)
-        last_rejected = False
-        h = min(h * fac_h, h_max)
-    return S_BUDGET, x, y, err_sum, n_rhs, h
-
-
 @nb.njit(cache=True, nogil=True)
 def _integrate(
     mode,
@@ -701,28 +596,28 @@ def _integrate(
     use_n,
     tail,
 ):
-    """DOP853 (:func:`_dop853_scalar`), handing over to RODAS4 (:func:`_rodas_scalar`, with
+    """DOP853 (:func:`_scalar_run`), handing over to RODAS4 (the same driver, with
     relax_cap and switch slope stiff_slope) for the rest of the phase once its steps are
     limited by stability (never with stiff_ok False: DOP853 alone, the reference the
     tests compare with).  rec/rec_n: the contraction profile is recorded there;
     use/use_n/tail: a profile recorded by an earlier run relaxes the tolerance
     (:func:`_relax_profile`).  Returns (status, x, y, err_prop, n_rhs, h, used RODAS4)."""
-    st, x, y, es, nr, h = _dop853_scalar(
-        mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K, h_max, err0,
-        stiff_ok, relax_cap, rec, rec_n, use, use_n, tail,
+    st, x, y, es, nr, h = _scalar_run(
+        _EXPLICIT, mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K,
+        h_max, err0, relax_cap, math.nan, stiff_ok, rec, rec_n, use, use_n, tail,
     )  # fmt: skip
     if st != S_STIFF:
         return st, x, y, es, nr, h, False
-    st, x, y, es, nr2, h = _rodas_scalar(
-        mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, stiff_slope, h, h_max, es, relax_cap,
-        math.nan, True, rec, rec_n, use, use_n, tail,
+    st, x, y, es, nr2, h = _scalar_run(
+        _ROSENBROCK, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, stiff_slope, h, K,
+        h_max, es, relax_cap, math.nan, True, rec, rec_n, use, use_n, tail,
     )  # fmt: skip
     nr += nr2
     if st == S_STIFF:
         # no longer stiff: the rest (little damping left) with DOP853
-        st, x, y, es, nr3, h = _dop853_scalar(
-            mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h, K, h_max, es,
-            False, relax_cap, rec, rec_n, use, use_n, tail,
+        st, x, y, es, nr3, h = _scalar_run(
+            _EXPLICIT, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h, K,
+            h_max, es, relax_cap, math.nan, False, rec, rec_n, use, use_n, tail,
         )  # fmt: skip
         nr += nr3
     return st, x, y, es, nr, h, True
@@ -875,9 +770,9 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
         if t == 0.0:
             return S_OK, u, es, nr, stiff
         fb = _f_u(u, t, kappa, kc, eps)
-        st2, u2, t2, es2, nr2, h2 = _rodas_scalar(
-            1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, _H_MAX_B,
-            es * abs(fb), relax_cap, 0.0, False, rec[1], rec_n[1:2], use[1], nb_, 0.0,
+        st2, u2, t2, es2, nr2, h2 = _scalar_run(
+            _ROSENBROCK, 1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K,
+            _H_MAX_B, es * abs(fb), relax_cap, 0.0, False, rec[1], rec_n[1:2], use[1], nb_, 0.0,
         )  # fmt: skip
         nr += nr2
         if st2 != S_OK or t2 != 0.0 or not (u2 > 0.0):

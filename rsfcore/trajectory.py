@@ -44,7 +44,7 @@ from . import limits as lim
 from .analytic import U_kcrit_sign, kcrit_jump_side
 from .asymptote import ASYM_DIRECT_LSTAR, load_jump_asymptote
 from .decision import DecisionFlag, Kind, first_decision
-from .engine import EngineResult, Integrator, Status, blowup_tail, run
+from .engine import EngineOptions, EngineResult, Integrator, Status, blowup_tail, run
 from .errors import BudgetExceeded, UndecidedError
 from .excursion import PHI_LEG
 from .jsonsafe import finite_or_none
@@ -525,27 +525,20 @@ def _run(
     lnc = math.log(p.vo) if p.vo > 0.0 else 0.0
     phi_stop = max(PHI_STOP, phi0 - lnc + PHI_STOP)
     sor = plan.stop_on_return if stop_on_return is None else stop_on_return
-    res = run(
-        y0,
-        p.ba,
-        p.kappa,
-        p.eps,
-        p.vo,
-        rtol,
-        rtol,
-        Ls,
-        plan.check_runaway,
-        sor,
-        t_end,
-        phi_stop,
-        max_steps,
-        eq_tol(p),
-        sample_tau,
-        sample_T,
-        samples,
-        integrator,
-        fast_leg,
+    opts = EngineOptions(
+        rtol=rtol,
+        atol=rtol,
+        Lstar=Ls,
+        check_runaway=plan.check_runaway,
+        stop_on_return=sor,
+        t_end=t_end,
+        phi_stop=phi_stop,
+        max_steps=max_steps,
+        eq_tol=eq_tol(p),
+        integrator=integrator,
+        fast_leg=fast_leg,
     )
+    res = run(y0, p.ba, p.kappa, p.eps, p.vo, opts, sample_tau, sample_T, samples)
     return res, samples
 
 

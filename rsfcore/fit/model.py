@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..engine import Status, run
+from ..engine import EngineOptions, Status, run
 from ..params import ParameterError
 from .record import Record
 
@@ -360,25 +360,10 @@ class ForwardModel:
             sT = self.t[i0:i1] * scale
             T_end = (self.t[i1] if i1 < n else self.t[-1]) * scale
             out = np.empty((i1 - i0, 5))
-            res = run(
-                y,
-                ba,
-                kappa,
-                eps,
-                self.v_seg[j] / self.V0,
-                rtol,
-                rtol,
-                math.inf,
-                False,
-                False,
-                T_end,
-                _PHI_STOP,
-                _MAX_STEPS,
-                0.0,
-                _EMPTY,
-                sT,
-                out,
+            opts = EngineOptions(
+                rtol=rtol, atol=rtol, t_end=T_end, phi_stop=_PHI_STOP, max_steps=_MAX_STEPS
             )
+            res = run(y, ba, kappa, eps, self.v_seg[j] / self.V0, opts, _EMPTY, sT, out)
             nf = res.n_filled
             steps += res.n_steps + res.n_rejected
             phi[i0 : i0 + nf] = out[:nf, 0]

@@ -1,4 +1,4 @@
-"""Shared ODE machinery of rsfcore: the DOP853 tableau and its compiled building blocks.
+"""Shared ODE machinery of rsfcore: one implementation per method (DOP853, RODAS4).
 
 * :mod:`rsfcore.ode.dop853_tableau`: the published Dormand-Prince 8(5,3) coefficients.
 * :mod:`rsfcore.ode.rk`: stage, solution, error norm, step-size controller, starting
@@ -6,12 +6,14 @@
   (samples at given times) and stiffness indicator as numba kernels,
   used by the spring-slider engine (rsfcore.engine) and the separatrix integrator
   (rsfcore.separatrix).
-* :mod:`rsfcore.ode.rodas4_tableau`: the published RODAS4 coefficients of the engine's
-  Rosenbrock method for stiff phases.
+* :mod:`rsfcore.ode.rodas4_tableau`: the published RODAS4 coefficients.
+* :mod:`rsfcore.ode.rodas4`: the Rosenbrock method RODAS4 (step, linear solve, error norm,
+  step-size controller, Hermite dense output) as numba kernels, used by the engine's stiff
+  phases and by the separatrix integrator's stiff corner.
 """
 
 from __future__ import annotations
 
-from . import dop853_tableau, rk, rodas4_tableau
+from . import dop853_tableau, rk, rodas4, rodas4_tableau
 
-__all__ = ["dop853_tableau", "rk", "rodas4_tableau"]
+__all__ = ["dop853_tableau", "rk", "rodas4", "rodas4_tableau"]

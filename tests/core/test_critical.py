@@ -25,7 +25,7 @@ from rsfcore.critical import (
     separatrix_raw,
 )
 from rsfcore.laws import L_star
-from rsfcore.separatrix import N_WORK, _dop853_scalar, asym_coeffs
+from rsfcore.separatrix import _EXPLICIT, N_WORK, _scalar_run, asym_coeffs
 
 from .reference import reference_cases
 
@@ -243,9 +243,9 @@ def test_asymptotic_start_truncation():
             a = asymptotic_start(p, s0)
             # DOP853 alone (no stiffness switch, no relaxation, no profile recorded)
             rec, rec_n = np.empty((2, 1)), np.zeros(1, dtype=np.int64)
-            st, t, u, *_ = _dop853_scalar(
-                0, s0, a["u"], 0.0, p.kappa, kc, eps, 1e-14, 1e-17, math.inf, 0.0, 1.0, K,
-                0.5, 0.0, False, 1.0, rec, rec_n, rec, 0, 0.0,
+            st, t, u, *_ = _scalar_run(
+                _EXPLICIT, 0, s0, a["u"], 0.0, p.kappa, kc, eps, 1e-14, 1e-17, math.inf, 0.0,
+                1.0, K, 0.5, 0.0, 1.0, math.nan, False, rec, rec_n, rec, 0, 0.0,
             )  # fmt: skip
             assert st == 0 and t == 0.0
             res[zt] = u

@@ -149,12 +149,13 @@ def test_engine_status_and_result_types() -> None:
     assert engine.STATUS[int(engine.Status.STEP_UNDERFLOW)] == "step_underflow"
     y0 = np.array([1.0, 0.0, 0.0])
     empty = np.empty(0)
-    res = engine.run(y0, 2.0, 2.0, 0.25, 1.0, 1e-10, 1e-10, math.inf, False, True, math.inf,
-                     40.0, 100_000, 1e-6, empty, empty, np.empty((0, 5)))  # fmt: skip
+    opts = engine.EngineOptions(
+        rtol=1e-10, atol=1e-10, stop_on_return=True, phi_stop=40.0, max_steps=100_000, eq_tol=1e-6
+    )
+    res = engine.run(y0, 2.0, 2.0, 0.25, 1.0, opts, empty, empty, np.empty((0, 5)))
     assert isinstance(res, engine.EngineResult) and res.status is engine.Status.RETURNED
     assert res.n_steps > 0 and res.n_rhs >= 12 * res.n_steps and res.y_end.shape == (3,)
-    raw = engine.integrate(y0, 2.0, 2.0, 0.25, 1.0, 1e-10, 1e-10, math.inf, False, True, math.inf,
-                           40.0, 100_000, 1e-6, empty, empty, np.empty((0, 5)))  # fmt: skip
+    raw = engine.integrate(y0, 2.0, 2.0, 0.25, 1.0, opts.typed(), empty, empty, np.empty((0, 5)))
     same = [
         a == b or (math.isnan(a) and math.isnan(b))
         for a, b in zip(tuple(res)[2:], tuple(raw)[2:], strict=True)

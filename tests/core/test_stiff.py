@@ -148,14 +148,16 @@ def test_auto_switch_agrees_with_explicit_where_both_run(p: Params, pert: str, d
 def test_engine_reports_stiff_steps() -> None:
     """The switch happens (RODAS4 steps counted) on a stiff machine and never on a soft one."""
     e = np.empty(0)
-    args = (1e-10, 1e-10, math.inf, False, True, math.inf, 40.0, 1_000_000, 1e-6, e, e)
-    stiff = engine.run(np.array([0.0, -math.log(11.0), 0.0]), 2.0, 1e4, 0.0, 11.0, *args,
-                       np.empty((0, 5)))  # fmt: skip
-    soft = engine.run(np.array([1.0, 0.0, 0.0]), 2.0, 2.0, 0.25, 1.0, *args, np.empty((0, 5)))
+    opts = engine.EngineOptions(
+        rtol=1e-10, atol=1e-10, stop_on_return=True, max_steps=1_000_000, eq_tol=1e-6
+    )
+    out = np.empty((0, 5))
+    stiff = engine.run(np.array([0.0, -math.log(11.0), 0.0]), 2.0, 1e4, 0.0, 11.0, opts, e, e, out)
+    soft = engine.run(np.array([1.0, 0.0, 0.0]), 2.0, 2.0, 0.25, 1.0, opts, e, e, out)
     assert stiff.n_stiff_steps > 0 and stiff.n_jacobians >= stiff.n_stiff_steps
     assert soft.n_stiff_steps == 0 and soft.n_jacobians == 0
-    forced = engine.run(np.array([1.0, 0.0, 0.0]), 2.0, 2.0, 0.25, 1.0, *args, np.empty((0, 5)),
-                        engine.Integrator.ROSENBROCK)  # fmt: skip
+    rosenbrock = opts._replace(integrator=engine.Integrator.ROSENBROCK)
+    forced = engine.run(np.array([1.0, 0.0, 0.0]), 2.0, 2.0, 0.25, 1.0, rosenbrock, e, e, out)
     assert forced.n_stiff_steps == forced.n_steps
 
 
