@@ -76,7 +76,8 @@ class _PatchAfterImport(importlib.abc.MetaPathFinder):
             return None
         sys.meta_path.remove(self)
         spec = None
-        for finder in sys.meta_path:
+        # a copy: a finder may remove itself while asked (rsfcore._cache._Announce does)
+        for finder in list(sys.meta_path):
             find = getattr(finder, "find_spec", None)
             if find is not None:
                 spec = find(fullname, path, target)

@@ -115,3 +115,16 @@ def test_a_cache_miss_still_compiles(tmp_path: Path) -> None:
     second = _run(code, {"RSF_CACHE_DIR": str(tmp_path)})
     assert second.returncode == 0 and second.stdout == first.stdout, second.stderr
     assert "compiling" not in second.stderr
+
+
+def test_lean_loading_installed_whichever_is_imported_first(tmp_path: Path) -> None:
+    """numba imported before rsfcore (patched at once) or after it (patched when numba
+    is imported, through the import hook): the cache's loader is rsfcore's either way."""
+    check = (
+        "from numba.core import caching; "
+        "print(getattr(caching.Cache.load_overload, '_rsfcore_lean_load', False))"
+    )
+    for first in ("import numba, rsfcore; ", "import rsfcore, numba; "):
+        r = _run(first + check, {"RSF_CACHE_DIR": str(tmp_path)})
+        assert r.returncode == 0, r.stderr
+        assert r.stdout.strip() == "True", first
