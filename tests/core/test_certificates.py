@@ -329,3 +329,48 @@ def test_blowup_time_of_a_start_above_phi_stop() -> None:
         ref = _vo0_blowup_time_referee(p, phi0, phi0 + (psi0 - phi0) / p.ba)
         assert 6.40e-11 < ref < 6.42e-11
         assert abs(r.blowup_time - ref) <= r.rel_accuracy * ref, rtol
+
+
+@pytest.mark.parametrize("vo", [1.0, 2.5965317508900364e23, 1e-20, 1e300])
+def test_kappa_zero_load_jump_at_any_vo(vo: float) -> None:
+    # issue 22 stress run: with no spring a load-point jump leaves the slider at its steady
+    # state (critical size "infinite"), but at v_o != 1 the start (ln v_o, (1 - b/a) ln v_o)
+    # gave L0 = +1e-14 by rounding and classify certified a runaway (kappa0_L_above_Lstar)
+    p = Params(16.681268845238094, 0.0, 0.11739878353436566, vo)
+    assert critical_perturbation(p, LJ).kind == "infinite"
+    for lg in (2.3263043742526914, 4.412838243909777):
+        r = classify(p, LJ, log_size=lg)
+        assert (r.outcome, r.certificate) == ("stable", "at_equilibrium")
+    # a velocity jump there is still above L* = 0 (critical size "zero")
+    assert classify(p, VJ, 1e-3).outcome == "unstable"
+
+
+@pytest.mark.parametrize(
+    "ba, kappa, eps, vo, pert, lg, rtol, outcome",
+    [
+        # v_o = 0, L0 below L* (closed form): peak time 37 vs 10.7, claim 5.4e-5
+        (1.1982940700720102, 1.588257909227388e-143, 0.9429866540228684, 0.0,
+         VJ, 7.208647831907193e-143, 1.81e-05, "stable"),
+        # kappa < kappa_crit (linear instability): blow-up 65x off, claim 6e-6
+        (1.0132976658236037, 1.5125809888451034e-226, 0.21669986047422915,
+         2.7337600870727866e-11, LJ, 0.0125609431, 8.15e-07, "unstable"),
+    ],
+)  # fmt: skip
+def test_start_within_resolution_of_Lstar_has_no_times(
+    ba: float,
+    kappa: float,
+    eps: float,
+    vo: float,
+    pert: str,
+    lg: float,
+    rtol: float,
+    outcome: str,
+) -> None:
+    # issue 22 stress run: kappa ~ 1e-143 .. 1e-226 puts L* within 1e-143 of the start, far
+    # below the integration's resolution of L; the outcome is certain (closed form, kappa <
+    # kappa_crit) but the times were off by 3.5 .. 65x claiming 1e-5: now not final
+    p = Params(ba, kappa, eps, vo)
+    for r_ in (rtol, 1e-13):
+        r = classify(p, pert, log_size=lg, rtol=r_)
+        assert r.outcome == outcome
+        assert not r.complete and r.blowup_time is None and r.peak_time is None
