@@ -29,18 +29,29 @@ How each regime is decided (the same decisions, in the same order, as classify's
   constant.  As a curve t = t_sep(u), u < L*, it bounds the basin of steady sliding:
   a start is stable iff u < L* and t < t_sep(u).  Both branches are integrated by DOP853
   (rsfcore.ode.rk) with their 7th-order dense output stored, so a point costs one binary
-  search and one polynomial evaluation.
+  search and one polynomial evaluation.  Where DOP853's steps are limited by stability
+  (kappa large: b/a = kappa = 1e6, or b/a = 1e4, kappa = 1.0001e4), the tracing hands over
+  to RODAS4 (rsfcore.ode.rodas4, the stiff hand-over of rsfcore.separatrix) with cubic
+  Hermite dense output, at a tolerance of rtol (not 1e-3 rtol: RODAS4 loses order there,
+  and at 1e-3 rtol it needed more than the 4e4 stored steps, so the tracing failed and
+  every start was integrated, 13-23 s per 10^5 starts); each stored step carries the
+  curve's propagated error estimate, which widens the margin there.
 
 Safety margin: a start whose distance to the separatrix (in u on branch A, in t on
 branch B) is below MARGIN_FACTOR x rtol x (1 + |t| + |u|) plus the rounding of (t, u)
-from (phi0, psi0), or that lies beyond the traced range of the curve, is integrated with
+from (phi0, psi0) plus CURVE_ERR_FACTOR x the curve's propagated error estimate there, or
+that lies beyond the traced range of the curve, is integrated with
 rsfcore.trajectory.classify (method "integrated" in the result).  MARGIN_FACTOR is
 calibrated (tests/core/test_phase.py): classify at rtol agrees with the side of the
 separatrix for every start farther than the margin.
 
 Accuracy: the traced separatrix is computed at 1e-3 of the requested rtol (floored at
-1e-14), so its error is far below the margin; outcomes are exact decisions of the same
-kind as classify's.  Speed: 1e5 random points in a few ms after warm-up (bench/bench_phase.py).
+1e-14; RODAS4 steps at rtol), so its error is far below the margin (measured against the
+separatrix method's critical sizes, which lie on the curve: <= 3e-12 in the stiff corners
+at rtol 1e-10, where the margin is 1e-8); outcomes are exact decisions of the same kind
+as classify's.  Speed: 1e5 random points in a few ms after warm-up
+(bench/bench_phase.py); over a grid of parameter sets incl. the stiff corners
+bench/bench_phase_grid.py.
 """
 
 from __future__ import annotations
@@ -61,9 +72,9 @@ from .errors import ParameterError
 # (numba's cache does not track callees in other modules: this file was touched when
 # rsfcore.laws.L_star began deciding x >= 1 on the exact 1 - x, NUMERICS_VERSION 5)
 from .laws import G, L_star
-from .ode import rk
+from .ode import rk, rodas4
 from .params import Params
-from .separatrix import asym_coeffs
+from .separatrix import STIFF_HJ, STIFF_RUN, asym_coeffs, dfdx, dfdy
 
 __all__ = [
     "Outcome",
@@ -73,6 +84,7 @@ __all__ = [
     "classify_points",
     "trace_separatrix",
     "MARGIN_FACTOR",
+    "CURVE_ERR_FACTOR",
 ]
 
 #: Safety margin factor (module docstring).  Calibrated (tests/core/test_phase.py,
@@ -80,6 +92,9 @@ __all__ = [
 #: every start rtol (1 + |t| + |u|) away or farther (rtol 1e-6, 1e-10, 1e-13; 4 parameter
 #: sets x 60 starts per distance) and began to disagree at rtol/10; 100 leaves 100x.
 MARGIN_FACTOR = 100.0
+#: the traced curve's propagated error estimate enters the margin times this: DOP853's
+#: estimate under-estimates this problem's error by up to ~100x (rsfcore.separatrix)
+CURVE_ERR_FACTOR = 100.0
 #: the KCRIT_TOL of rsfcore.trajectory: kappa within this relative band of kappa_crit is
 #: decided by the sign of U there, so here too
 _KCRIT_TOL = 1e-14
@@ -162,6 +177,16 @@ _MAX_STEPS = 20_000
 #: internal tolerance of the tracing = rtol x this (floored at 1e-14); DOP853's error
 #: estimate under-estimates this problem's error by up to ~100x (rsfcore.separatrix)
 _TRACE_TOL = 1e-3
+#: RODAS4's tolerance in the stiff corner = rtol x this: RODAS4 loses order there (local
+#: error ~h/kappa, rsfcore.separatrix), so at 1e-3 rtol it needs more steps than are
+#: stored (the tracing failed); its propagated error estimate enters the margin instead
+#: (CURVE_ERR_FACTOR).  Measured at rtol 1e-10 (bench/bench_phase_grid.py): 6e3 - 1.7e4
+#: steps, estimates <= 6.4e-10 and true errors <= 3e-12 (against critical sizes)
+_TRACE_TOL_STIFF = 1.0
+#: ... but never looser than this: at rtol 1e-6 the estimate (1.5e-5 at b/a = 1e4,
+#: kappa = 1.0001e4) widened the margin 15x and 79 of 1e5 random starts were integrated
+#: (0.06 s CPU); at 1e-8 the tracing costs ~1-2 ms there
+_STIFF_TOL_MAX = 1e-8
 _H_MAX_A = 0.5
 _H_MAX_B = 0.1
 #: branch B ends when the remaining change of t is below this fraction of the margin
@@ -223,6 +248,13 @@ def _rhs(mode: int, x: float, y: float, kappa: float, kc: float, eps: float) -> 
     return _rhs_b(x, y, kappa, kc, eps)
 
 
+@nb.njit(cache=True, nogil=True)
+def _pair_rhs(z: F64, out: F64, mode: int, kappa: float, kc: float, eps: float) -> None:
+    """The branch ODE as the autonomous pair z = (x, y): (x', y') = (1, f(x, y)) (RODAS4)."""
+    out[0] = 1.0
+    out[1] = _rhs(mode, z[0], z[1], kappa, kc, eps)
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _branch(
     mode: int,
@@ -233,6 +265,7 @@ def _branch(
     kc: float,
     eps: float,
     rtol: float,
+    stiff_rtol: float,
     h_max: float,
     switch_slope: float,
     tail_tol: float,
@@ -240,13 +273,29 @@ def _branch(
     ys: F64,
     hs_: F64,
     Fs: F64,
+    es_: F64,
     n0: int,
-) -> tuple[int, int, float, float]:
+    err0: float,
+) -> tuple[int, int, float, float, int, float]:
     """Integrate branch A (mode 0, x = t increasing) or B (mode 1, x = u decreasing) and
     store every accepted step: start xs[k], ys[k], signed step hs_[k], dense coefficients
-    Fs[k, :].  Stops at x_end, or (A) after a step ending with |slope| > switch_slope, or
+    Fs[k, :] and the propagated error estimate of y over the step es_[k] (from err0 at the
+    start).  Stops at x_end, or (A) after a step ending with |slope| > switch_slope, or
     (B) once |slope| (1 + |x|) < tail_tol (the rest of the curve changes t by less).
-    Returns (status, n, x, y)."""
+
+    DOP853 (rsfcore.ode.rk, 7th-order dense output) at tolerance rtol; where its steps are
+    limited by stability (Hairer's counting as in rsfcore.separatrix: STIFF_RUN steps in
+    a row with h |df/dy| > STIFF_HJ, df/dy analytic) it hands over to RODAS4
+    (rsfcore.ode.rodas4 on the pair (x, y), x' = 1, with the analytic Jacobian; cubic
+    Hermite dense output, whose gap to RODAS4's own continuous extension is inside the
+    error norm) at tolerance stiff_rtol, and back after 20 steps in a row with
+    h |df/dy| < 2 (the engine's rule).  The stiff corner (b/a = kappa = 1e6): the
+    separatrix attracts at a rate ~kappa e^(t - u)/|G(u)| ~ 1e5, so DOP853 alone filled
+    its 4e4 rows before the end of branch A.
+    Returns (status, n, x, y, RODAS4 steps, propagated error estimate at the end): the
+    estimate is err <- err exp(h J) + |local error| over the accepted steps (h J the less
+    contractive end of the step), an absolute error of y; es_[k] is the larger of its
+    values at the two ends of step k."""
     direction = 1.0 if x_end >= x0 else -1.0
     K = np.empty((rk.N_STAGES_EXTENDED, 1))
     F = np.empty((7, 1))
@@ -256,86 +305,145 @@ def _branch(
     f1 = np.empty(1)
     sc = np.empty(1)
     C = rk.C_NODES
+    W = np.zeros((rodas4.SCALAR_WORK, 2))  # RODAS4's workspace (rodas4.scalar_step)
+    args = (mode, kappa, kc, eps)
     x = x0
     y = y0
     f = _rhs(mode, x, y, kappa, kc, eps)
     if not math.isfinite(f):
-        return TR_FAIL, n0, x, y
+        return TR_FAIL, n0, x, y, 0, 0.0
     h = h_max * 0.1
     n = n0
     last_rejected = False
     n_try = 0
+    stiff = False
+    n_hits = 0
+    n_easy = 0
+    n_ros = 0
+    J = dfdy(mode, x, y, kappa, kc, eps)
+    err_sum = err0
     while n < xs.shape[0] and n_try < 10 * _MAX_STEPS:
         n_try += 1
         rem = (x_end - x) * direction
         if rem <= 0.0:
-            return TR_OK, n, x, y
+            return TR_OK, n, x, y, n_ros, err_sum
         final = False
         if h >= rem:
             h = rem
             final = True
         hs = h * direction
-        K[0, 0] = f
-        ok = True
-        for s in range(1, rk.N_STAGES):
-            k = _rhs(mode, x + C[s] * hs, y + hs * rk.stage_sum(K, s, 0), kappa, kc, eps)
-            if not math.isfinite(k):
-                ok = False
-                break
-            K[s, 0] = k
         err = math.inf
         ynew = y
         fnew = f
-        if ok:
-            ynew = y + hs * rk.solution_sum(K, 0)
-            fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
-            if math.isfinite(fnew) and math.isfinite(ynew):
-                K[rk.N_STAGES, 0] = fnew
-                sc[0] = rk.error_scale(y, ynew, rtol, rtol, 1.0 + abs(x))
-                err = rk.error_norm(K, h, sc, 1)
-        if not (err <= 1.0):
-            h *= rk.reject_factor(err)
-            last_rejected = True
-            if h < 1e-14 * max(1.0, abs(x)):
-                return TR_FAIL, n, x, y
-            continue
-        # dense output of the accepted step
-        yv[0] = y
-        ok = True
-        for s in range(rk.N_STAGES + 1, rk.N_STAGES_EXTENDED):
-            k = _rhs(mode, x + C[s] * hs, y + hs * rk.stage_sum(K, s, 0), kappa, kc, eps)
-            if not math.isfinite(k):
-                ok = False
-            K[s, 0] = k
-        if not ok:
-            h *= 0.5
-            last_rejected = True
-            continue
-        y1[0] = ynew
-        f0[0] = f
-        f1[0] = fnew
-        rk.dense_coeffs(K, yv, y1, f0, f1, hs, F)
+        if stiff:
+            fx = dfdx(mode, x, y, kappa, kc, eps)
+            ok, yr, fr = rodas4.scalar_step(_pair_rhs, args, x, y, f, fx, J, hs, W)
+            if ok and math.isfinite(yr) and math.isfinite(fr):
+                ynew = yr
+                fnew = fr
+                sc[0] = rk.error_scale(y, ynew, stiff_rtol, stiff_rtol, 1.0 + abs(x))
+                err = rodas4.scalar_error(W, hs, sc[0], True)
+            if not (err <= 1.0):
+                h *= rodas4.reject_factor(err)
+                last_rejected = True
+                if h < 1e-14 * max(1.0, abs(x)):
+                    return TR_FAIL, n, x, y, n_ros, err_sum
+                continue
+            y1[0] = ynew
+            f0[0] = f
+            f1[0] = fnew
+            yv[0] = y
+            rodas4.hermite_coeffs(yv, y1, f0, f1, hs, F)
+            local = err * sc[0]
+            n_ros += 1
+        else:
+            K[0, 0] = f
+            ok = True
+            for s in range(1, rk.N_STAGES):
+                k = _rhs(mode, x + C[s] * hs, y + hs * rk.stage_sum(K, s, 0), kappa, kc, eps)
+                if not math.isfinite(k):
+                    ok = False
+                    break
+                K[s, 0] = k
+            if ok:
+                ynew = y + hs * rk.solution_sum(K, 0)
+                fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
+                if math.isfinite(fnew) and math.isfinite(ynew):
+                    K[rk.N_STAGES, 0] = fnew
+                    sc[0] = rk.error_scale(y, ynew, rtol, rtol, 1.0 + abs(x))
+                    err = rk.error_norm(K, h, sc, 1)
+            if not (err <= 1.0):
+                h *= rk.reject_factor(err)
+                last_rejected = True
+                if h < 1e-14 * max(1.0, abs(x)):
+                    return TR_FAIL, n, x, y, n_ros, err_sum
+                continue
+            # dense output of the accepted step
+            yv[0] = y
+            ok = True
+            for s in range(rk.N_STAGES + 1, rk.N_STAGES_EXTENDED):
+                k = _rhs(mode, x + C[s] * hs, y + hs * rk.stage_sum(K, s, 0), kappa, kc, eps)
+                if not math.isfinite(k):
+                    ok = False
+                K[s, 0] = k
+            if not ok:
+                h *= 0.5
+                last_rejected = True
+                continue
+            y1[0] = ynew
+            f0[0] = f
+            f1[0] = fnew
+            rk.dense_coeffs(K, yv, y1, f0, f1, hs, F)
+            local = err * sc[0]
+        Jn = dfdy(mode, x + hs, ynew, kappa, kc, eps)
+        err_prev = err_sum
+        if math.isfinite(Jn):
+            err_sum = err_sum * math.exp(min(max(hs * J, hs * Jn), 50.0)) + local
+        else:
+            err_sum += local
+        J = Jn if math.isfinite(Jn) else 0.0
         xs[n] = x
         ys[n] = y
         hs_[n] = hs
         for i in range(7):
             Fs[n, i] = F[i, 0]
+        es_[n] = max(err_prev, err_sum)
         n += 1
         x = x + hs if not final else x_end
         y = ynew
         f = fnew
         if final:
-            return TR_OK, n, x, y
+            return TR_OK, n, x, y, n_ros, err_sum
         if switch_slope > 0.0 and abs(f) > switch_slope:
-            return TR_OK, n, x, y
+            return TR_OK, n, x, y, n_ros, err_sum
         # B: dt/du decays like e^((1 - eps) u) as u -> -inf, so the rest of the curve moves
         # t by about |dt/du|/(1 - eps)
         if tail_tol > 0.0 and abs(f) / max(1.0 - eps, 1e-6) < tail_tol * (1.0 + abs(y)):
-            return TR_OK, n, x, y
-        fac, _ = rk.accept_factor(err, h, 0.0, 1.0, last_rejected)
+            return TR_OK, n, x, y, n_ros, err_sum
+        if stiff:
+            fac, _ = rodas4.accept_factor(err, h, 0.0, 1.0, last_rejected)
+            # back to DOP853 once the step is well inside its stability region
+            n_easy = n_easy + 1 if h * abs(J) < 2.0 else 0
+            if n_easy >= 20:
+                stiff = False
+                n_hits = 0
+                n_easy = 0
+        else:
+            fac, _ = rk.accept_factor(err, h, 0.0, 1.0, last_rejected)
+            # Hairer's counting (dop853.f), as rsfcore.separatrix
+            if h * abs(J) > STIFF_HJ:
+                n_hits += 1
+                n_easy = 0
+                if n_hits >= STIFF_RUN:
+                    stiff = True
+                    n_easy = 0
+            else:
+                n_easy += 1
+                if n_easy >= 6:
+                    n_hits = 0
         last_rejected = False
         h = min(h * fac, h_max)
-    return TR_FAIL, n, x, y
+    return TR_FAIL, n, x, y, n_ros, err_sum
 
 
 @nb.njit(cache=True, nogil=True)
@@ -344,36 +452,44 @@ def _trace(
     kc: float,
     eps: float,
     rtol: float,
+    stiff_rtol: float,
     margin_rtol: float,
     xs: F64,
     ys: F64,
     hs: F64,
     Fs: F64,
-) -> tuple[int, int, int, float, float, float, float, float]:
+    es: F64,
+) -> tuple[int, int, int, float, float, float, float, float, int]:
     """Trace the separatrix: branch A into rows [0, nA), branch B into [nA, nA + nB).
 
-    Returns (status, nA, nB, s0, t_sw, u_sw, t_end, u_end)."""
+    rtol: DOP853's tolerance; stiff_rtol: RODAS4's (:func:`_branch`); es: the propagated
+    error estimate per row (in u on A, in t on B; the error of u at the switch enters B
+    times |dt/du| there).  Returns (status, nA, nB, s0, t_sw, u_sw, t_end, u_end, RODAS4
+    steps)."""
     Ls, c1, c2 = asym_coeffs(kappa, kc, eps)
     nan = math.nan
     if not (Ls > 0.0) or not math.isfinite(Ls):
-        return TR_FAIL, 0, 0, nan, nan, nan, nan, nan
+        return TR_FAIL, 0, 0, nan, nan, nan, nan, nan, 0
     cz = max(abs(c1), math.sqrt(abs(c2)), 1e-300)
     zt = min(max(1.0e-5 * (rtol / 1e-10) ** (1.0 / 3.0), 1e-7), 1e-4)
     s0 = Ls + math.log(zt / cz)  # (critical.py caps it at -5 for the jumps; not needed here)
     z0 = math.exp(s0 - Ls)
     u0 = Ls - z0 * (c1 + c2 * z0)
-    st, nA, t_sw, u_sw = _branch(
-        0, s0, u0, math.inf, kappa, kc, eps, rtol, _H_MAX_A, 1.0, 0.0, xs, ys, hs, Fs, 0
-    )
+    st, nA, t_sw, u_sw, nra, ea = _branch(
+        0, s0, u0, math.inf, kappa, kc, eps, rtol, stiff_rtol, _H_MAX_A, 1.0, 0.0, xs, ys, hs,
+        Fs, es, 0, 0.0,
+    )  # fmt: skip
     if st != TR_OK or not (u_sw > 0.0) or not math.isfinite(t_sw):
-        return TR_FAIL, nA, 0, s0, t_sw, u_sw, nan, nan
+        return TR_FAIL, nA, 0, s0, t_sw, u_sw, nan, nan, nra
     tail = _TAIL_FRAC * margin_rtol
-    st, n, u_end, t_end = _branch(
-        1, u_sw, t_sw, _U_FLOOR, kappa, kc, eps, rtol, _H_MAX_B, 0.0, tail, xs, ys, hs, Fs, nA
-    )
+    eb0 = ea * abs(_rhs(1, u_sw, t_sw, kappa, kc, eps))
+    st, n, u_end, t_end, nrb, eb = _branch(
+        1, u_sw, t_sw, _U_FLOOR, kappa, kc, eps, rtol, stiff_rtol, _H_MAX_B, 0.0, tail, xs, ys,
+        hs, Fs, es, nA, eb0,
+    )  # fmt: skip
     if st != TR_OK:
-        return TR_FAIL, nA, n - nA, s0, t_sw, u_sw, t_end, u_end
-    return TR_OK, nA, n - nA, s0, t_sw, u_sw, t_end, u_end
+        return TR_FAIL, nA, n - nA, s0, t_sw, u_sw, t_end, u_end, nra + nrb
+    return TR_OK, nA, n - nA, s0, t_sw, u_sw, t_end, u_end, nra + nrb
 
 
 @nb.njit(cache=True, nogil=True)
@@ -391,10 +507,20 @@ def _dense_at(Fs: F64, k: int, y0: float, x: float) -> float:
 
 @nb.njit(cache=True, nogil=True)
 def _signed_distance(
-    t0: float, u0: float, geom: F64, nA: int, nB: int, xs: F64, ys: F64, hs: F64, Fs: F64
-) -> tuple[float, bool]:
-    """(d, ok): d > 0 on the runaway side of the separatrix, < 0 in the basin; |d| is the
-    distance in u (branch A) or in t (branch B).  ok = False beyond the traced curve.
+    t0: float,
+    u0: float,
+    geom: F64,
+    nA: int,
+    nB: int,
+    xs: F64,
+    ys: F64,
+    hs: F64,
+    Fs: F64,
+    es: F64,
+) -> tuple[float, bool, float]:
+    """(d, ok, e): d > 0 on the runaway side of the separatrix, < 0 in the basin; |d| is
+    the distance in u (branch A) or in t (branch B); e the traced curve's propagated error
+    estimate there (0 on the asymptotic expansion).  ok = False beyond the traced curve.
     geom = (L*, c1, c2, s0, t_switch, u_switch, t_end, u_end)."""
     Ls, c1, c2, s0, t_sw, u_sw, t_end, u_end = (
         geom[0],
@@ -408,10 +534,10 @@ def _signed_distance(
     )
     if u0 > u_sw:
         if t0 >= t_sw:
-            return math.inf, True  # right of branch A's end: t_sep(u0) < t_sw <= t0
+            return math.inf, True, 0.0  # right of branch A's end: t_sep(u0) < t_sw <= t0
         if t0 <= s0:
             z = math.exp(t0 - Ls)
-            return u0 - (Ls - z * (c1 + c2 * z)), True
+            return u0 - (Ls - z * (c1 + c2 * z)), True, 0.0
         lo = 0
         hi = nA - 1
         while lo < hi:  # last step start <= t0 (starts increasing)
@@ -421,12 +547,12 @@ def _signed_distance(
             else:
                 hi = mid - 1
         x = (t0 - xs[lo]) / hs[lo]
-        return u0 - _dense_at(Fs, lo, ys[lo], min(max(x, 0.0), 1.0)), True
+        return u0 - _dense_at(Fs, lo, ys[lo], min(max(x, 0.0), 1.0)), True, es[lo]
     if u0 < u_end:
         # t_sep has converged to t_end within the tail tolerance; beyond the floor: integrate
         if u_end <= _U_FLOOR:
-            return 0.0, False
-        return t0 - t_end, True
+            return 0.0, False, 0.0
+        return t0 - t_end, True, es[nA + nB - 1]
     lo = nA
     hi = nA + nB - 1
     while lo < hi:  # last step start >= u0 (starts decreasing)
@@ -436,7 +562,7 @@ def _signed_distance(
         else:
             hi = mid - 1
     x = (u0 - xs[lo]) / hs[lo]
-    return t0 - _dense_at(Fs, lo, ys[lo], min(max(x, 0.0), 1.0)), True
+    return t0 - _dense_at(Fs, lo, ys[lo], min(max(x, 0.0), 1.0)), True, es[lo]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -452,6 +578,7 @@ def _classify_sep(
     ys: F64,
     hs: F64,
     Fs: F64,
+    es: F64,
     mrtol: float,
     out: NDArray[np.int8],
     meth: NDArray[np.int8],
@@ -471,10 +598,13 @@ def _classify_sep(
             out[i] = 1
             meth[i] = 1
             continue
-        d, ok = _signed_distance(t0, u0, geom, nA, nB, xs, ys, hs, Fs)
-        # margin: the requested accuracy and the rounding of (t0, u0) from (phi0, psi0)
-        m = mrtol * (1.0 + abs(t0) + abs(u0)) + 8.0 * _U * (
-            abs(p) + abs(q) / ba + abs(lnvo) + abs(lth)
+        d, ok, e = _signed_distance(t0, u0, geom, nA, nB, xs, ys, hs, Fs, es)
+        # margin: the requested accuracy, the rounding of (t0, u0) from (phi0, psi0) and the
+        # traced curve's own error estimate there
+        m = (
+            mrtol * (1.0 + abs(t0) + abs(u0))
+            + 8.0 * _U * (abs(p) + abs(q) / ba + abs(lnvo) + abs(lth))
+            + CURVE_ERR_FACTOR * e
         )
         if not ok or abs(d) <= m:
             out[i] = 2
@@ -506,6 +636,11 @@ class Separatrix:
     y: NDArray[np.float64]
     h: NDArray[np.float64]
     F: NDArray[np.float64]
+    #: propagated error estimate per row (absolute, in u on branch A and in t on branch
+    #: B); classify_points adds CURVE_ERR_FACTOR times it to the margin
+    e: NDArray[np.float64]
+    #: steps taken by RODAS4 (the stiff corner; cubic Hermite dense output on those rows)
+    n_stiff: int = 0
 
     @property
     def L_star(self) -> float:
@@ -532,9 +667,18 @@ class Separatrix:
         """End of branch B; t_sep(u) = t_end below it."""
         return float(self.geom[7])
 
+    def curve_error(self, t: float, u: float) -> float:
+        """The traced curve's propagated error estimate at the point of the curve nearest
+        to (t, u) in the sense of :func:`classify_points` (absolute; in u on branch A, in t
+        on branch B; 0 on the asymptotic expansion)."""
+        _, _, e = _signed_distance(
+            t, u, self.geom, self.n_a, self.n_b, self.x, self.y, self.h, self.F, self.e
+        )
+        return float(e)
+
     def _d(self, t: float, u: float) -> tuple[float, bool]:
-        d, ok = _signed_distance(
-            t, u, self.geom, self.n_a, self.n_b, self.x, self.y, self.h, self.F
+        d, ok, _ = _signed_distance(
+            t, u, self.geom, self.n_a, self.n_b, self.x, self.y, self.h, self.F, self.e
         )
         return float(d), bool(ok)
 
@@ -570,11 +714,12 @@ def trace_separatrix(params: Params, rtol: float = lim.DEFAULT_RTOL) -> Separatr
     if not math.isfinite(float(L_star(params.kappa, kc, params.eps))):
         return None
     tol = max(rtol * _TRACE_TOL, 1e-14)
+    stiff_tol = max(min(rtol * _TRACE_TOL_STIFF, _STIFF_TOL_MAX), 1e-14)
     n = 2 * _MAX_STEPS
-    xs, ys, hs = np.empty(n), np.empty(n), np.empty(n)
+    xs, ys, hs, es = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     Fs = np.empty((n, 7))
-    st, nA, nB, s0, t_sw, u_sw, t_end, u_end = _trace(
-        params.kappa, kc, params.eps, tol, MARGIN_FACTOR * rtol, xs, ys, hs, Fs
+    st, nA, nB, s0, t_sw, u_sw, t_end, u_end, n_ros = _trace(
+        params.kappa, kc, params.eps, tol, stiff_tol, MARGIN_FACTOR * rtol, xs, ys, hs, Fs, es
     )
     if st != TR_OK or nA < 1 or nB < 1:
         return None
@@ -582,7 +727,15 @@ def trace_separatrix(params: Params, rtol: float = lim.DEFAULT_RTOL) -> Separatr
     m = nA + nB
     geom = np.array([Ls, c1, c2, s0, t_sw, u_sw, t_end, u_end], dtype=np.float64)
     return Separatrix(
-        geom, int(nA), int(nB), xs[:m].copy(), ys[:m].copy(), hs[:m].copy(), Fs[:m].copy()
+        geom,
+        int(nA),
+        int(nB),
+        xs[:m].copy(),
+        ys[:m].copy(),
+        hs[:m].copy(),
+        Fs[:m].copy(),
+        es[:m].copy(),
+        int(n_ros),
     )
 
 
@@ -663,8 +816,9 @@ def classify_points(
                 mrtol = MARGIN_FACTOR * rtol
                 g, nA, nB = sep.geom, sep.n_a, sep.n_b
                 _classify_sep(
-                    p, q, ba, lnvo, g, nA, nB, sep.x, sep.y, sep.h, sep.F, mrtol, out, meth
-                )
+                    p, q, ba, lnvo, g, nA, nB, sep.x, sep.y, sep.h, sep.F, sep.e, mrtol, out,
+                    meth,
+                )  # fmt: skip
         out[eq] = Outcome.STABLE
         meth[eq] = PointMethod.EQUILIBRIUM
 

@@ -345,18 +345,7 @@ def _scalar_run(
     Kw = K.reshape((K.shape[0], 1))  # the shared DOP853 kernels take (stages, components)
     relax_cap = min(relax_cap, max(1.0, _RELAX_TOL_MAX / rtol))
     sc = np.empty(1)
-    # RODAS4 workspace: the pair state, its slope, stages, Jacobian columns (n = 2)
-    W = np.zeros((16, 2))
-    R = W[0:6]
-    z = W[6]
-    fz = W[7]
-    tmp = W[8]
-    ftmp = W[9]
-    buf = W[10]
-    znew = W[11]
-    fznew = W[12]
-    scz = W[13]
-    Jz = W[14:16]  # row 0 (d x'/d(x, y)) stays 0
+    W = np.zeros((rodas4.SCALAR_WORK, 2))  # RODAS4's workspace (rodas4.scalar_step)
     args = (mode, kappa, kc, eps)
     x = x0
     y = y0
@@ -398,21 +387,12 @@ def _scalar_run(
         fnew = math.nan
         err = math.inf
         if stiff:
-            z[0] = x
-            z[1] = y
-            fz[0] = 1.0
-            fz[1] = f
-            Jz[1, 0] = fx
-            Jz[1, 1] = J
-            ok = rodas4.step(_pair_rhs, args, z, fz, hs, Jz, R, tmp, ftmp, buf, znew, fznew)
-            ynew = znew[1]
-            fnew = fznew[1]
-            scz[1] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
-            sc[0] = scz[1]
+            ok, ynew, fnew = rodas4.scalar_step(_pair_rhs, args, x, y, f, fx, J, hs, W)
+            sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
             if ok:
                 n_rhs += rodas4.N_STAGES
                 if math.isfinite(ynew) and math.isfinite(fnew):
-                    err = rodas4.error_norm(R, fz, fznew, hs, scz, 1, 2, False)
+                    err = rodas4.scalar_error(W, hs, sc[0], False)
         else:
             Kw[0, 0] = f
             ok = True
@@ -443,21 +423,20 @@ def _scalar_run(
             s1 = hs
             g1 = ynew - y_stop
             xs = x + hs
-            e_loc = abs(R[5, 1])
+            e_loc = abs(W[5, 1])  # k_6 of the step: its embedded error estimate
             for _ in range(60):
                 sm = s1 - g1 * (s1 - s0) / (g1 - g0)
                 if not (min(s0, s1) < sm < max(s0, s1)):
                     sm = 0.5 * (s0 + s1)
-                okm = rodas4.step(_pair_rhs, args, z, fz, sm, Jz, R, tmp, ftmp, buf, znew, fznew)
+                okm, ym, _ = rodas4.scalar_step(_pair_rhs, args, x, y, f, fx, J, sm, W)
                 if not okm:
                     break
                 n_rhs += rodas4.N_STAGES
-                ym = znew[1]
                 if not math.isfinite(ym):
                     break
                 gm = ym - y_stop
                 xs = x + sm
-                e_loc = abs(R[5, 1])
+                e_loc = abs(W[5, 1])
                 if gm == 0.0 or abs(s1 - s0) <= 1e-15 * max(abs(x), 1.0):
                     break
                 if gm * g1 < 0.0:

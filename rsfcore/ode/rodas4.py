@@ -15,7 +15,10 @@ loop and its events, and calls
   accepted step is given; Hairer & Wanner II, Sec. IV.8 and VI.4);
 * :func:`hermite_coeffs`: the cubic Hermite dense output of a step, in the layout of
   rsfcore.ode.rk.dense_eval;
-* :func:`spectral_radius`: the largest |eigenvalue| of the stiff 2 x 2 block.
+* :func:`spectral_radius`: the largest |eigenvalue| of the stiff 2 x 2 block;
+* :func:`scalar_step`, :func:`scalar_error`: a scalar non-autonomous ODE y' = f(x, y) as
+  the autonomous pair (x, y), x' = 1, on a (SCALAR_WORK, 2) workspace (the separatrix's
+  drivers: rsfcore.separatrix, rsfcore.phase).
 
 Structure of the systems (both users): the Jacobian is non-zero in its first two columns
 only, i.e. y = (y_0, y_1, q_2, ..., q_{n-1}) where f depends on (y_0, y_1) alone and the
@@ -64,6 +67,9 @@ __all__ = [
     "accept_factor",
     "hermite_coeffs",
     "spectral_radius",
+    "SCALAR_WORK",
+    "scalar_step",
+    "scalar_error",
 ]
 
 #: stages per step (= right-hand sides per step, f(y_new) included with the first one given)
@@ -226,3 +232,33 @@ def spectral_radius(J):
         s = math.sqrt(disc)
         return max(abs(0.5 * tr + s), abs(0.5 * tr - s))
     return math.sqrt(abs(det))
+
+
+#: rows of the workspace of :func:`scalar_step` (shape (SCALAR_WORK, 2), zeros initially):
+#: 0-5 the stages, 6 the pair state, 7 its slope, 8-10 scratch, 11 the new state, 12 its
+#: slope, 13 the error weights, 14-15 the Jacobian columns (row 14 = d x'/d(x, y) stays 0)
+SCALAR_WORK = 16
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def scalar_step(rhs, args, x, y, f, fx, fy, hs, W):
+    """One RODAS4 step of signed length hs for y' = f(x, y) from (x, y), as the pair
+    z = (x, y) with z' = (1, f): rhs(z, out, *args) is the pair's right-hand side, f, fx,
+    fy = f and its partials d f/dx, d f/dy at (x, y) (J = [[0, 0], [fx, fy]]); W the
+    (SCALAR_WORK, 2) workspace.  Returns (ok, y_new, f(x + hs, y_new)); ok False when the
+    linear system is singular (non-finite stages show as a non-finite y_new or slope)."""
+    W[6, 0] = x
+    W[6, 1] = y
+    W[7, 0] = 1.0
+    W[7, 1] = f
+    W[15, 0] = fx
+    W[15, 1] = fy
+    ok = step(rhs, args, W[6], W[7], hs, W[14:16], W[0:6], W[8], W[9], W[10], W[11], W[12])
+    return ok, W[11, 1], W[12, 1]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def scalar_error(W, hs, sc, dense):
+    """:func:`error_norm` of the last :func:`scalar_step` over y alone, weight sc."""
+    W[13, 1] = sc
+    return error_norm(W[0:6], W[7], W[12], hs, W[13], 1, 2, dense)

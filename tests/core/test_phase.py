@@ -19,9 +19,11 @@ from rsfcore import Params, classify
 from rsfcore.critical import critical_perturbation
 from rsfcore.errors import ParameterError
 from rsfcore.phase import (
+    CURVE_ERR_FACTOR,
     MARGIN_FACTOR,
     Outcome,
     PointMethod,
+    Separatrix,
     classify_points,
     trace_separatrix,
 )
@@ -211,3 +213,69 @@ def test_random_parameter_sets() -> None:
         phi, psi = _box(p, 100, seed=int(rng.integers(1 << 30)))
         r = classify_points(p, phi, psi, rtol=RTOL)
         assert np.array_equal(r.outcome, _reference(p, phi, psi)), p
+
+
+# ---------------------------------------------------------------------------------------
+# the stiff corner: the tracing hands over to RODAS4 (issue 22, item 3)
+STIFF_CASES = [Params(1e4, 1.0001e4, 0.0), Params(1e5, 1.1e5, 0.0), Params(1e6, 1e6, 0.0)]
+STIFF_RTOL = 1e-8
+
+
+def _band(sep: Separatrix, t: float, u: float, rtol: float) -> float:
+    """The stated error band of a side decision at (t, u): the margin of classify_points
+    (without the rounding term, which is below 1e-13 here)."""
+    return MARGIN_FACTOR * rtol * (1 + abs(t) + abs(u)) + CURVE_ERR_FACTOR * sep.curve_error(t, u)
+
+
+@pytest.mark.parametrize("p", STIFF_CASES, ids=str)
+def test_stiff_corner_traces_the_separatrix(p: Params) -> None:
+    # before RODAS4 took over the stiff part these were not traced (DOP853 filled its 4e4
+    # rows before the end of branch A) and every start was integrated
+    sep = trace_separatrix(p, STIFF_RTOL)
+    assert sep is not None and sep.n_stiff > 0
+    # independent of the tracing: critical sizes by the separatrix method of
+    # rsfcore.critical lie on the curve (velocity jump: (t, u) = (0, d_crit), on branch B
+    # here; load-point jump: (ln(1 + dv_crit), 0)), within the stated band plus their own
+    # claimed accuracy
+    vj = critical_perturbation(p, "velocity-jump", rtol=1e-10)
+    lj = critical_perturbation(p, "load-point-jump", rtol=1e-10)
+    d, l_ = vj.critical_size, math.log1p(lj.critical_size)
+    assert 0.0 < d < sep.u_switch and sep.t_switch < 0.0
+    miss_v = float(sep.t_of_u(d)[0])
+    miss_l = float(sep.t_of_u(0.0)[0]) - l_
+    assert abs(miss_v) <= _band(sep, 0.0, d, STIFF_RTOL) + vj.rel_accuracy * d
+    assert abs(miss_l) <= _band(sep, l_, 0.0, STIFF_RTOL) + lj.rel_accuracy * l_
+
+
+@pytest.mark.parametrize("p", STIFF_CASES, ids=str)
+def test_stiff_corner_agrees_with_classify(p: Params) -> None:
+    # random starts, and starts 3x the stated band off the curve on both sides (decided by
+    # the curve) and 0.1x inside it (integrated): every outcome is classify's, point by
+    # point, and the side of the offset
+    sep = trace_separatrix(p, STIFF_RTOL)
+    assert sep is not None
+    phi, psi = _box(p, 40, seed=3)
+    r = classify_points(p, phi, psi, rtol=STIFF_RTOL)
+    assert np.array_equal(r.outcome, _reference(p, phi, psi, STIFF_RTOL))
+    # (L* ~ 1 here: most of the others have u >= L*)
+    assert np.count_nonzero(r.method == PointMethod.SEPARATRIX) >= 15
+    assert np.count_nonzero(r.method == PointMethod.INTEGRATED) <= 2
+    rng = np.random.default_rng(11)
+    tA = rng.uniform(sep.s0 - 2.0, sep.t_switch - 1e-3, 6)
+    uA = sep.u_of_t(tA)
+    uB = rng.uniform(max(sep.u_end, -10.0), sep.u_switch, 6)
+    tB = sep.t_of_u(uB)
+    sgn = np.tile([-1.0, 1.0], 3)
+    for factor, method in ((3.0, PointMethod.SEPARATRIX), (0.1, PointMethod.INTEGRATED)):
+        bA = np.array([_band(sep, t, u, STIFF_RTOL) for t, u in zip(tA, uA, strict=True)])
+        bB = np.array([_band(sep, t, u, STIFF_RTOL) for t, u in zip(tB, uB, strict=True)])
+        phi, psi = _from_tu(
+            p,
+            np.concatenate([tA, tB + sgn * factor * bB]),
+            np.concatenate([uA + sgn * factor * bA, uB]),
+        )
+        r = classify_points(p, phi, psi, rtol=STIFF_RTOL)
+        side = np.where(np.concatenate([sgn, sgn]) > 0, Outcome.UNSTABLE, Outcome.STABLE)
+        assert np.array_equal(r.outcome, side), (factor, r.outcome, side)
+        assert np.array_equal(r.outcome, _reference(p, phi, psi, STIFF_RTOL)), factor
+        assert np.all(np.isin(r.method, [method, PointMethod.ABOVE_LSTAR])), factor
