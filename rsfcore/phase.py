@@ -180,7 +180,7 @@ _TRACE_TOL = 1e-3
 #: RODAS4's tolerance in the stiff corner = rtol x this: RODAS4 loses order there (local
 #: error ~h/kappa, rsfcore.separatrix), so at 1e-3 rtol it needs more steps than are
 #: stored (the tracing failed); its propagated error estimate enters the margin instead
-#: (CURVE_ERR_FACTOR).  Measured at rtol 1e-10 (bench/bench_phase_grid.py): 6e3 - 1.7e4
+#: (CURVE_ERR_FACTOR).  Measured at rtol 1e-10 (bench/bench_phase_grid.py): 6e3 - 2e4
 #: steps, estimates <= 6.4e-10 and true errors <= 3e-12 (against critical sizes)
 _TRACE_TOL_STIFF = 1.0
 #: ... but never looser than this: at rtol 1e-6 the estimate (1.5e-5 at b/a = 1e4,
