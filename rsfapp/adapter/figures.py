@@ -34,7 +34,6 @@ from rsfcore import analytic as an
 from rsfcore import boundaries as bd
 from rsfcore.critical import critical_perturbation
 from rsfcore.diagram import stability_diagram
-from rsfcore.stiffness import eigen_mode, eigen_stiffness
 from rsfcore.trajectory import Trajectory, TrajectoryResult
 
 from ..requests.figures import (
@@ -689,6 +688,10 @@ def _compute_non_periodic(quality: str) -> dict[str, Any]:
 
 # ==================================================================== continuum eigenmodes
 def _compute_modes(quality: str) -> dict[str, Any]:
+    # imported here: rsfcore.stiffness loads scipy.integrate and scipy.special (~0.4 s of
+    # CPU), which no other figure needs (bench/bench_cli.py: `rsf figure ... --out`)
+    from rsfcore.stiffness import eigen_mode, eigen_stiffness
+
     n = 101 if quality == "draft" else 401
     cases = []
     for case, lo, kstar in (("B", -1.0, "mu'/L"), ("D", -1.0, "E'h/L^2"), ("E", 0.0, "mu/R")):
