@@ -47,7 +47,7 @@ def upload(csv_text: str) -> str:
   const dt = new DataTransfer();
   dt.items.add(new File([RECORD], 'record.csv', {type: 'text/csv'}));
   f.elements.record.files = dt.files;
-  f.elements.stiffness_per_m.value = '2000';
+  f.elements.k_friction_per_m.value = '2000';
   document.querySelector('#fit-submit').click();
   return true;
 })()""".replace("RECORD", json.dumps(csv_text))
