@@ -78,7 +78,6 @@ __all__ = [
     "netcdf_variables",
     "write_netcdf",
     "file_pieces",
-    "swept_at",
     "csv_rows",
     "json_chunks",
     "diagram",
@@ -417,7 +416,7 @@ def csv_rows(
     for slab in slabs(selection, 50_000):
         flat = slab.flat
         i, j = int(flat[0]), int(flat[-1]) + 1
-        vals = spec.swept_values(i, j) if j - i == flat.size else swept_at(spec, flat)
+        vals = spec.swept_values(i, j) if j - i == flat.size else spec.swept_at(flat)
         sizes = si_sizes(spec, vals)
         g = _slab_values(reader, spec, slab, need, errors="failed" in cols)
         a = g.arrays
@@ -463,18 +462,6 @@ def _quote(text: str) -> str:
     if any(ch in text for ch in ',"\n\r'):
         return '"' + text.replace('"', '""') + '"'
     return text
-
-
-def swept_at(spec: SweepSpec, flat: NDArray[np.int64]) -> dict[str, NDArray[np.float64]]:
-    """Values of the swept parameters at the flat indices ``flat`` (any order)."""
-    if spec.mode == "grid":
-        multi = np.unravel_index(flat, spec.shape)
-        return {
-            ax.name: ax.at(np.asarray(k, dtype=np.int64))
-            for ax, k in zip(spec.axes, multi, strict=True)
-        }
-    assert spec.points is not None
-    return {n: np.asarray(v, dtype=np.float64)[flat] for n, v in spec.points.items()}
 
 
 def _jlist(a: NDArray[Any], kind: str) -> str:
