@@ -2,7 +2,7 @@
 
 A chunk is a range [i0, i1) of flat point indices of the sweep's spec
 (:class:`rsfapp.grid.SweepSpec`); its parameters are computed from the spec, its points
-by one compiled batch call (:func:`rsfapp.sweepdata.compute_chunk` ->
+by compiled batch calls on cache-sized parts (:func:`rsfapp.sweepdata.compute_block` ->
 :func:`rsfcore.batch.critical_points`), and its results stored as one compressed block,
 written once (a chunk delivered twice, or recomputed after its worker was killed, is
 stored once).  After a chunk, the worker sends the sweep's next pending chunk (lazy
@@ -27,8 +27,7 @@ from rsfapp.db.engine import diagnose
 from rsfapp.queue import COMPUTE_SINGLE, FIT_RECORD, RUN_CHUNK, Queue
 from rsfapp.reaper import Lease
 from rsfapp.store import stores_for
-from rsfapp.store.sweeps import encode_block
-from rsfapp.sweepdata import compute_chunk
+from rsfapp.sweepdata import compute_block
 
 from .celery_app import app
 
@@ -65,13 +64,12 @@ def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
         # the lease is renewed while the chunk computes (rsfapp.reaper)
         t0 = time.perf_counter()
         with Lease(lambda: sweeps.heartbeat(sweep_id, idx), s.heartbeat_s):
-            arrays, errors = compute_chunk(spec, i0, i1)
+            data, errors = compute_block(spec, i0, i1)
         metrics.CHUNK_SECONDS.observe(time.perf_counter() - t0)
         metrics.POINTS.labels("ok").inc(i1 - i0 - len(errors))
         metrics.POINTS.labels("failed").inc(len(errors))
         result = metrics.ChunkResult.computed
-        block = (i0, i1, encode_block(arrays), errors)
-        del arrays
+        block = (i0, i1, data, errors)
     done = sweeps.complete_chunk(sweep_id, idx, block, s.sweep_window)
     metrics.CHUNKS.labels(result).inc()
     if done.todo:

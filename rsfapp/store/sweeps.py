@@ -60,6 +60,7 @@ from ..grid import SPEC_VERSION, SweepSpec
 
 __all__ = [
     "Block",
+    "BlockWriter",
     "ChunkRange",
     "Completed",
     "Created",
@@ -110,11 +111,91 @@ def _owner_alive(owner: str | None, heartbeat: float | None, lease_s: float) -> 
 _CONST = "@const"
 
 
-def _same_bits(a: NDArray[Any]) -> bool:
-    """True if every element of the 1-D array ``a`` has the bits of its first (NaN too)."""
+def _same_bits(a: NDArray[Any], first: NDArray[Any] | None = None) -> bool:
+    """True if every element of the 1-D contiguous array ``a`` has the bits of
+    ``first[0]`` (default: of ``a[0]``), NaN and -0.0 included.
+
+    The bytes are read as 64-bit words (the element's bytes repeated to fill one) and
+    compared by their minimum and maximum: no temporary array, ~4x faster than an
+    elementwise test of 1-byte elements (2^16 points: 4 us int8, 24 us float64)."""
+    pattern = (a if first is None else first)[:1].tobytes()
+    if a.nbytes % 8 == 0 and 8 % len(pattern) == 0:
+        words = a.view(np.uint64)
+        w = np.frombuffer(pattern * (8 // len(pattern)), np.uint64)[0]
+        return bool(words.min() == w == words.max())
     word = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}.get(a.itemsize)
-    bits = a.view(word) if word is not None else a.view(np.uint8).reshape(a.size, a.itemsize)
-    return not bool((bits != bits[0]).any())
+    if word is None:
+        bits = a.view(np.uint8).reshape(a.size, a.itemsize)
+        return not bool((bits != np.frombuffer(pattern, np.uint8)).any())
+    return not bool((a.view(word) != np.frombuffer(pattern, word)[0]).any())
+
+
+class BlockWriter:
+    """One block's arrays given in parts, in index order, encoded as :func:`encode_block`
+    encodes the whole arrays (the same entries and bytes), without assembling them.
+
+    :meth:`add` takes the next part of every array (the parts of one call have one
+    length) and tests right away, while the part is still in the CPU's cache, whether
+    the array so far is one repeated value; such an array keeps only that value and its
+    length (so the parts' memory is reused for the next part and stays in the cache),
+    others keep their parts.  :meth:`finish` writes each array as its one value
+    (``<name>@const<n>``) or as its parts one after the other (deflate level 1).  A chunk
+    of 10^6 cheap points (every array constant) from its 2^16-point parts: ~1 ms, against
+    ~2 ms testing the assembled arrays plus ~4 ms assembling them."""
+
+    def __init__(self) -> None:
+        #: per array: its first element, the length of its constant run so far (every
+        #: element so far has the first's bits), then the parts that follow the run
+        self._first: dict[str, NDArray[Any]] = {}
+        self._run: dict[str, int] = {}
+        self._parts: dict[str, list[NDArray[Any]]] = {}
+
+    def add(self, arrays: dict[str, NDArray[Any]]) -> None:
+        """Append the next part of each array (every call gives the same names and
+        dtypes; an array of another dimension than 1 comes in one part, as it is)."""
+        for name, arr in arrays.items():
+            a = np.ascontiguousarray(arr)
+            parts = self._parts.setdefault(name, [])
+            if name not in self._first:
+                if a.ndim != 1 or a.size == 0:  # kept as it is
+                    self._first[name], self._run[name] = a[:0].reshape(-1), 0
+                    parts.append(a)
+                    continue
+                self._first[name], self._run[name] = a[:1].copy(), 0
+            if a.ndim != 1:
+                raise ValueError(f"{name}: only 1-D arrays can be given in parts")
+            if not parts and a.size and _same_bits(a, self._first[name]):
+                self._run[name] += a.size
+            elif a.size:
+                parts.append(a)
+
+    def finish(self) -> bytes:
+        """The block as a compressed .npz (read by :func:`decode_block`)."""
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+            for name, parts in self._parts.items():
+                first, run = self._first[name], self._run[name]
+                n = run + sum(p.size for p in parts)
+                if not parts and n > 1:  # one repeated value
+                    with z.open(f"{name}{_CONST}{n}.npy", "w", force_zip64=True) as fh:
+                        np.lib.format.write_array(fh, first, allow_pickle=False)
+                    continue
+                if run == 0 and len(parts) == 1:
+                    with z.open(f"{name}.npy", "w", force_zip64=True) as fh:
+                        np.lib.format.write_array(fh, parts[0], allow_pickle=False)
+                    continue
+                head = {
+                    "descr": np.lib.format.dtype_to_descr(first.dtype),
+                    "fortran_order": False,
+                    "shape": (n,),
+                }
+                with z.open(f"{name}.npy", "w", force_zip64=True) as fh:
+                    np.lib.format.write_array_header_1_0(fh, head)
+                    if run:
+                        fh.write(np.repeat(first, run).data.cast("B"))
+                    for p in parts:
+                        fh.write(p.data.cast("B"))
+        return buf.getvalue()
 
 
 def encode_block(arrays: dict[str, NDArray[Any]]) -> bytes:
@@ -124,17 +205,11 @@ def encode_block(arrays: dict[str, NDArray[Any]]) -> bytes:
     ``on_boundary`` everywhere, every array of a region decided in closed form) is
     stored as that one element under ``<name>@const<n>`` instead of n compressed
     copies (deflating 8 MB of zeros costs ~50 ms; the test costs ~1 ms).
-    :func:`decode_block` reads both forms."""
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
-        for name, arr in arrays.items():
-            a = np.ascontiguousarray(arr)
-            entry = name
-            if a.ndim == 1 and a.size > 1 and _same_bits(a):
-                entry, a = f"{name}{_CONST}{a.size}", a[:1]
-            with z.open(f"{entry}.npy", "w", force_zip64=True) as fh:
-                np.lib.format.write_array(fh, a, allow_pickle=False)
-    return buf.getvalue()
+    :func:`decode_block` reads both forms; :class:`BlockWriter` writes the same from
+    parts."""
+    w = BlockWriter()
+    w.add(arrays)
+    return w.finish()
 
 
 def decode_block(data: bytes, names: tuple[str, ...] | None = None) -> dict[str, NDArray[Any]]:

@@ -18,13 +18,13 @@ def _install() -> None:
         return
     import worker.tasks as tasks
 
-    orig = tasks.compute_chunk
+    orig = tasks.compute_block
 
     def slow(*a: Any, **kw: Any) -> Any:
         time.sleep(delay)
         return orig(*a, **kw)
 
-    tasks.compute_chunk = slow  # type: ignore[assignment]
+    tasks.compute_block = slow  # type: ignore[assignment]
 
 
 _install()
