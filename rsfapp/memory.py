@@ -15,7 +15,12 @@ An API process serves downloads from a thread pool; glibc gives each thread its 
 arena, and a download's freed slabs stay in those arenas, so the idle size of the API
 grew by the slabs of every past download (measured: 256 -> 449 MB after four
 downloads of a 10^8-point sweep).  :func:`give_back` (``malloc_trim``) returns the free
-pages of every arena when a download ends.
+pages of every arena when a download ends, and :func:`return_large_blocks` (called once
+by the API) fixes the mmap threshold at :data:`API_MMAP_THRESHOLD`: glibc otherwise
+raises it to the size of the largest block freed so far (up to 32 MiB), so after the
+first download every later slab array (4 MB) came from the arenas' heaps and stayed
+there, fragmented, while downloads ran side by side (measured on a 10^8-point NetCDF
+download: 43 MB free but held in the arenas after it, 7 MB with the fixed threshold).
 """
 
 from __future__ import annotations
@@ -25,7 +30,14 @@ import ctypes.util
 import logging
 from typing import Any
 
-__all__ = ["give_back", "keep_freed_memory", "MMAP_THRESHOLD", "TRIM_THRESHOLD"]
+__all__ = [
+    "API_MMAP_THRESHOLD",
+    "MMAP_THRESHOLD",
+    "TRIM_THRESHOLD",
+    "give_back",
+    "keep_freed_memory",
+    "return_large_blocks",
+]
 log = logging.getLogger("rsf.memory")
 
 #: glibc mallopt parameters (malloc.h): M_TRIM_THRESHOLD = -1, M_MMAP_THRESHOLD = -3.
@@ -34,6 +46,10 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
 MMAP_THRESHOLD = 32 << 20
 #: Free memory at the top of the heap beyond this many bytes goes back to the system.
 TRIM_THRESHOLD = 1 << 30
+#: API processes: allocations of at least this many bytes [B] are mapped on their own and
+#: unmapped when freed (slab arrays, pieces of CSV and JSON text); a fixed value also
+#: turns off glibc's dynamic threshold.
+API_MMAP_THRESHOLD = 1 << 20
 
 
 def _libc_fn(name: str) -> Any:
@@ -63,3 +79,11 @@ def give_back() -> bool:
     ``malloc_trim(0)``, a few ms); True if anything was returned."""
     trim = _libc_fn("malloc_trim")
     return bool(trim(0)) if trim is not None else False
+
+
+def return_large_blocks() -> bool:
+    """API processes: allocations of :data:`API_MMAP_THRESHOLD` bytes or more are
+    given back to the system as soon as they are freed (module docstring); True if
+    the C library took it."""
+    mallopt = _libc_fn("mallopt")
+    return mallopt is not None and bool(mallopt(_M_MMAP_THRESHOLD, API_MMAP_THRESHOLD))

@@ -43,7 +43,7 @@ import io
 import json
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -326,10 +326,13 @@ def write_netcdf(
     selection: Selection,
     path: str,
     how: str = "",
+    progress: Callable[[int, int], None] | None = None,
 ) -> None:
     """Write the selected part of a sweep to ``path`` as NetCDF-4 (HDF5, written by
     h5netcdf) slab by slab, in bounded memory (one slab of
     :data:`~rsfapp.sweepselect.SLAB_POINTS` points and one stored block at a time).
+    ``progress(done, total)`` is called after each slab (points written, selected) and
+    once more when the file is closed.
 
     CF-1.10 metadata (:mod:`rsfapp.sweepcf`); variables zlib-compressed (level 1, with
     byte shuffle) in chunks of one slab; missing points are ``_FillValue`` (NaN for the
@@ -411,10 +414,16 @@ def write_netcdf(
         f.attrs.update(attrs)
         reader = BlockReader(store, status.get("id", "") or "")
         want = tuple(out)
+        done = 0
         for slab in slabs(selection):
             g = _slab_values(reader, spec, slab, want)
             for name, var in out.items():
                 var[slab.out] = g.arrays[name].reshape(slab.shape)
+            done += slab.flat.size
+            if progress is not None and done < selection.n:
+                progress(done, selection.n)
+    if progress is not None:
+        progress(selection.n, selection.n)
 
 
 def file_pieces(path: str, piece: int = 1 << 20) -> Iterator[bytes]:

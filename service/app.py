@@ -10,6 +10,7 @@ from fastapi import Depends, FastAPI
 from starlette.concurrency import run_in_threadpool
 
 from rsfapp.config import get_settings
+from rsfapp.memory import return_large_blocks
 from rsfapp.store import stores_for
 from rsfapp.warmup import warm_up
 
@@ -29,6 +30,7 @@ log = logging.getLogger("rsf.service")
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.inflight = Inflight()
+    return_large_blocks()  # downloads' slabs go back to the system when freed
     await run_in_threadpool(lambda: stores_for(get_settings()).results.stats())
     await run_in_threadpool(warm_up)
     yield

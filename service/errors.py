@@ -84,9 +84,10 @@ def problem(
     )
 
 
-def unavailable(title: str, reason: str, hint: str) -> Response:
-    """503 problem+json with ``Retry-After`` (the part named in ``title`` is down)."""
-    after = get_settings().retry_after_s
+def unavailable(title: str, reason: str, hint: str, retry_after_s: int | None = None) -> Response:
+    """503 problem+json with ``Retry-After`` (the part named in ``title`` is down or
+    busy): ``retry_after_s`` [s] if given, else RSF_RETRY_AFTER_S."""
+    after = get_settings().retry_after_s if retry_after_s is None else retry_after_s
     body = {
         "type": "about:blank",
         "title": title,

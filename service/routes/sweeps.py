@@ -23,18 +23,18 @@ has them).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
 import tempfile
-import threading
 from collections.abc import Iterator
 from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, Path, Query
 from starlette.concurrency import run_in_threadpool
-from starlette.responses import Response, StreamingResponse
+from starlette.responses import Response
 
 from rsfapp import sweepdata, sweepselect
 from rsfapp.adapter import numerics_version
@@ -46,9 +46,10 @@ from rsfapp.requests import SweepRequest
 from rsfapp.store import SweepStore
 from rsfcore.critical import KINDS, METHODS
 
-from .. import images
+from .. import downloads, images
 from ..auth import PrincipalDep, admit_sweep, check_owner, sweep_submitted
 from ..deps import QueueDep, SettingsDep, StoresDep
+from ..downloads import Busy, DownloadKind, SlotStream
 from ..errors import ProblemError, unavailable
 from ..images import choice, format_query, image, image_response, png_content
 
@@ -299,11 +300,6 @@ async def get_points(
 
 _DATA_FORMATS = ("netcdf", "csv", "json")
 
-#: Downloads (``/data``) served at once by one API process; one more is answered 503 with
-#: Retry-After (each holds about one slab, ~30-60 MB; see bench/bench_sweep_e2e.py).
-DOWNLOADS_AT_ONCE = 2
-_downloads = threading.BoundedSemaphore(DOWNLOADS_AT_ONCE)
-
 _SEL_DOC = (
     "Subset by coordinate value, comma-separated <dim>:<value> (nearest) or "
     "<dim>:<lo>:<hi> (lo <= value <= hi), e.g. 'eps:0.1:0.5,ba:2'. Dimensions: the grid "
@@ -325,22 +321,18 @@ IselQuery = Annotated[str | None, Query(description=_ISEL_DOC, max_length=2000)]
 VarsQuery = Annotated[str | None, Query(description=_VARS_DOC, max_length=1000)]
 
 
-def _busy() -> Response:
+def _busy(exc: Busy) -> Response:
     return unavailable(
         "Too many downloads",
-        f"{DOWNLOADS_AT_ONCE} sweep downloads are being served by this API process",
-        "retry after Retry-After seconds, or ask for a subset (sel, isel, variables)",
+        exc.reason,
+        "retry after Retry-After seconds, or ask for a subset (sel, isel, variables)"
+        + (
+            "; CSV, JSON and the Zarr store stream without a build"
+            if exc.limit is DownloadKind.NETCDF
+            else ""
+        ),
+        exc.retry_after_s,
     )
-
-
-def _released(pieces: Iterator[Any]) -> Iterator[Any]:
-    """``pieces``, releasing the download slot when done, failed or abandoned, and the
-    download's freed memory to the system (:func:`rsfapp.memory.give_back`)."""
-    try:
-        yield from pieces
-    finally:
-        _downloads.release()
-        give_back()
 
 
 @router.get(
@@ -354,7 +346,10 @@ def _released(pieces: Iterator[Any]) -> Iterator[Any]:
             "content": {"application/x-netcdf": {}, "text/csv": {}, "application/json": {}},
         },
         422: {"description": "Invalid format, sel, isel or variables (problem+json)."},
-        503: {"description": "Too many downloads at once on this process (Retry-After)."},
+        503: {
+            "description": "Too many downloads at once on this API process, or a NetCDF "
+            "file being built (problem+json, Retry-After)."
+        },
     },
 )
 async def get_data(
@@ -387,9 +382,11 @@ async def get_data(
     (NetCDF, CSV).  Example: ``?format=netcdf&sel=eps:0.1:0.5&isel=vo:3&variables=
     critical_size,kind``.  Headers ``X-Sweep-Status``, ``X-Sweep-Progress:
     n_done/n_total`` and ``X-Sweep-Selection`` (points selected).  The NetCDF file is
-    written to a temporary file first (time to first byte grows with the selection);
-    CSV and JSON start at once.  At most DOWNLOADS_AT_ONCE downloads per API process at
-    a time; one more is answered 503 with Retry-After."""
+    written to a temporary file first (HDF5 places its index after the data: the time
+    to first byte grows with the selection); CSV and JSON start at once.  Per API
+    process at most 2 downloads at once and 1 NetCDF file being built
+    (service.downloads); one more is answered 503 with Retry-After (for a build: its
+    estimated time left)."""
     fmt = choice(format, _DATA_FORMATS, "format")
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
@@ -403,16 +400,19 @@ async def get_data(
         "Content-Disposition": f'attachment; filename="sweep-{sweep_id}.'
         f'{ {"netcdf": "nc"}.get(fmt, fmt) }"',
     }
-    if not _downloads.acquire(blocking=False):
-        return _busy()
+    kind = DownloadKind.NETCDF if fmt == "netcdf" else DownloadKind.STREAM
+    try:
+        slot = downloads.SLOTS.admit(kind)
+    except Busy as exc:
+        return _busy(exc)
     try:
         if fmt == "csv":
             pieces: Iterator[Any] = sweepdata.csv_rows(stores.sweeps, spec, sweep_id, selection)
-            return StreamingResponse(_released(pieces), media_type="text/csv", headers=h)
+            return SlotStream(pieces, slot, media_type="text/csv", headers=h)
         if fmt == "json":
             fails = await run_in_threadpool(stores.sweeps.failures, sweep_id, 100)
             pieces = sweepdata.json_chunks(stores.sweeps, spec, st, selection, fails)
-            return StreamingResponse(_released(pieces), media_type="application/json", headers=h)
+            return SlotStream(pieces, slot, media_type="application/json", headers=h)
         fd, path = tempfile.mkstemp(prefix=f"rsf-sweep-{sweep_id}-", suffix=".nc")
         os.close(fd)
         query = "&".join(
@@ -421,18 +421,35 @@ async def get_data(
         how = f"GET /v1/sweeps/{sweep_id}/data?format=netcdf{'&' + query if query else ''}"
         try:
             await run_in_threadpool(
-                sweepdata.write_netcdf, stores.sweeps, spec, st, selection, path, how
+                sweepdata.write_netcdf,
+                stores.sweeps,
+                spec,
+                st,
+                selection,
+                path,
+                how,
+                slot.progress,
             )
+            h["Content-Length"] = str(os.path.getsize(path))
         except BaseException:
             os.unlink(path)
             raise
-        h["Content-Length"] = str(os.path.getsize(path))
-        return StreamingResponse(
-            _released(sweepdata.file_pieces(path)), media_type="application/x-netcdf", headers=h
+        return SlotStream(
+            sweepdata.file_pieces(path),
+            slot,
+            media_type="application/x-netcdf",
+            headers=h,
+            finally_=lambda: _unlink(path),
         )
     except BaseException:
-        _downloads.release()
+        slot.release()
+        give_back()
         raise
+
+
+def _unlink(path: str) -> None:
+    with contextlib.suppress(OSError):
+        os.unlink(path)
 
 
 ZarrKey = Annotated[

@@ -1,7 +1,8 @@
 """Sweep downloads in process: subsets on the server (sel, isel, variables) in every
 format agree with the same subset cut from the whole file by xarray; the NetCDF carries CF
 metadata that xarray's CF decoding reads back; slabs smaller than a block give the same
-bytes; a download beyond the per-process limit is a 503 with Retry-After."""
+bytes; a download beyond the per-process limits (downloads, NetCDF builds) is a 503 with
+Retry-After."""
 
 from __future__ import annotations
 
@@ -189,21 +190,72 @@ def test_file_size_within_2x_of_stored(api_stack: tuple[TestClient, Any]) -> Non
 def test_downloads_beyond_the_limit_are_503_with_retry_after(
     done: tuple[TestClient, str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import threading
+    from service import downloads
 
     c, sid = done
-    for _ in range(5):  # slots are given back after each download
-        assert c.get(f"/v1/sweeps/{sid}/data", params={"format": "csv"}).status_code == 200
-        assert c.get(f"/v1/sweeps/{sid}/data").status_code == 200
-    monkeypatch.setattr("service.routes.sweeps._downloads", threading.BoundedSemaphore(1))
-    import service.routes.sweeps as routes
-
-    assert routes._downloads.acquire(blocking=False)  # one download in flight
+    for fmt in ("csv", "json", "netcdf"):  # slots are given back after each download
+        for _ in range(3):
+            r = c.get(f"/v1/sweeps/{sid}/data", params={"format": fmt})
+            assert r.status_code == 200
+            assert downloads.SLOTS.in_use == 0, fmt
+    slots = downloads.DownloadSlots(downloads=1, builds=1)
+    monkeypatch.setattr(downloads, "SLOTS", slots)
+    held = slots.admit(downloads.DownloadKind.STREAM)  # one download in flight
     r = c.get(f"/v1/sweeps/{sid}/data", params={"format": "json"})
     assert r.status_code == 503 and int(r.headers["retry-after"]) > 0
     assert r.headers["content-type"].startswith("application/problem+json")
-    routes._downloads.release()
+    assert "1 sweep downloads" in r.json()["reason"] and "subset" in r.json()["hint"]
+    held.release()
+    held.release()  # idempotent: the place is not given twice
+    assert slots.in_use == 0
     assert c.get(f"/v1/sweeps/{sid}/data", params={"format": "json"}).status_code == 200
+    assert slots.in_use == 0
+
+
+def test_a_second_netcdf_build_is_503_with_the_builds_time_left(
+    done: tuple[TestClient, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """While a NetCDF file is being built, another NetCDF download is answered 503 with
+    Retry-After = the build's estimated time left (elapsed (1 - f)/f at fraction f
+    done, + 1 s, rounded up), a CSV or JSON download is served; once the build is
+    written (the file is then being sent) the next build is admitted."""
+    from service import downloads
+
+    c, sid = done
+    clock = [1000.0]
+    monkeypatch.setattr(downloads.time, "monotonic", lambda: clock[0])
+    slots = downloads.DownloadSlots(downloads=3, builds=1)
+    monkeypatch.setattr(downloads, "SLOTS", slots)
+    build = slots.admit(downloads.DownloadKind.NETCDF)
+    r = c.get(f"/v1/sweeps/{sid}/data", params={"format": "netcdf"})
+    # no progress yet: no estimate, the configured Retry-After (RSF_RETRY_AFTER_S = 5)
+    assert r.status_code == 503 and r.headers["retry-after"] == "5"
+    assert "NetCDF file is being built" in r.json()["reason"]
+    assert "CSV, JSON and the Zarr store" in r.json()["hint"]
+    clock[0] += 12.0
+    build.progress(1, 4)  # a quarter in 12 s: 36 s left
+    r = c.get(f"/v1/sweeps/{sid}/data", params={"format": "netcdf"})
+    assert r.status_code == 503 and r.headers["retry-after"] == "37", r.headers
+    assert c.get(f"/v1/sweeps/{sid}/data", params={"format": "csv"}).status_code == 200
+    build.progress(4, 4)  # written: now being sent, the next build may start
+    assert c.get(f"/v1/sweeps/{sid}/data", params={"format": "netcdf"}).status_code == 200
+    assert slots.in_use == 1  # the first one, still "sending"
+    build.release()
+    assert slots.in_use == 0
+
+
+def test_retry_after_of_a_build_is_capped() -> None:
+    from service import downloads
+
+    slots = downloads.DownloadSlots(downloads=2, builds=1)
+    build = slots.admit(downloads.DownloadKind.NETCDF)
+    build.started -= 1000.0  # 1000 s for a millionth of the file
+    build.progress(1, 10**6)
+    with pytest.raises(downloads.Busy) as e:
+        slots.admit(downloads.DownloadKind.NETCDF)
+    assert e.value.retry_after_s == downloads.RETRY_AFTER_MAX_S
+    with pytest.raises(ValueError, match="downloads and builds"):
+        downloads.DownloadSlots(0, 1)
 
 
 def test_diagram_window(done: tuple[TestClient, str]) -> None:
