@@ -335,14 +335,16 @@ def write_netcdf(
     once more when the file is closed.
 
     CF-1.10 metadata (:mod:`rsfapp.sweepcf`); variables zlib-compressed (level 1, with
-    byte shuffle) in chunks of one slab; missing points are ``_FillValue`` (NaN for the
-    floats, -1 for kind/outcome/method).  Grid axes are dimensions with coordinate
-    variables; scattered sweeps have a ``point`` dimension (the flat indices) with the
-    swept parameters as variables.  A sweep in SI also gets its SI critical size (a
-    selection of at most :data:`SI_VARIABLE_MAX_POINTS` points; else the formula as
+    byte shuffle) in chunks of one slab, each compressed and written whole by
+    :mod:`rsfapp.h5chunks` (a chunk of one repeated value compressed once); missing
+    points are ``_FillValue`` (NaN for the floats, -1 for kind/outcome/method).  Grid
+    axes are dimensions with coordinate variables; scattered sweeps have a ``point``
+    dimension (the flat indices) with the swept parameters as variables.  A sweep in SI
+    also gets its SI critical size (a selection of at most :data:`SI_VARIABLE_MAX_POINTS` points; else the formula as
     attribute ``si_variable_omitted``) and, when its size is swept in SI, ``size``."""
     import h5netcdf
 
+    from . import h5chunks
     from .sweepcf import coordinate_attrs, global_attrs, variable_attrs
 
     dims = selection.dims
@@ -401,7 +403,7 @@ def write_netcdf(
                 dtype,
                 chunks=chunks,
                 compression="gzip",
-                compression_opts=1,
+                compression_opts=h5chunks.LEVEL,
                 shuffle=True,
                 **kw,
             )
@@ -412,13 +414,24 @@ def write_netcdf(
             else:
                 out[name].attrs.update(vattrs[name])
         f.attrs.update(attrs)
-        reader = BlockReader(store, status.get("id", "") or "")
-        want = tuple(out)
-        done = 0
+    # the values: one slab = one chunk of every variable, compressed here and written
+    # whole (rsfapp.h5chunks: a chunk of one repeated value is compressed once)
+    import h5py
+
+    reader = BlockReader(store, status.get("id", "") or "")
+    want = tuple(out)
+    done = 0
+    with h5py.File(path, "r+") as h5:
+        writers = {
+            name: h5chunks.ChunkWriter(h5[name], FILL.get(name, (None, math.nan))[1])
+            for name in want
+        }
         for slab in slabs(selection):
             g = _slab_values(reader, spec, slab, want)
-            for name, var in out.items():
-                var[slab.out] = g.arrays[name].reshape(slab.shape)
+            offset = tuple(int(s.start) for s in slab.out)
+            for name, w in writers.items():
+                w.write(offset, g.arrays[name].reshape(slab.shape))
+            del g
             done += slab.flat.size
             if progress is not None and done < selection.n:
                 progress(done, selection.n)

@@ -239,6 +239,7 @@ def slabs(selection: Selection, max_points: int | None = None) -> Iterator[Slab]
     tails = [int(np.prod(shape[k + 1 :], dtype=np.int64)) for k in range(nd)]
     j = next(k for k in range(nd) if tails[k] <= max_points)
     m = max(1, max_points // tails[j])
+    m = -(-shape[j] // -(-shape[j] // m))  # as many pieces, of equal length: no short edge
     # flat offsets of the trailing full block (dimensions after j), C order
     trail = np.zeros(1, dtype=np.int64)
     for k in range(j + 1, nd):
@@ -293,13 +294,13 @@ class BlockReader:
     def gather(self, flat: I64, variables: Sequence[str], errors: bool = False) -> Gathered:
         """``variables`` (of :data:`RESULT_VARIABLES`) at the sorted flat indices
         ``flat``; with ``errors`` also the messages of failed points."""
-        out = {v: np.full(flat.size, FILL[v][1], dtype=FILL[v][0]) for v in variables}
+        # filled block by block, the fill value only where no block is (no full pass)
+        out = {v: np.empty(flat.size, dtype=FILL[v][0]) for v in variables}
         errs: dict[int, str] = {}
-        if flat.size == 0 or self.i0.size == 0:
-            return Gathered(out, errs)
+        done = 0  # out[:done] is set
         stored = tuple(v for v in variables if v != "computed")
-        lo = int(np.searchsorted(self.i1, flat[0], side="right"))
-        hi = int(np.searchsorted(self.i0, flat[-1], side="right"))
+        lo = int(np.searchsorted(self.i1, flat[0], side="right")) if flat.size else 0
+        hi = int(np.searchsorted(self.i0, flat[-1], side="right")) if flat.size else 0
         for b in range(lo, hi):
             p0 = int(np.searchsorted(flat, self.i0[b], side="left"))
             p1 = int(np.searchsorted(flat, self.i1[b], side="left"))
@@ -308,18 +309,22 @@ class BlockReader:
             blk = self._load(b, stored)
             if blk is None:
                 break
+            for v in variables:  # points between the blocks: not computed
+                out[v][done:p0] = FILL[v][1]
             arrays, msgs = blk
             off = flat[p0:p1] - int(self.i0[b])
             contiguous = int(off[-1]) - int(off[0]) + 1 == off.size
             take: Any = slice(int(off[0]), int(off[-1]) + 1) if contiguous else off
             for v in stored:
-                if v in arrays:
-                    out[v][p0:p1] = arrays[v][take]
+                out[v][p0:p1] = arrays[v][take] if v in arrays else FILL[v][1]
             if "computed" in out:
                 out["computed"][p0:p1] = 1
+            done = p1
             if errors and msgs:  # few: one search each
                 for o, m in msgs.items():
                     k = int(np.searchsorted(off, o))
                     if k < off.size and int(off[k]) == o:
                         errs[p0 + k] = m
+        for v in variables:
+            out[v][done:] = FILL[v][1]
         return Gathered(out, errs)
