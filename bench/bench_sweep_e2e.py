@@ -93,14 +93,16 @@ def _core_part(args: tuple[dict[str, Any], list[tuple[int, int]]]) -> tuple[int,
     return m, t_all, cpu
 
 
-def rsfcore_rate(b: dict[str, Any], n: int, procs: int) -> tuple[float, float]:
+def rsfcore_rate(
+    b: dict[str, Any], n: int, procs: int, blk: int | None = None
+) -> tuple[float, float]:
     """Points/s of the batch kernel in ``procs`` processes (kernel time only, parameters
-    generated outside the timing).  The points are dealt out in blocks of
-    min(10^6, n/100) points, block k to process k mod procs, so both processes get the
-    same mix of cheap and slow parts of the grid (contiguous halves would make the
-    slower half the bottleneck and flatter the service).  Returns (points/s of wall
+    generated outside the timing).  The points are dealt out in blocks of ``blk``
+    (default min(10^6, n/100)) points, block k to process k mod procs, so both processes
+    get the same mix of cheap and slow parts of the grid (contiguous halves would make
+    the slower half the bottleneck and flatter the service).  Returns (points/s of wall
     time, points per CPU second)."""
-    blk = max(1, min(1_000_000, n // 100))
+    blk = blk or max(1, min(1_000_000, n // 100))
     blocks = [(i, min(n, i + blk)) for i in range(0, n, blk)]
     with ProcessPoolExecutor(procs) as ex:
         res = list(ex.map(_core_part, [(b, blocks[k::procs]) for k in range(procs)]))
@@ -208,6 +210,9 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=3600.0)
     ap.add_argument("--no-pair", action="store_true", help="skip two downloads at once")
     ap.add_argument(
+        "--no-downloads", action="store_true", help="stop after the sweep (throughput only)"
+    )
+    ap.add_argument(
         "--max-download-s",
         type=float,
         default=None,
@@ -228,6 +233,16 @@ def main() -> None:
         f"rsfcore batch kernel, 2 processes: {rate_core:,.0f} points/s, "
         f"{cpu_core:,.0f} points per CPU second"
     )
+    # the same kernel called on parts of the worker's size (rsfapp.sweepdata.PART_POINTS),
+    # each part's parameters generated just before its call (not timed), as a worker
+    # does: the reference for the service's own overhead (a chunk of cheap points in
+    # parts runs faster than in one call: its data stay in the core's cache)
+    from rsfapp.sweepdata import PART_POINTS
+
+    parts = n // 100 > PART_POINTS
+    if parts:
+        cpu_parts = rsfcore_rate(b, n, 2, PART_POINTS)[1]
+        print(f"rsfcore in parts of {PART_POINTS} points: {cpu_parts:,.0f} points per CPU second")
 
     base = Path(tempfile.mkdtemp(prefix="rsf-bench-e2e-"))
     bindir = postgres_bindir()
@@ -281,7 +296,7 @@ def main() -> None:
                 if st["status"] == "done":
                     break
                 assert time.perf_counter() - t0 < a.timeout, st
-                time.sleep(0.1)
+                time.sleep(0.5)  # as the client polls (timing: the server's clock)
             wall = time.perf_counter() - t0
         # submitted -> last chunk stored, by the server's clock (ms; no polling delay)
         dt = _epoch(st["finished_at"]) - _epoch(st["created_at"])
@@ -306,6 +321,16 @@ def main() -> None:
         work_cpu = sum(v for k, v in cpu.items() if k.startswith("host-"))
         out["service_over_rsfcore_cpu"] = round(n / all_cpu / cpu_core, 3)
         out["workers_over_rsfcore_cpu"] = round(n / work_cpu / cpu_core, 3)
+        if parts:
+            cpu_parts = 0.5 * (cpu_parts + rsfcore_rate(b, n, 2, PART_POINTS)[1])
+            out["rsfcore_parts_points_per_cpu_s"] = round(cpu_parts)
+            out["service_over_rsfcore_parts_cpu"] = round(n / all_cpu / cpu_parts, 3)
+            out["workers_over_rsfcore_parts_cpu"] = round(n / work_cpu / cpu_parts, 3)
+            print(
+                f"against rsfcore in parts of {PART_POINTS} ({cpu_parts:,.0f} points per CPU "
+                f"s): stack {out['service_over_rsfcore_parts_cpu']:.3f} x, workers "
+                f"{out['workers_over_rsfcore_parts_cpu']:.3f} x"
+            )
         out["peak_rss_mb"] = {k: round(v / 2**20, 1) for k, v in rss.peak.items()}
         print(
             f"service: {n / dt:,.0f} points/s in {dt:.2f} s ({st['n_chunks']} chunks) = "
@@ -332,6 +357,9 @@ def main() -> None:
             f"stored: {out['stored_bytes_per_point']} B/point (blobs), table {table / n:.2f} B/point"
         )
 
+        if a.no_downloads:
+            c.close()
+            return save(out, a.expensive)  # the stack is stopped in `finally`
         data = f"{url}/v1/sweeps/{sid}/data"
         dl: dict[str, Any] = {}
         for fmt in a.formats.split(","):
@@ -377,9 +405,14 @@ def main() -> None:
         for p in reversed(started):
             p.stop()
         pg.destroy()
+    save(out, a.expensive)
+
+
+def save(out: dict[str, Any], expensive: bool) -> None:
+    """Write the figures to bench/out/bench_sweep_e2e_<kind>_<n>.json and print them."""
     out["load_after"] = os.getloadavg()
     (ROOT / "bench" / "out").mkdir(exist_ok=True)
-    tag = f"{'expensive' if a.expensive else 'cheap'}_{n:.0e}".replace("+", "")
+    tag = f"{'expensive' if expensive else 'cheap'}_{out['n_points']:.0e}".replace("+", "")
     (ROOT / "bench" / "out" / f"bench_sweep_e2e_{tag}.json").write_text(json.dumps(out, indent=1))
     print(json.dumps(out))
 

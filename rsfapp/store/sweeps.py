@@ -346,42 +346,45 @@ class SweepStore:
             return Created(False, True, self._dispatch(conn, sweep_id, window))
 
     @staticmethod
-    def _dispatch(conn: Connection, sweep_id: str, window: int) -> list[int]:
-        """Mark up to ``window`` minus the chunks in flight (queued/running) pending
-        chunks queued, lowest index first; returns them (the caller sends them)."""
-        busy = (
-            conn.execute(
-                select(func.count())
-                .select_from(chunks)
-                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status.in_(ACTIVE)))
-            ).scalar()
-            or 0
-        )
-        k = window - int(busy)
+    def _dispatch(
+        conn: Connection, sweep_id: str, window: int, busy: int | None = None
+    ) -> list[int]:
+        """Mark up to ``window`` minus the chunks in flight (queued/running: ``busy`` if
+        the caller counted them) pending chunks queued, lowest index first; returns them
+        (the caller sends them).  One statement besides the count (an UPDATE of the
+        first pending chunks, RETURNING them)."""
+        if busy is None:
+            busy = int(
+                conn.execute(
+                    select(func.count())
+                    .select_from(chunks)
+                    .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status.in_(ACTIVE)))
+                ).scalar()
+                or 0
+            )
+        k = window - busy
         if k <= 0:
             return []
-        idx = [
-            int(i)
-            for i in conn.execute(
-                select(chunks.c.idx)
-                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status == "pending"))
-                .order_by(chunks.c.idx)
-                .limit(k)
-            ).scalars()
-        ]
-        if idx:
-            conn.execute(
-                update(chunks)
-                .where(
-                    and_(
-                        chunks.c.sweep_id == sweep_id,
-                        chunks.c.idx.in_(idx),
-                        chunks.c.status == "pending",
-                    )
+        first = chunks.alias("first_pending")
+        pick = (
+            select(first.c.idx)
+            .where(and_(first.c.sweep_id == sweep_id, first.c.status == "pending"))
+            .order_by(first.c.idx)
+            .limit(k)
+        )
+        rows = conn.execute(
+            update(chunks)
+            .where(
+                and_(
+                    chunks.c.sweep_id == sweep_id,
+                    chunks.c.status == "pending",
+                    chunks.c.idx.in_(pick),
                 )
-                .values(status="queued")
             )
-        return idx
+            .values(status="queued")
+            .returning(chunks.c.idx)
+        ).scalars()
+        return sorted(int(i) for i in rows)
 
     def next_chunks(self, sweep_id: str, window: int) -> list[int]:
         """Chunks to send now to keep ``window`` in flight (none unless the sweep is
@@ -422,7 +425,8 @@ class SweepStore:
     # -- workers ---------------------------------------------------------------------------
     def claim(self, sweep_id: str, idx: int, lease_s: float) -> ChunkRange | None:
         """Claim chunk ``idx`` for this process; None if there is nothing to do.  One
-        transaction, which also tells whether the chunk's block is already stored.
+        transaction of three statements (the sweep's lock; the chunk with whether its
+        block is already stored; its update), a fourth at the sweep's first claim.
 
         Nothing to do: the sweep is unknown or cancelled, the chunk is done or cancelled,
         or another live worker holds it.
@@ -431,7 +435,23 @@ class SweepStore:
         now = time.time()
         with self.db.write() as conn:
             s = self._lock_sweep(conn, sweep_id)  # sweep row first: the one lock order
-            c = conn.execute(select(chunks).where(_chunk(sweep_id, idx))).first()
+            # the chunk and whether its block is stored, read after the lock (a fresh
+            # snapshot on PostgreSQL: a completion that held the lock is seen)
+            stored_q = (
+                select(sweep_blocks.c.idx)
+                .where(and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
+                .exists()
+            )
+            c = conn.execute(
+                select(
+                    chunks.c.i0,
+                    chunks.c.i1,
+                    chunks.c.status,
+                    chunks.c.owner,
+                    chunks.c.heartbeat,
+                    stored_q.label("stored"),
+                ).where(_chunk(sweep_id, idx))
+            ).first()
             if s is None or c is None or c.status in ("done", "cancelled"):
                 return None
             if s == "cancelled":
@@ -448,20 +468,13 @@ class SweepStore:
                 .where(_chunk(sweep_id, idx))
                 .values(status="running", owner=me, heartbeat=now, attempts=chunks.c.attempts + 1)
             )
-            conn.execute(
-                update(sweeps)
-                .where(and_(sweeps.c.id == sweep_id, sweeps.c.status == "queued"))
-                .values(status="running", started_at=func.coalesce(sweeps.c.started_at, now))
-            )
-            stored = (
+            if s == "queued":  # the sweep's first claim (its status is read under the lock)
                 conn.execute(
-                    select(sweep_blocks.c.idx).where(
-                        and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx)
-                    )
-                ).first()
-                is not None
-            )
-            return ChunkRange(int(c.i0), int(c.i1), stored)
+                    update(sweeps)
+                    .where(and_(sweeps.c.id == sweep_id, sweeps.c.status == "queued"))
+                    .values(status="running", started_at=func.coalesce(sweeps.c.started_at, now))
+                )
+            return ChunkRange(int(c.i0), int(c.i1), bool(c.stored))
 
     def heartbeat(self, sweep_id: str, idx: int) -> bool:
         """Refresh the lease of a running chunk held by this process; False if it is no
@@ -560,11 +573,12 @@ class SweepStore:
             )
 
     @staticmethod
-    def _mark_done(conn: Connection, sweep_id: str, idx: int, now: float) -> bool:
+    def _mark_done(conn: Connection, sweep_id: str, idx: int, now: float) -> int | None:
         """Mark chunk ``idx`` done if its block is stored, and the sweep done when every
-        chunk is; True if the sweep is done.  Done only with the block: a worker that
-        finishes a chunk of a sweep purged and re-submitted meanwhile (the same id) must
-        not mark the new sweep's chunk done without its block."""
+        chunk is; returns None if the sweep is done, else how many of its chunks are in
+        flight (queued or running).  Done only with the block: a worker that finishes a
+        chunk of a sweep purged and re-submitted meanwhile (the same id) must not mark
+        the new sweep's chunk done without its block."""
         stored = (
             select(sweep_blocks.c.idx)
             .where(and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
@@ -575,19 +589,20 @@ class SweepStore:
             .where(and_(_chunk(sweep_id, idx), stored))
             .values(status="done", heartbeat=now)
         )
-        left = conn.execute(
-            select(func.count())
-            .select_from(chunks)
-            .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status != "done"))
-        ).scalar()
+        left, busy = conn.execute(
+            select(
+                func.count().filter(chunks.c.status != "done"),
+                func.count().filter(chunks.c.status.in_(ACTIVE)),
+            ).where(chunks.c.sweep_id == sweep_id)
+        ).one()
         if left:
-            return False
+            return int(busy)
         conn.execute(
             update(sweeps)
             .where(and_(sweeps.c.id == sweep_id, sweeps.c.status != "done"))
             .values(status="done", finished_at=now)
         )
-        return True
+        return None
 
     def complete_chunk(
         self,
@@ -602,7 +617,9 @@ class SweepStore:
         chunks queued to keep ``window`` in flight (an active sweep only; the caller
         sends them).  The same as :meth:`store_block`, :meth:`finish_chunk` and
         :meth:`next_chunks` in a row, with one lock of the sweep's row and one commit
-        instead of three (the per-chunk cost that dominates sweeps of cheap points)."""
+        instead of three (the per-chunk cost that dominates sweeps of cheap points):
+        five statements (the lock, the block, the done mark, the count of the chunks
+        left and in flight, the next chunks queued), six when the sweep is done."""
         now = time.time()
         with self.db.write() as conn:
             s = self._lock_sweep(conn, sweep_id)
@@ -613,9 +630,10 @@ class SweepStore:
                 i0, i1, data, errors = block
                 row = self._block_row(sweep_id, idx, i0, i1, data, errors)
                 stored = insert_ignore(conn, sweep_blocks, [row]) > 0
-            if self._mark_done(conn, sweep_id, idx, now):
+            busy = self._mark_done(conn, sweep_id, idx, now)
+            if busy is None:  # the sweep is done
                 return Completed(stored, [])
-            todo = self._dispatch(conn, sweep_id, window) if s in ACTIVE else []
+            todo = self._dispatch(conn, sweep_id, window, busy) if s in ACTIVE else []
             return Completed(stored, todo)
 
     # -- API -------------------------------------------------------------------------------

@@ -400,3 +400,30 @@ def test_an_unfinished_chunk_of_a_resumed_sweep_goes_back_to_pending(db: Databas
     st.finish_chunk("s", 0, complete=True)
     s = st.status("s")
     assert s is not None and s["status"] == "done"
+
+
+def test_claims_and_completions_keep_the_window_and_the_start_time(db: Database) -> None:
+    """The slimmed claim (one read of the chunk with its stored flag, the sweep's update
+    only at its first claim) and completion (one count of the chunks left and in flight,
+    the next ones queued by one UPDATE ... RETURNING): the sweep starts running at its
+    first claim and keeps that start time; each completion queues the lowest pending
+    chunks up to the window, in index order; the last completion closes the sweep."""
+    st = SweepStore(db)
+    created = st.create("w", grid(7, 10), 10, "v", window=3)
+    assert created.todo == [0, 1, 2]
+    r0 = st.claim("w", 0, 60.0)
+    assert r0 is not None and not r0.stored
+    first = st.status("w")
+    assert first is not None and first["status"] == "running" and first["started_at"]
+    r1 = st.claim("w", 1, 60.0)
+    assert r1 is not None
+    assert st.status("w")["started_at"] == first["started_at"]  # type: ignore[index]
+    # chunks 0 and 1 running, 2 queued: one completion frees one place
+    assert st.complete_chunk("w", 0, (0, 10, encode_block(block(10)), {}), 3).todo == [3]
+    # a wider window now: 2 and 3 queued, so the three lowest pending chunks, in order
+    assert st.complete_chunk("w", 1, (10, 20, encode_block(block(10)), {}), 5).todo == [4, 5, 6]
+    for idx in (2, 3, 4, 5, 6):
+        assert st.claim("w", idx, 60.0) is not None
+        st.complete_chunk("w", idx, (10 * idx, 10 * idx + 10, encode_block(block(10)), {}), 5)
+    final = st.status("w")
+    assert final is not None and final["status"] == "done" and final["n_done"] == 70
