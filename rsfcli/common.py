@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
+from enum import StrEnum
 from typing import Any
 
 import typer
@@ -21,6 +22,8 @@ from pydantic import BaseModel
 from pydantic_core import PydanticUndefined
 
 __all__ = [
+    "JSON",
+    "PerturbationKind",
     "echo_lines",
     "emit",
     "fail",
@@ -31,6 +34,16 @@ __all__ = [
     "model_option",
     "run",
 ]
+
+#: The ``--json`` flag of a computing command.
+JSON = typer.Option(False, "--json", help="Print one JSON object.")
+
+
+class PerturbationKind(StrEnum):
+    """The ``--perturbation`` choices of the dimensionless commands."""
+
+    velocity_jump = "velocity-jump"
+    load_point_jump = "load-point-jump"
 
 
 def fail(msg: str) -> None:

@@ -10,9 +10,14 @@ from pathlib import Path
 
 import typer
 
-from .common import emit, fail, given, run
+from rsfapp.requests.figures import FigureRequest
 
-__all__ = ["figure_command"]
+from .common import emit, fail, given, model_option, run
+
+__all__ = ["app", "figure_command"]
+
+#: `rsf figure` (mounted on `rsf` by rsfcli.main when asked for).
+app = typer.Typer(rich_markup_mode=None, add_completion=False)
 
 
 def _print_list() -> None:
@@ -71,3 +76,24 @@ def figure_command(
         emit(run(FigureRequest, body, adapter.figure), True, [])
     else:
         typer.echo(f"wrote {target} ({FIGURES[name].label}; quality {data['quality']})")
+
+
+@app.command("figure")
+def figure(
+    name: str | None = typer.Argument(None, help="Figure name (see --list)."),
+    out: Path | None = typer.Option(
+        None, "--out", help="Output file, .png or .svg (default NAME.png)."
+    ),
+    quality: str | None = model_option(FigureRequest, "quality"),
+    list_: bool = typer.Option(
+        False, "--list", help="List the figures with the caption each reproduces."
+    ),
+    as_json: bool = typer.Option(
+        False,
+        "--json",
+        help="Print the figure's data (with --list: the catalogue) as one JSON object, "
+        "as GET /v1/figures/{name}?format=json answers; with --out the image is written too.",
+    ),
+) -> None:
+    """Regenerate a figure of the paper from rsfcore (`rsf figure --list` names them)."""
+    figure_command(name, out, list_, quality, as_json)

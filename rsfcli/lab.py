@@ -42,7 +42,7 @@ from rsfapp.requests.protocols import (
 
 from .common import echo_lines, emit, fail, given, json_value, model_default, model_option, run
 
-__all__ = ["si_app", "protocol_app", "fit_command"]
+__all__ = ["si_app", "protocol_app", "fit_app", "fit_command"]
 
 si_app = typer.Typer(
     rich_markup_mode=None,  # help texts carry units in brackets ([m], [s]), not markup
@@ -684,3 +684,8 @@ def fit_command(
         if st.get("message"):
             lines.append(f"  {st['message']}")
     _emit(shown, as_json, lines)
+
+
+#: `rsf fit` on its own (mounted on `rsf` by rsfcli.main when asked for).
+fit_app = typer.Typer(rich_markup_mode=None, add_completion=False)
+fit_app.command("fit")(fit_command)

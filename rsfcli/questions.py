@@ -27,7 +27,7 @@ from rsfapp.requests.batch import ClassifyBatchRequest, CriticalBatchRequest
 
 from .common import emit, fail, given, json_value, model_option, run
 
-__all__ = ["register"]
+__all__ = ["app", "register"]
 
 JSON = typer.Option(False, "--json", help="Print one JSON object.")
 
@@ -178,3 +178,8 @@ def register(app: typer.Typer) -> None:
     app.command("classify-points")(classify_points)
     app.command("critical-batch")(critical_batch)
     app.command("classify-batch")(classify_batch)
+
+
+#: These commands on their own (mounted on `rsf` by rsfcli.main when asked for).
+app = typer.Typer(rich_markup_mode=None, add_completion=False)
+register(app)

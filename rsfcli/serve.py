@@ -36,9 +36,19 @@ import threading
 import time
 from pathlib import Path
 
+import typer
+
 from .keys import check_bind
 
-__all__ = ["StartupError", "api", "check_database", "serve", "worker", "worker_command"]
+__all__ = [
+    "StartupError",
+    "api",
+    "app",
+    "check_database",
+    "serve",
+    "worker",
+    "worker_command",
+]
 
 
 class StartupError(SystemExit):
@@ -296,3 +306,68 @@ def worker(concurrency: int | None = None, loglevel: str = "INFO", wait_db_s: fl
     sys.stdout.flush()
     sys.stderr.flush()
     os.execv(cmd[0], cmd)
+
+
+# ------------------------------------------------------------------ the commands
+#: `rsf serve`, `rsf api`, `rsf worker` (mounted on `rsf` by rsfcli.main when asked for).
+app = typer.Typer(rich_markup_mode=None, add_completion=False)
+
+INSECURE = typer.Option(
+    False,
+    "--insecure",
+    help="Serve without API keys (RSF_AUTH=off), even on a non-loopback interface.",
+)
+
+
+def _insecure(insecure: bool) -> None:
+    if insecure:
+        os.environ["RSF_AUTH"] = "off"
+
+
+@app.command("serve")
+def serve_command(
+    host: str = typer.Option("127.0.0.1", "--host", help="Interface to bind."),
+    port: int = typer.Option(8000, "--port", help="TCP port."),
+    data_dir: Path = typer.Option(
+        Path("rsf-data"),
+        "--data-dir",
+        help="Directory for the SQLite cache, sweep store and the filesystem broker.",
+    ),
+    insecure: bool = INSECURE,
+) -> None:
+    """Start the HTTP API (uvicorn) and an embedded Celery worker (filesystem broker unless RSF_BROKER_URL is set)."""
+    _insecure(insecure)
+
+    serve(host=host, port=port, data_dir=data_dir)
+
+
+@app.command("api")
+def api_command(
+    host: str = typer.Option("127.0.0.1", "--host", help="Interface to bind."),
+    port: int = typer.Option(8000, "--port", help="TCP port."),
+    workers: int = typer.Option(
+        1, "--workers", min=1, help="API processes (share only the database and broker)."
+    ),
+    wait_db: float = typer.Option(
+        60.0, "--wait-db", min=0, help="Seconds to wait for an unreachable database at start."
+    ),
+    insecure: bool = INSECURE,
+) -> None:
+    """Start the HTTP API only (no worker); workers run with `rsf worker`, anywhere."""
+    _insecure(insecure)
+
+    api(host=host, port=port, workers=workers, wait_db_s=wait_db)
+
+
+@app.command("worker")
+def worker_command_line(
+    concurrency: int | None = typer.Option(
+        None, "--concurrency", min=1, help="Worker processes (default: CPU count)."
+    ),
+    loglevel: str = typer.Option("INFO", "--loglevel", help="Celery log level."),
+    wait_db: float = typer.Option(
+        60.0, "--wait-db", min=0, help="Seconds to wait for an unreachable database at start."
+    ),
+) -> None:
+    """Start a Celery worker; needs only RSF_BROKER_URL and RSF_CACHE_URL (no shared disk)."""
+    worker(concurrency=concurrency, loglevel=loglevel, wait_db_s=wait_db)

@@ -679,13 +679,15 @@ def _cli_commands() -> set[str]:
 
     out: set[str] = set()
 
-    def walk(t: Any, prefix: str) -> None:
-        for c in t.registered_commands:
-            out.add(f"{prefix} {c.name or typer.main.get_command_name(c.callback.__name__)}")
-        for g in t.registered_groups:
-            walk(g.typer_instance, f"{prefix} {g.name}")
+    def walk(cmd: Any, prefix: str) -> None:  # the click tree (rsf builds its commands lazily)
+        sub = getattr(cmd, "commands", None)
+        if sub is None:
+            out.add(prefix)
+            return
+        for name in cmd.list_commands(None):
+            walk(sub[name], f"{prefix} {name}")
 
-    walk(app, "rsf")
+    walk(typer.main.get_command(app), "rsf")
     return out
 
 
