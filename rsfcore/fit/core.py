@@ -1,8 +1,9 @@
 """Fit a lab velocity-step record for mu0, a, b, Dc (and eps, machine stiffness), then
 answer how close the sample and machine are to instability.
 
-Method: bounded non-linear least squares (scipy.optimize.least_squares, trust-region
-reflective) of the friction residuals mu_model - mu_data, with the compiled forward model
+Method: bounded non-linear least squares (rsfcore.fit.lsq: trust-region Gauss-Newton with
+Coleman-Li bound scaling, as scipy's "trf") of the friction residuals mu_model - mu_data,
+with the compiled forward model
 of rsfcore.fit.model (rsfcore.engine's DOP853 for a finite machine stiffness, the exact
 closed form for an infinitely stiff one).  Fitted coordinates are (mu0, a, b, ln Dc,
 [eps], [ln k], [trend]); the Jacobian, during the iterations and at the solution, is
@@ -17,7 +18,7 @@ every coordinate (steps 1e-6).  Optimiser tolerances ftol = xtol = gtol = 1e-10 
 1e-14 took 2x the forward runs on a noisy record for changes below 1e-6 of a standard
 error; noise-free records are still recovered to ~1e-13).
 
-Start: variable projection on the infinitely-stiff closed form (for fixed Dc and eps the
+Start (rsfcore.fit.start): variable projection on the infinitely-stiff closed form (for fixed Dc and eps the
 friction is linear in mu0, a, b), scanned over 40 values of Dc (log-spaced over the
 record's slip range) and, for laws with eps not fixed, 5 values of eps; the machine
 stiffness starts from the loading slope just after the first velocity step,
@@ -47,6 +48,7 @@ below what the model resolves do not count, and then the simpler law wins.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import math
 import time
 from collections.abc import Iterable, Mapping
@@ -56,14 +58,15 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 from ..jsonsafe import jsonsafe
 from ..laws import intermediate_to_nagata
 from ..params import ParameterError, check_range
+from .lsq import least_squares
 from .model import PARAM_NAMES, ForwardModel, Law, ModelSpec, describe
 from .record import Record, read_record
 from .stability import StabilityAnswer, stability_answer
+from .start import StartScans, initial_guess
 
 __all__ = [
     "FitStatus",
@@ -364,161 +367,6 @@ def _fd_steps(
             hj = -hj
         h[j] = hj
     return h
-
-
-# ---------------------------------------------------------------------------------------
-# Start values
-# ---------------------------------------------------------------------------------------
-def _stiff_columns(
-    rec: Record, Dc: float, eps: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
-    """phi = ln(V/V0), ln(V0 theta/Dc) on an infinitely stiff machine; holds: theta grows by
-    dt (aging, eps = 1) or stays (eps < 1: the state rate vanishes with V).  Returns the
-    columns and the mask of moving samples."""
-    t = rec.t_s - rec.t_s[0]
-    v = rec.v_lp_m_s
-    V0 = rec.v_ref_m_s
-    n = rec.n
-    starts = list(rec.segment_starts) + [n]
-    phi = np.zeros(n)
-    lth = np.zeros(n)
-    moving = v > 0.0
-    lth_now = 0.0  # ln(V0 theta/Dc) at the segment start
-    for j in range(len(starts) - 1):
-        i0, i1 = int(starts[j]), int(starts[j + 1])
-        t_end = t[i1] if i1 < n else t[-1]
-        vj = float(v[i0])
-        if vj <= 0.0:
-            if eps >= 1.0:
-                dth = (t[i0:i1] - t[i0]) * V0 / Dc
-                lth[i0:i1] = np.logaddexp(lth_now, np.log(np.maximum(dth, 1e-300)))
-                lth_now = float(
-                    np.logaddexp(lth_now, math.log(max((t_end - t[i0]) * V0 / Dc, 1e-300)))
-                )
-            else:
-                lth[i0:i1] = lth_now
-            continue
-        ph = math.log(vj / V0)
-        L0 = ph + lth_now
-        x = (t[i0:i1] - t[i0]) * (vj / Dc)
-        x_end = (t_end - t[i0]) * (vj / Dc)
-        if eps == 0.0:
-            L = L0 * np.exp(-x)
-            L_end = L0 * math.exp(-x_end)
-        else:
-            w = math.expm1(min(eps * L0, 700.0))
-            L = np.log1p(w * np.exp(-x)) / eps
-            L_end = math.log1p(w * math.exp(-x_end)) / eps
-        phi[i0:i1] = ph
-        lth[i0:i1] = L - ph
-        lth_now = L_end - ph
-    return phi, lth, moving
-
-
-def _initial_guess(
-    rec: Record,
-    spec: ModelSpec,
-    bounds: Mapping[str, tuple[float, float]],
-    used: NDArray[np.bool_] | None = None,
-) -> dict[str, float]:
-    """Start values: variable projection on the stiff closed form over a (Dc, eps) grid;
-    k from the loading slope."""
-    xlp = rec.load_point_m
-    total = float(xlp[-1]) if xlp[-1] > 0 else float(rec.v_ref_m_s * (rec.t_s[-1] - rec.t_s[0]))
-    dx = np.diff(xlp)
-    dx = dx[dx > 0]
-    step = float(np.median(dx)) if dx.size else total / rec.n
-    lo = max(bounds["Dc_m"][0] * 1.01, 0.3 * step)
-    hi = min(bounds["Dc_m"][1] * 0.99, max(3.0 * total, 2 * lo))
-    Dcs = np.geomspace(lo, hi, 40)
-    if spec.law is Law.AGING:
-        epss = [1.0]
-    elif spec.law is Law.SLIP:
-        epss = [0.0]
-    else:
-        epss = [0.0, 0.25, 0.5, 0.75, 1.0]
-    best: tuple[float, dict[str, float]] | None = None
-    mu = rec.mu
-    xlp_all = rec.load_point_m
-    for eps in epss:
-        for Dc in Dcs:
-            phi, lth, m = _stiff_columns(rec, float(Dc), eps)
-            if used is not None:
-                m = m & used
-            cols = [np.ones(int(m.sum())), phi[m], lth[m]]
-            if spec.trend:
-                cols.append(xlp_all[m])
-            A = np.column_stack(cols)
-            coef, *_ = np.linalg.lstsq(A, mu[m], rcond=None)
-            r = A @ coef - mu[m]
-            rss = float(r @ r)
-            if best is None or rss < best[0]:
-                best = (
-                    rss,
-                    {
-                        "mu0": float(coef[0]),
-                        "a": float(coef[1]),
-                        "b": float(coef[2]),
-                        "Dc_m": float(Dc),
-                        "eps": eps,
-                        "trend_per_m": float(coef[3]) if spec.trend else 0.0,
-                    },
-                )
-    assert best is not None
-    p = best[1]
-    if not (p["a"] > 0.0):
-        p["a"] = (
-            0.01
-            if bounds["a"][0] < 0.01 < bounds["a"][1]
-            else math.sqrt(bounds["a"][0] * bounds["a"][1])
-        )
-    if spec.law is Law.NAGATA and not p["b"] > 0.0:
-        p["b"] = p["a"]
-    if spec.fit_stiffness:
-        p["k_per_m"] = _stiffness_guess(rec, p)
-    return p
-
-
-def _stiffness_guess(rec: Record, p: Mapping[str, float]) -> float:
-    """k from the loading slope after the first step: d mu/dt = k (v_new - v_old) while V lags.
-
-    First the largest slope of the first few sample intervals; then, 4 times, the slope of
-    a least-squares line through the samples of the first third of the elastic loading
-    time a/(k |dv|) of the current estimate (at least 4 intervals, within the segment).
-    On noisy 10^4-sample records the single-interval slopes are mostly noise (noise 1e-4
-    over 0.01 s: 5-11x the true k on bench/bench_fit.py's records); the line brings the
-    start within 20 % (965, 997, 818 /m for 1000) and the slide-hold-slide fit from 26
-    to 12 optimiser evaluations.
-    """
-    s = rec.segment_starts
-    fallback = 10.0 * max(abs(p["b"] - p["a"]), p["a"]) / p["Dc_m"]
-    if s.shape[0] < 2:
-        return fallback
-    i = int(s[1])
-    dv = float(rec.v_lp_m_s[i] - rec.v_lp_m_s[i - 1])
-    j1 = min(rec.n - 1, i + 3)
-    if j1 <= i - 1 or dv == 0.0:
-        return fallback
-    slopes = np.diff(rec.mu[i - 1 : j1 + 1]) / np.diff(rec.t_s[i - 1 : j1 + 1]) / dv
-    slopes = slopes[np.isfinite(slopes) & (slopes > 0)]
-    if slopes.size == 0:
-        return fallback
-    k = float(np.max(slopes))
-    end = int(s[2]) if s.shape[0] > 2 else rec.n
-    for _ in range(4):
-        tau = p["a"] / (k * abs(dv))
-        j = int(np.searchsorted(rec.t_s, rec.t_s[i - 1] + tau / 3.0))
-        j = min(max(j, i + 3), end - 1)
-        if j <= i:
-            break
-        tt = rec.t_s[i - 1 : j + 1] - rec.t_s[i - 1]
-        mm = rec.mu[i - 1 : j + 1] - rec.mu[i - 1]
-        tc = tt - tt.mean()
-        slope = float(tc @ (mm - mm.mean())) / float(tc @ tc) / dv
-        if not (math.isfinite(slope) and slope > 0.0):
-            break
-        k = slope
-    return k
 
 
 # ---------------------------------------------------------------------------------------
@@ -838,6 +686,7 @@ def _fit_record(
     max_nfev: int,
     time_budget_s: float,
     stability: bool,
+    scans: StartScans | None = None,
 ) -> FitResult:
     t_start = time.perf_counter()
     rec = read_record(record)
@@ -886,7 +735,7 @@ def _fit_record(
     warnings: list[str] = []
 
     # -- start ---------------------------------------------------------------------------
-    p0 = _initial_guess(rec, spec, bnd, used)
+    p0 = initial_guess(rec, spec, bnd, used, scans)
     if spec.fit_stiffness and math.isfinite(k_given):
         p0["k_per_m"] = k_given
     user_start = bool(initial) or (spec.fit_stiffness and math.isfinite(k_given))
@@ -1017,8 +866,6 @@ def _fit_record(
                 x0,
                 jac=jac,
                 bounds=(lb, ub),
-                method="trf",
-                x_scale="jac",
                 ftol=_TOL,
                 xtol=_TOL,
                 gtol=_TOL,
@@ -1248,6 +1095,7 @@ def _fit_record(
             max_nfev=max_nfev,
             time_budget_s=max(1e-3, t_start + time_budget_s - time.perf_counter()),
             stability=False,
+            scans=scans,
         )
         why = _stiffness_contradiction(mode, k_given, aic, free, sig)
         if why:
@@ -1503,6 +1351,14 @@ class LawComparison:
         }
 
 
+#: fit_record's keyword options and their defaults (compare_laws passes them on).
+_FIT_OPTIONS: dict[str, Any] = {
+    k: v.default
+    for k, v in inspect.signature(fit_record).parameters.items()
+    if v.kind is inspect.Parameter.KEYWORD_ONLY
+}
+
+
 def compare_laws(
     record: Record | str | Mapping[str, Any],
     laws: Iterable[str | Law] = ("aging", "slip", "nagata", "eps"),
@@ -1521,7 +1377,13 @@ def compare_laws(
             "laws", list(laws), "a non-empty list of " + ", ".join(m.value for m in Law)
         )
     want_stab = options.pop("stability", True)
-    fits = {lw.value: fit_record(rec, lw, stability=False, **options) for lw in lws}
+    unknown = sorted(set(options) - set(_FIT_OPTIONS))
+    if unknown:
+        raise TypeError(f"compare_laws() got an unexpected keyword argument {unknown[0]!r}")
+    kw = {**_FIT_OPTIONS, **options, "stability": False}
+    scans = StartScans()  # the start grid, shared by the laws
+    with _one_blas_thread():
+        fits = {lw.value: _fit_record(rec, lw, scans=scans, **kw) for lw in lws}
     floor = max(
         [options.get("misfit_floor", 1e-9)]
         + [10.0 * f.model_accuracy for f in fits.values() if math.isfinite(f.model_accuracy)]
