@@ -69,14 +69,26 @@ __all__ = [
     "EngineResult",
     "run",
     "integrate",
+    "replay_samples",
+    "LOG_TAU",
+    "LOG_H",
+    "LOG_STIFF",
+    "LOG_XLIM",
+    "LOG_Y",
     "blowup_tail",
     "STATUS",
+    "TIME_LIMIT",
     "NSTATE",
 ]
 
 NSTATE = 5
 _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, NSTATE))
+#: columns of a step log row: hybrid time at the step's start, signed step, 1.0 for a
+#: RODAS4 step (0.0 DOP853), the usable fraction of the step (< 1 at a stop), then the
+#: internal state (phi, L, c T[, s, s_o]) at the step's start
+LOG_TAU, LOG_H, LOG_STIFF, LOG_XLIM, LOG_Y = 0, 1, 2, 3, 4
+_EMPTY_LOG = np.empty((0, LOG_Y + NSTATE))
 _I_PHI, _I_LTH, _I_T, _I_S, _I_SO = 0, 1, 2, 3, 4
 _NS = rk.N_STAGES  # stages of the step proper
 _NSE = rk.N_STAGES_EXTENDED  # stages with the dense-output extension
@@ -99,6 +111,11 @@ class Status(IntEnum):
     STEP_UNDERFLOW = 5
     #: within eq_tol of the steady state (monotone approach)
     CONVERGED = 6
+    #: c T or the hybrid time passed TIME_LIMIT (the end of the double range): the state
+    #: no longer moves at any representable time (v_o = 0 after a velocity drop to
+    #: phi = -6000, where e^phi underflows to 0, stepped to T ~ 1e308 and then took
+    #: infinite steps until its budget: 30 s for a trajectory)
+    TIME_LIMIT = 7
 
     @property
     def text(self) -> str:
@@ -121,6 +138,9 @@ _PEAK_PASSED = int(Status.PEAK_PASSED)
 _BUDGET = int(Status.BUDGET)
 _STEP_UNDERFLOW = int(Status.STEP_UNDERFLOW)
 _CONVERGED = int(Status.CONVERGED)
+_TIME_LIMIT = int(Status.TIME_LIMIT)
+#: c T and the hybrid time beyond which a run stops (Status.TIME_LIMIT)
+TIME_LIMIT = 1e300
 
 
 class Integrator(IntEnum):
@@ -151,6 +171,8 @@ class EngineResult(NamedTuple):
         n_filled: number of sample rows written.
         n_stiff_steps: accepted steps taken by RODAS4 (stiff phases); n_jacobians: Jacobians.
         n_legs: fast-slip legs taken in closed form (rsfcore.excursion; fast_leg=True).
+        n_logged: rows written to ``steplog`` (one per accepted step; -1 when it was too
+            short, 0 when none was given): :func:`replay_samples` reads them.
     """
 
     status: Status
@@ -170,6 +192,7 @@ class EngineResult(NamedTuple):
     n_stiff_steps: int = 0
     n_jacobians: int = 0
     n_legs: int = 0
+    n_logged: int = 0
 
 
 class EngineOptions(NamedTuple):
@@ -399,7 +422,7 @@ def _jacobian(y, J, ba, kappa, eps, vo, c, lnc):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
+def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, steplog):
     """Integrate from y0 = (phi, ln theta, T, s, s_o) until a certificate or a stop.
 
     Args:
@@ -417,11 +440,15 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
         sample_tau: sorted hybrid-time values at which to record the state (may be empty).
         sample_T: sorted physical-time values T at which to record the state (may be empty).
         samples: output array (len(sample_tau) + len(sample_T), 5) filled in order.
+        steplog: (m, LOG_Y + len(y0)) array that receives one row per accepted step
+            (LOG_* columns), so that samples in hybrid time can be taken afterwards by
+            :func:`replay_samples` without a second run; (0, k): no log.  A run of more
+            than m accepted steps stops logging and reports n_logged = -1.
 
     Returns:
         (status, y_end, tau_end, T_cert, T_return, peak_phi, peak_T, peak_psi, peak_psi_T,
          n_steps, n_rhs, n_rejected, err_sum, n_filled, n_stiff_steps, n_jacobians,
-         n_legs) where
+         n_legs, n_logged) where
         T_cert is the T of the runaway certificate (nan if none) and err_sum the sum over
         accepted steps of the normalised local error estimate times rtol (an a-posteriori
         accuracy indicator).
@@ -496,6 +523,8 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
     n_tau = sample_tau.shape[0]
     n_T = sample_T.shape[0]
     n_filled = 0
+    n_log = 0
+    log_cap = steplog.shape[0]
 
     # Samples at tau = 0 / T = T0.
     while i_tau < n_tau and sample_tau[i_tau] <= 0.0:
@@ -533,6 +562,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
             0,
             0,
             0,
+            0,
         )
     if check_runaway and y[1] > Lstar:
         runaway = True
@@ -551,6 +581,9 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
     n_jac = 0
     n_legs = 0
     while n_steps + n_rej < max_steps:
+        if tau > TIME_LIMIT or y[2] > TIME_LIMIT:
+            status = _TIME_LIMIT
+            break
         if stiff:
             # ---- one RODAS4 step (stiff phase) ----------------------------------
             _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
@@ -794,6 +827,17 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
         x_lim = min(stop_x, 1.0)
         tau_lim = tau + x_lim * h
         T_lim = ynew[2]
+        if log_cap > 0 and n_log >= 0:
+            if n_log < log_cap:
+                steplog[n_log, LOG_TAU] = tau
+                steplog[n_log, LOG_H] = h
+                steplog[n_log, LOG_STIFF] = 1.0 if stiff else 0.0
+                steplog[n_log, LOG_XLIM] = x_lim
+                for j in range(n):
+                    steplog[n_log, LOG_Y + j] = y[j]
+                n_log += 1
+            else:
+                n_log = -1
         if (i_tau < n_tau and sample_tau[i_tau] <= tau_lim) or (
             i_T < n_T and sample_T[i_T] <= ynew[2]
         ):
@@ -958,7 +1002,84 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples):
         n_stiff_steps,
         n_jac,
         n_legs,
+        n_log,
     )
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
+    """Samples at the hybrid times ``sample_tau`` (sorted) from the step log of a finished
+    :func:`integrate` run from y0 (its rows [0, n_log), LOG_* columns), without a second
+    run: each step that holds a sample is taken again from its logged start (the same
+    state, step and method give the same stages, so the same dense output: DOP853's
+    7th-order polynomial, or RODAS4's cubic Hermite interpolant), and the samples are
+    read from it exactly as :func:`integrate` reads them.  The result is bit-identical to
+    a run with ``sample_tau`` given (tests/core/test_trajectory.py).  Fills ``samples``
+    (len(sample_tau), len(y0)) in the output form (phi, ln theta, T[, s, s_o]); returns
+    the number of rows filled.
+    """
+    n = y0.shape[0]
+    c = vo if vo > 0.0 else 1.0
+    lnc = math.log(c)
+    args = (ba, kappa, eps, vo, c, lnc)
+    K = np.empty((_NSE, n))
+    F = np.empty((7, n))
+    R = np.empty((rodas4.N_STAGES, n))
+    J = np.empty((n, 2))
+    y = np.empty(n)
+    ynew = np.empty(n)
+    f = np.empty(n)
+    fnew = np.empty(n)
+    tmp = np.empty(n)
+    ftmp = np.empty(n)
+    rbuf = np.empty(n)
+    n_tau = sample_tau.shape[0]
+    i_tau = 0
+    n_filled = 0
+    # samples at tau = 0: the start (internal form: L = phi + ln theta, c T)
+    while i_tau < n_tau and sample_tau[i_tau] <= 0.0:
+        samples[n_filled, 0] = y0[0]
+        samples[n_filled, 1] = y0[0] + y0[1]
+        samples[n_filled, 2] = y0[2] * c
+        for j in range(3, n):
+            samples[n_filled, j] = y0[j]
+        n_filled += 1
+        i_tau += 1
+    for k in range(n_log):
+        if i_tau >= n_tau:
+            break
+        tau = steplog[k, LOG_TAU]
+        h = steplog[k, LOG_H]
+        tau_lim = tau + steplog[k, LOG_XLIM] * h
+        if not sample_tau[i_tau] <= tau_lim:
+            continue
+        for j in range(n):
+            y[j] = steplog[k, LOG_Y + j]
+        _rhs(y, f, ba, kappa, eps, vo, c, lnc)
+        if steplog[k, LOG_STIFF] != 0.0:
+            _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+            rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
+            rodas4.hermite_coeffs(y, ynew, f, fnew, h, F)
+        else:
+            for j in range(n):
+                K[0, j] = f[j]
+            for s in range(1, _NS):
+                _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+            rk.step_state(K, y, h, ynew)
+            _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
+            for j in range(n):
+                K[_NS, j] = fnew[j]
+            _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+        while i_tau < n_tau and sample_tau[i_tau] <= tau_lim:
+            rk.dense_eval(F, y, (sample_tau[i_tau] - tau) / h, tmp)
+            for j in range(n):
+                samples[n_filled, j] = tmp[j]
+            n_filled += 1
+            i_tau += 1
+    for i in range(n_filled):
+        samples[i, 2] /= c
+        samples[i, 1] -= samples[i, 0]
+    return n_filled
 
 
 def blowup_tail(phi: float, L: float, ba: float, kappa: float, eps: float) -> float:
@@ -989,6 +1110,7 @@ def run(
     sample_tau: NDArray[np.float64] = _EMPTY,
     sample_T: NDArray[np.float64] = _EMPTY,
     samples: NDArray[np.float64] = _EMPTY2,
+    steplog: NDArray[np.float64] = _EMPTY_LOG,
 ) -> EngineResult:
     """:func:`integrate` with its result as an :class:`EngineResult` (status a :class:`Status`).
 
@@ -997,6 +1119,6 @@ def run(
     (:meth:`EngineOptions.typed`).  The compiled kernel itself returns a plain tuple of
     ints and floats; this thin wrapper names it.
     """
-    res = integrate(y0, ba, kappa, eps, vo, opts.typed(), sample_tau, sample_T, samples)
+    res = integrate(y0, ba, kappa, eps, vo, opts.typed(), sample_tau, sample_T, samples, steplog)
     # the kernel already returns Python ints and floats: only the status is wrapped
     return EngineResult(_STATUS_OF[res[0]], *res[1:])

@@ -44,7 +44,17 @@ from . import limits as lim
 from .analytic import U_kcrit_sign, kcrit_jump_side
 from .asymptote import ASYM_DIRECT_LSTAR, load_jump_asymptote
 from .decision import DecisionFlag, Kind, first_decision
-from .engine import EngineOptions, EngineResult, Integrator, Status, blowup_tail, run
+from .engine import (
+    LOG_Y,
+    NSTATE,
+    EngineOptions,
+    EngineResult,
+    Integrator,
+    Status,
+    blowup_tail,
+    replay_samples,
+    run,
+)
 from .errors import BudgetExceeded, UndecidedError
 from .excursion import PHI_LEG
 from .jsonsafe import finite_or_none
@@ -511,6 +521,11 @@ _SEPARATRIX_PLANS: dict[int, _Plan] = {
 
 _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, 5))
+_EMPTY_LOG = np.empty((0, LOG_Y + NSTATE))
+#: Rows of the step log of a trajectory's classification run (9 doubles each, 14 MB at
+#: most): its samples are then read from the logged steps (engine.replay_samples) instead
+#: of a second run; a longer run (> 2e5 steps, > ~0.3 s) is sampled by a second run.
+STEP_LOG_ROWS = 200_000
 
 
 def _run(
@@ -527,13 +542,16 @@ def _run(
     max_steps: int = MAX_STEPS,
     integrator: Integrator = Integrator.AUTO,
     fast_leg: bool = True,
+    steplog: NDArray[np.float64] = _EMPTY_LOG,
 ) -> tuple[EngineResult, NDArray[np.float64]]:
     """One engine run; fast-slip legs in closed form (rsfcore.excursion) unless ``fast_leg``
-    is False (method "integrate")."""
+    is False (method "integrate").  ``steplog`` ((m, LOG_Y + 5), m > 0): log the accepted
+    steps of the full state (engine.integrate), for samples taken afterwards."""
     n_samp = sample_tau.shape[0] + sample_T.shape[0]
     lth0 = (psi0 - phi0) / p.ba
-    # without samples only (phi, ln theta, T) are carried
-    y0 = np.array([phi0, lth0, 0.0, 0.0, 0.0]) if n_samp else np.array([phi0, lth0, 0.0])
+    # without samples (or a step log) only (phi, ln theta, T) are carried
+    full = n_samp > 0 or steplog.shape[0] > 0
+    y0 = np.array([phi0, lth0, 0.0, 0.0, 0.0]) if full else np.array([phi0, lth0, 0.0])
     Ls = float(L_star(p.kappa, p.kappa_crit, p.eps))
     samples = np.empty((n_samp, 5)) if n_samp else _EMPTY2
     # The blow-up tail after phi - ln c > phi_stop (engine.blowup_tail) holds L fixed, but
@@ -557,7 +575,7 @@ def _run(
         integrator=integrator,
         fast_leg=fast_leg,
     )
-    res = run(y0, p.ba, p.kappa, p.eps, p.vo, opts, sample_tau, sample_T, samples)
+    res = run(y0, p.ba, p.kappa, p.eps, p.vo, opts, sample_tau, sample_T, samples, steplog)
     return res, samples
 
 
@@ -1033,6 +1051,7 @@ def _simulate(
             f" frame; here ({phi_f:g}, {psi_f:g}))" + near,
         )
     frame_shift = 0.0  # ln v_o of the run when it is integrated in the v_o = 1 frame
+    steplog = _EMPTY_LOG
     if (
         beyond
         or plan.certificate in ("at_equilibrium", "below_separatrix", "above_separatrix")
@@ -1066,6 +1085,15 @@ def _simulate(
                 phi_i, psi_i = lg_named, lg_named
             else:
                 phi_i, psi_i = -lg_named, (p_run.ba - 1.0) * lg_named
+        if (
+            n_points > 0
+            and sampling == "tau"
+            and t_end is None
+            and (times is None or len(times) == 0)
+        ):
+            # samples evenly in hybrid time up to where this run ends: it logs its steps
+            # and the samples are read from them (_sample), instead of a second run
+            steplog = np.empty((min(budget, STEP_LOG_ROWS), LOG_Y + NSTATE))
         res, _ = _run(
             p_int,
             phi_i,
@@ -1075,6 +1103,7 @@ def _simulate(
             max_steps=budget,
             integrator=integ,
             fast_leg=method == "auto",
+            steplog=steplog,
         )
     plan_run = plan  # (the separatrix side may replace the plan below)
     tsc = math.exp(-frame_shift)  # frame time -> T
@@ -1214,6 +1243,7 @@ def _simulate(
             and plan is plan_run
             and res.status != Status.BUDGET
             else None,
+            steplog=steplog,
         )
 
     return TrajectoryResult(
@@ -1264,12 +1294,16 @@ def _sample(
     fast_leg: bool = True,
     shift: float = 0.0,
     res0: EngineResult | None = None,
+    steplog: NDArray[np.float64] = _EMPTY_LOG,
 ) -> Trajectory:
     """Samples of the run from (phi0, psi0) with p; ``shift`` = ln v_o when p and the start
     are the v_o = 1 frame of a run at v_o (t_end and times are given in T and scaled to the
     frame, T' = v_o T; the samples are mapped back: phi + ln v_o, ln theta - ln v_o,
     T'/v_o; slip and load-point displacement are the same in both frames).  ``res0``: the
-    run without samples that sets their extent, when the caller already has it."""
+    run without samples that sets their extent, when the caller already has it; with its
+    ``steplog`` (res0.n_logged rows) samples in hybrid time are read from the logged steps
+    (engine.replay_samples: bit-identical to a second run with the samples, at the cost of
+    ~200 steps instead of the whole run)."""
     if sampling not in ("tau", "time"):
         raise ParameterError("sampling", sampling, "'tau' or 'time'")
     scale = math.exp(shift)  # T' = scale T
@@ -1287,12 +1321,13 @@ def _sample(
         if not np.all(np.isfinite(sT)) or np.any(sT < 0) or np.any(np.diff(sT) < 0):
             raise ParameterError("times", "...", "finite, non-negative and sorted ascending")
         res, samples = run(t_end=min(te, float(sT[-1])), stop_on_return=False, sample_T=sT)
+        n_filled = res.n_filled
     elif plan.certificate == "at_equilibrium" and t_end is None:
         # decided at T = 0 and nothing moves: the trajectory is its start (a run without a
         # stop would step to its budget, seconds)
         lth0 = (psi0 - phi0) / p.ba
         samples = np.tile(np.array([phi0, lth0, 0.0, 0.0, 0.0]), (n_points, 1))
-        res = None
+        n_filled = n_points
     else:
         # the extent of the samples from a run like theirs (same frame, steps and legs:
         # where a leg is entered shifts tau by O(1) per unit of phi above the threshold, so
@@ -1303,11 +1338,21 @@ def _sample(
         if sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
             res, samples = run(t_end=te, stop_on_return=sor, sample_T=sT)
+            n_filled = res.n_filled
         else:
             sTau = np.linspace(0.0, tau_end, n_points)
-            res, samples = run(t_end=te, stop_on_return=sor, sample_tau=sTau)
-    n = n_points if res is None else res.n_filled
-    s = samples[:n]
+            if res0.n_logged > 0 and steplog.shape[0] > 0:
+                samples = np.empty((n_points, NSTATE))
+                y0 = np.array([phi0, (psi0 - phi0) / p.ba, 0.0, 0.0, 0.0])
+                n_filled = int(
+                    replay_samples(
+                        steplog, res0.n_logged, y0, p.ba, p.kappa, p.eps, p.vo, sTau, samples
+                    )
+                )
+            else:
+                res, samples = run(t_end=te, stop_on_return=sor, sample_tau=sTau)
+                n_filled = res.n_filled
+    s = samples[:n_filled]
     if shift != 0.0:
         s = s.copy()
         s[:, 0] += shift

@@ -145,7 +145,7 @@ def test_stiffness_ratio_estimates_h_lambda() -> None:
 
 
 def test_engine_status_and_result_types() -> None:
-    assert [int(s) for s in engine.Status] == list(range(7))
+    assert [int(s) for s in engine.Status] == list(range(8))
     assert engine.STATUS[int(engine.Status.STEP_UNDERFLOW)] == "step_underflow"
     y0 = np.array([1.0, 0.0, 0.0])
     empty = np.empty(0)
@@ -155,7 +155,9 @@ def test_engine_status_and_result_types() -> None:
     res = engine.run(y0, 2.0, 2.0, 0.25, 1.0, opts, empty, empty, np.empty((0, 5)))
     assert isinstance(res, engine.EngineResult) and res.status is engine.Status.RETURNED
     assert res.n_steps > 0 and res.n_rhs >= 12 * res.n_steps and res.y_end.shape == (3,)
-    raw = engine.integrate(y0, 2.0, 2.0, 0.25, 1.0, opts.typed(), empty, empty, np.empty((0, 5)))
+    raw = engine.integrate(
+        y0, 2.0, 2.0, 0.25, 1.0, opts.typed(), empty, empty, np.empty((0, 5)), np.empty((0, 8))
+    )
     same = [
         a == b or (math.isnan(a) and math.isnan(b))
         for a, b in zip(tuple(res)[2:], tuple(raw)[2:], strict=True)

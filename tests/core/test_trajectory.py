@@ -275,3 +275,57 @@ def test_trajectory_at_equilibrium_is_its_start() -> None:
     r = simulate(p, "velocity-jump", 0.0, n_points=5, t_end=3.0)
     assert r.trajectory is not None and r.trajectory.T[-1] == pytest.approx(3.0)
     assert np.allclose(r.trajectory.phi, 0.0, atol=1e-12)
+
+
+def test_state_frozen_at_underflowed_velocity_stops_at_the_time_limit() -> None:
+    """v_o = 0 after a velocity drop to phi0 = -6065: e^phi underflows to 0, nothing moves,
+    and the steps grew until T ~ 1e308, then to inf, and every later step was rejected up
+    to the 5e5-step budget (30 s per trajectory, bench/bench_speed.py).  The run now stops
+    once T passes engine.TIME_LIMIT: outcome from the closed form, times not final."""
+    p = Params(1.0000000001784566, 1.7845658284510854e-10, 0.7973798096560824, 0.0)
+    d = -6064.838205964013
+    for rtol in (1e-3, 1e-13):
+        r = simulate(p, "velocity-jump", d, rtol=rtol, n_points=20)
+        assert (r.outcome, r.certificate, r.complete) == ("stable", "vo0_L_below_Lstar", False)
+        # ~300 steps at 1e-3, ~600 at 1e-13; the budget was 5e5 (bound: 10x the measured)
+        assert r.n_steps < 6000
+        assert r.trajectory is not None and len(r.trajectory.T) == 20
+        assert np.all(r.trajectory.phi == d)  # the state does not move
+        assert np.all(np.isfinite(r.trajectory.T)) and r.trajectory.T[-1] > 1e299
+
+
+@pytest.mark.parametrize(
+    "p, pert, size, rtol",
+    [
+        (Params(2, 2, 0.25, 1), "velocity-jump", 2.7, 1e-8),  # DOP853, returns
+        (Params(2, 2, 0.25, 1), "load-point-jump", 14.0, 1e-10),  # runaway
+        (Params(49434.88, 61036.76, 1.0, 3.2e20), "load-point-jump", 8e45, 1e-8),  # RODAS4
+        (
+            Params(1.0000000247933079, 1.5676244919750778e-08, 1.0, 4.1e-7),
+            "velocity-jump",
+            0.0174,
+            1e-8,
+        ),  # fast-slip legs in closed form  # fmt: skip
+        (Params(2, 1, 0.3, 0), "velocity-jump", 1.5, 1e-6),  # v_o = 0, peak passed
+    ],
+)
+def test_samples_from_the_step_log_equal_a_second_run(
+    monkeypatch: pytest.MonkeyPatch, p: Params, pert: str, size: float, rtol: float
+) -> None:
+    """The samples of a trajectory are read from the classification run's step log
+    (engine.replay_samples) instead of a second run with the samples: bit-identical to
+    that second run (a log of 1 row overflows and falls back to it)."""
+    import rsfcore.trajectory as tr
+
+    new = simulate(p, pert, size, rtol=rtol, n_points=200)
+    monkeypatch.setattr(tr, "STEP_LOG_ROWS", 1)
+    old = simulate(p, pert, size, rtol=rtol, n_points=200)
+    assert new.trajectory is not None and old.trajectory is not None
+    assert len(new.trajectory.T) == len(old.trajectory.T) >= 199
+    for name in ("T", "phi", "psi", "ln_theta", "slip", "load_point"):
+        np.testing.assert_array_equal(getattr(new.trajectory, name), getattr(old.trajectory, name))
+    assert (new.outcome, new.rel_accuracy, new.n_steps) == (
+        old.outcome,
+        old.rel_accuracy,
+        old.n_steps,
+    )
