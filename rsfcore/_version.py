@@ -66,4 +66,10 @@ __all__ = ["NUMERICS_VERSION"]
 #:    (kappa >~ 1e4) move by rounding: <= 3.7e-12 relative, <= 0.72 of their claimed
 #:    accuracy over 118 such values at rtol 1e-6 .. 1e-13 (kinds, accuracy_met unchanged;
 #:    engine results and the reference values bit-identical to before this change).
-NUMERICS_VERSION = "6"
+#: 7: the engine stops once c T or its hybrid time passes 1e300 (engine.Status.TIME_LIMIT):
+#:    runs that stepped on there to their budget with infinite steps (v_o = 0 after a
+#:    velocity drop to phi ~ -6000, where e^phi underflows and nothing moves: 30 s per
+#:    trajectory) end after ~300 - 600 steps, so their n_steps and the extent of their
+#:    samples change (outcome, certificate and complete unchanged).  Trajectory samples are
+#:    read from the classification run's step log (bit-identical to the second run).
+NUMERICS_VERSION = "7"
