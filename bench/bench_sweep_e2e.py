@@ -12,12 +12,17 @@ starts them.  Steps:
    points: kappa_ratio < 1, decided in closed form), submitted and timed to ``done`` (the server's created_at -> finished_at);
    points/s against step 1, bytes stored per point (result blobs; PostgreSQL table size),
    peak RSS of the API and of each worker (psutil, sampled every 0.1 s, process trees).
-3. Downloads, one at a time, each with the API's peak RSS over its idle RSS, time to first
-   byte and total time: the whole sweep as NetCDF, CSV and JSON; a 1 % slice (NetCDF);
-   two NetCDF downloads at once; a lazy xarray read of one 2-D slice through the Zarr
-   store (zarr + fsspec).
+3. Reads, one at a time, each with the API's peak RSS over its idle RSS (measured just
+   before it) and over the idle RSS before the sweep, time to first byte and total time:
+   the whole sweep as NetCDF, CSV and JSON; a 1 % slice (NetCDF); the /diagram PNG of one
+   2-D slice; a lazy xarray read of one 2-D slice through the Zarr store (zarr + fsspec);
+   then two NetCDF downloads at once (the second is refused 503 with Retry-After while the
+   first is built: one build per API process) and two CSV downloads at once.  The API's
+   idle RSS (settled 1 s after each step) is recorded before the sweep, after it and after
+   every read (``api_idle_mb``), to see whether anything is kept.
 
     python bench/bench_sweep_e2e.py --shape 100 100 100 [--formats netcdf,csv,json]
+    python bench/bench_sweep_e2e.py --shape 100 100 10000 --no-reference --max-download-s 30
 
 Prints the figures and writes them as JSON to bench/out/bench_sweep_e2e_<kind>_<n>.json.  Timing
 only: correctness of the same paths is tested in tests/ (multihost e2e, subsets, lazy).
@@ -28,6 +33,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import sys
 import tempfile
@@ -163,12 +169,25 @@ class RssSampler:
         self._t.join()
 
 
+def settled_rss(pid: int, wait_s: float = 1.0) -> int:
+    """RSS [bytes] of the process tree after ``wait_s`` seconds of quiet."""
+    time.sleep(wait_s)
+    return RssSampler.tree_rss(pid)
+
+
 def download(
-    url: str, params: dict[str, str], api_pid: int, max_s: float | None = None
+    url: str,
+    params: dict[str, str],
+    api_pid: int,
+    max_s: float | None = None,
+    base: int | None = None,
+    refused: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """One download: bytes, time to first byte, total time, the API's idle RSS and peak
-    over it.  With ``max_s`` reading stops after that many seconds (the figures are then
-    those of the part read: ``complete`` false, CSV rows per second)."""
+    over it (and over ``base``, the idle RSS before the sweep).  With ``max_s`` reading
+    stops after that many seconds (the figures are then those of the part read:
+    ``complete`` false, CSV rows per second).  A 503 is recorded in ``refused`` (status,
+    Retry-After, reason) when given, else it fails."""
     idle = RssSampler.tree_rss(api_pid)
     t0 = time.perf_counter()
     ttfb = None
@@ -178,6 +197,16 @@ def download(
         RssSampler({"api": api_pid}) as s,
         httpx.stream("GET", url, params=params, timeout=3600) as r,
     ):
+        if r.status_code == 503 and refused is not None:
+            refused.append(
+                {
+                    "status": 503,
+                    "retry_after_s": int(r.headers.get("retry-after", "0")),
+                    "after_s": round(time.perf_counter() - t0, 3),
+                    "reason": json.loads(r.read()).get("reason"),
+                }
+            )
+            return {"refused": refused[-1]}
         assert r.status_code == 200, r.read()[:300]
         for piece in r.iter_bytes(1 << 20):
             if ttfb is None:
@@ -197,6 +226,8 @@ def download(
         "api_idle_rss_mb": round(idle / 2**20, 1),
         "api_peak_over_idle_mb": round((s.peak["api"] - idle) / 2**20, 1),
     }
+    if base is not None:
+        out["api_peak_over_pre_sweep_idle_mb"] = round((s.peak["api"] - base) / 2**20, 1)
     if params.get("format") == "csv":
         out["rows_per_s"] = round(rows / max(total - (ttfb or 0.0), 1e-9))
     return out
@@ -213,6 +244,12 @@ def main() -> None:
         "--no-downloads", action="store_true", help="stop after the sweep (throughput only)"
     )
     ap.add_argument(
+        "--no-reference",
+        action="store_true",
+        help="skip rsfcore's batch kernel reference (throughput ratios; saves shared CPU "
+        "when only the downloads are measured)",
+    )
+    ap.add_argument(
         "--max-download-s",
         type=float,
         default=None,
@@ -227,19 +264,21 @@ def main() -> None:
     out["load_before"] = os.getloadavg()
     print(f"sweep {shape} = {n:.3g} points ({'cheap' if not a.expensive else 'expensive'})")
 
-    rate_core, cpu_core = rsfcore_rate(b, n, 2)
-    out["rsfcore_points_per_s_2_procs"] = round(rate_core)
-    print(
-        f"rsfcore batch kernel, 2 processes: {rate_core:,.0f} points/s, "
-        f"{cpu_core:,.0f} points per CPU second"
-    )
+    rate_core = cpu_core = cpu_parts = math.nan
+    from rsfapp.sweepdata import PART_POINTS
+
+    parts = n // 100 > PART_POINTS and not a.no_reference
+    if not a.no_reference:
+        rate_core, cpu_core = rsfcore_rate(b, n, 2)
+        out["rsfcore_points_per_s_2_procs"] = round(rate_core)
+        print(
+            f"rsfcore batch kernel, 2 processes: {rate_core:,.0f} points/s, "
+            f"{cpu_core:,.0f} points per CPU second"
+        )
     # the same kernel called on parts of the worker's size (rsfapp.sweepdata.PART_POINTS),
     # each part's parameters generated just before its call (not timed), as a worker
     # does: the reference for the service's own overhead (a chunk of cheap points in
     # parts runs faster than in one call: its data stay in the core's cache)
-    from rsfapp.sweepdata import PART_POINTS
-
-    parts = n // 100 > PART_POINTS
     if parts:
         cpu_parts = rsfcore_rate(b, n, 2, PART_POINTS)[1]
         print(f"rsfcore in parts of {PART_POINTS} points: {cpu_parts:,.0f} points per CPU second")
@@ -286,6 +325,9 @@ def main() -> None:
         pg_pid = int((pg.data / "postmaster.pid").read_text().split()[0])
         cpu_pids = {**pids, "postgres": pg_pid, "redis": red.pid}
         cpu0 = {k: tree_cpu(v) for k, v in cpu_pids.items()}
+        idle_mb: dict[str, float] = {}
+        base = settled_rss(api.pid)
+        idle_mb["before_sweep"] = round(base / 2**20, 1)
         with RssSampler(pids) as rss:
             t0 = time.perf_counter()
             r = c.post("/v1/sweeps", json=b)
@@ -306,42 +348,49 @@ def main() -> None:
         out["sweep_s"] = round(dt, 3)
         out["n_chunks"] = st["n_chunks"]
         out["service_points_per_s"] = round(n / dt)
-        # the reference again, right after the sweep (the machine is shared: its load
-        # moves); the ratio is taken against the mean of the two
-        rate_after, cpu_after = rsfcore_rate(b, n, 2)
-        out["rsfcore_points_per_s_2_procs_after"] = round(rate_after)
-        rate_core = 0.5 * (rate_core + rate_after)
-        out["service_over_rsfcore"] = round(n / dt / rate_core, 3)
-        # the same in CPU time (independent of the other jobs' load): rsfcore's points per
-        # CPU second of kernel against the service's per CPU second of workers, API,
-        # PostgreSQL and Redis together (and of the workers alone)
-        cpu_core = 0.5 * (cpu_core + cpu_after)
-        out["rsfcore_points_per_cpu_s"] = round(cpu_core)
-        all_cpu = sum(cpu.values())
-        work_cpu = sum(v for k, v in cpu.items() if k.startswith("host-"))
-        out["service_over_rsfcore_cpu"] = round(n / all_cpu / cpu_core, 3)
-        out["workers_over_rsfcore_cpu"] = round(n / work_cpu / cpu_core, 3)
-        if parts:
-            cpu_parts = 0.5 * (cpu_parts + rsfcore_rate(b, n, 2, PART_POINTS)[1])
-            out["rsfcore_parts_points_per_cpu_s"] = round(cpu_parts)
-            out["service_over_rsfcore_parts_cpu"] = round(n / all_cpu / cpu_parts, 3)
-            out["workers_over_rsfcore_parts_cpu"] = round(n / work_cpu / cpu_parts, 3)
-            print(
-                f"against rsfcore in parts of {PART_POINTS} ({cpu_parts:,.0f} points per CPU "
-                f"s): stack {out['service_over_rsfcore_parts_cpu']:.3f} x, workers "
-                f"{out['workers_over_rsfcore_parts_cpu']:.3f} x"
-            )
+        idle_mb["after_sweep"] = round(settled_rss(api.pid) / 2**20, 1)
         out["peak_rss_mb"] = {k: round(v / 2**20, 1) for k, v in rss.peak.items()}
-        print(
-            f"service: {n / dt:,.0f} points/s in {dt:.2f} s ({st['n_chunks']} chunks) = "
-            f"{out['service_over_rsfcore']:.3f} x rsfcore (mean of {out['rsfcore_points_per_s_2_procs']:,}"
-            f" before and {rate_after:,.0f} points/s after); peak RSS MB {out['peak_rss_mb']}"
-        )
-        print(
-            f"CPU seconds {cpu}: per CPU second {out['service_over_rsfcore_cpu']:.3f} x rsfcore "
-            f"({cpu_core:,.0f} points per CPU s); workers alone "
-            f"{out['workers_over_rsfcore_cpu']:.3f} x"
-        )
+        if a.no_reference:
+            print(
+                f"service: {n / dt:,.0f} points/s in {dt:.2f} s ({st['n_chunks']} chunks); "
+                f"CPU seconds {cpu}; peak RSS MB {out['peak_rss_mb']}"
+            )
+        else:
+            # the reference again, right after the sweep (the machine is shared: its load
+            # moves); the ratio is taken against the mean of the two
+            rate_after, cpu_after = rsfcore_rate(b, n, 2)
+            out["rsfcore_points_per_s_2_procs_after"] = round(rate_after)
+            rate_core = 0.5 * (rate_core + rate_after)
+            out["service_over_rsfcore"] = round(n / dt / rate_core, 3)
+            # the same in CPU time (independent of the other jobs' load): rsfcore's points per
+            # CPU second of kernel against the service's per CPU second of workers, API,
+            # PostgreSQL and Redis together (and of the workers alone)
+            cpu_core = 0.5 * (cpu_core + cpu_after)
+            out["rsfcore_points_per_cpu_s"] = round(cpu_core)
+            all_cpu = sum(cpu.values())
+            work_cpu = sum(v for k, v in cpu.items() if k.startswith("host-"))
+            out["service_over_rsfcore_cpu"] = round(n / all_cpu / cpu_core, 3)
+            out["workers_over_rsfcore_cpu"] = round(n / work_cpu / cpu_core, 3)
+            if parts:
+                cpu_parts = 0.5 * (cpu_parts + rsfcore_rate(b, n, 2, PART_POINTS)[1])
+                out["rsfcore_parts_points_per_cpu_s"] = round(cpu_parts)
+                out["service_over_rsfcore_parts_cpu"] = round(n / all_cpu / cpu_parts, 3)
+                out["workers_over_rsfcore_parts_cpu"] = round(n / work_cpu / cpu_parts, 3)
+                print(
+                    f"against rsfcore in parts of {PART_POINTS} ({cpu_parts:,.0f} points per "
+                    f"CPU s): stack {out['service_over_rsfcore_parts_cpu']:.3f} x, workers "
+                    f"{out['workers_over_rsfcore_parts_cpu']:.3f} x"
+                )
+            print(
+                f"service: {n / dt:,.0f} points/s in {dt:.2f} s ({st['n_chunks']} chunks) = "
+                f"{out['service_over_rsfcore']:.3f} x rsfcore (mean of {out['rsfcore_points_per_s_2_procs']:,}"
+                f" before and {rate_after:,.0f} points/s after); peak RSS MB {out['peak_rss_mb']}"
+            )
+            print(
+                f"CPU seconds {cpu}: per CPU second {out['service_over_rsfcore_cpu']:.3f} x rsfcore "
+                f"({cpu_core:,.0f} points per CPU s); workers alone "
+                f"{out['workers_over_rsfcore_cpu']:.3f} x"
+            )
         from sqlalchemy import create_engine, text
 
         eng = create_engine(pg.url)
@@ -358,48 +407,87 @@ def main() -> None:
         )
 
         if a.no_downloads:
+            out["api_idle_mb"] = idle_mb
             c.close()
             return save(out, a.expensive)  # the stack is stopped in `finally`
         data = f"{url}/v1/sweeps/{sid}/data"
         dl: dict[str, Any] = {}
         for fmt in a.formats.split(","):
-            dl[fmt] = download(data, {"format": fmt}, api.pid, a.max_download_s)
+            dl[fmt] = download(data, {"format": fmt}, api.pid, a.max_download_s, base)
+            idle_mb[f"after_{fmt}"] = round(settled_rss(api.pid) / 2**20, 1)
             print(f"download {fmt}: {dl[fmt]}")
         k = max(1, shape[0] // 100)
         dl["netcdf_1pct_slice"] = download(
-            data, {"format": "netcdf", "isel": f"kappa_ratio:0:{k}"}, api.pid
+            data, {"format": "netcdf", "isel": f"kappa_ratio:0:{k}"}, api.pid, None, base
         )
+        idle_mb["after_1pct_slice"] = round(settled_rss(api.pid) / 2**20, 1)
         print(f"download 1% slice: {dl['netcdf_1pct_slice']}")
-        # two at once
-        if a.no_pair:
-            ts = []
+        # the diagram of one 2-D slice (PNG)
         idle = RssSampler.tree_rss(api.pid)
-        res: list[dict[str, Any]] = []
-        with RssSampler({"api": api.pid}) as s2:
-            ts = [
-                threading.Thread(
-                    target=lambda: res.append(download(data, {"format": "netcdf"}, api.pid))
-                )
-                for _ in range(0 if a.no_pair else 2)
-            ]
-            for t in ts:
-                t.start()
-            for t in ts:
-                t.join()
-        dl["two_netcdf_at_once_peak_over_idle_mb"] = round((s2.peak["api"] - idle) / 2**20, 1)
-        print(
-            f"two NetCDF downloads at once: API peak over idle {dl['two_netcdf_at_once_peak_over_idle_mb']} MB"
-        )
-        out["downloads"] = dl
+        with RssSampler({"api": api.pid}) as sd:
+            t = time.perf_counter()
+            r = c.get(
+                f"/v1/sweeps/{sid}/diagram",
+                params={"format": "png", "slice": f"ba:{b['axes'][2]['start']}"},
+                timeout=600,
+            )
+            assert r.status_code == 200, r.text[:300]
+            dl["diagram_png"] = {
+                "bytes": len(r.content),
+                "total_s": round(time.perf_counter() - t, 3),
+                "api_peak_over_idle_mb": round((sd.peak["api"] - idle) / 2**20, 1),
+                "api_peak_over_pre_sweep_idle_mb": round((sd.peak["api"] - base) / 2**20, 1),
+            }
+        idle_mb["after_diagram"] = round(settled_rss(api.pid) / 2**20, 1)
+        print(f"diagram PNG of one slice: {dl['diagram_png']}")
         # lazy read of one 2-D slice
         import xarray as xr
 
-        t = time.perf_counter()
-        ds = xr.open_zarr(f"{url}/v1/sweeps/{sid}/zarr", consolidated=True, zarr_format=2)
-        sl = ds["critical_size"].isel(kappa_ratio=shape[0] // 2).values
-        out["lazy_slice_s"] = round(time.perf_counter() - t, 3)
+        idle = RssSampler.tree_rss(api.pid)
+        with RssSampler({"api": api.pid}) as sz:
+            t = time.perf_counter()
+            ds = xr.open_zarr(f"{url}/v1/sweeps/{sid}/zarr", consolidated=True, zarr_format=2)
+            sl = ds["critical_size"].isel(kappa_ratio=shape[0] // 2).values
+            out["lazy_slice_s"] = round(time.perf_counter() - t, 3)
         out["lazy_slice_points"] = int(sl.size)
-        print(f"lazy xarray read of one 2-D slice ({sl.size} points): {out['lazy_slice_s']} s")
+        dl["zarr_lazy_slice"] = {
+            "points": int(sl.size),
+            "total_s": out["lazy_slice_s"],
+            "api_peak_over_idle_mb": round((sz.peak["api"] - idle) / 2**20, 1),
+            "api_peak_over_pre_sweep_idle_mb": round((sz.peak["api"] - base) / 2**20, 1),
+        }
+        idle_mb["after_zarr"] = round(settled_rss(api.pid) / 2**20, 1)
+        print(f"lazy xarray read of one 2-D slice ({sl.size} points): {dl['zarr_lazy_slice']}")
+        # two at once: NetCDF (one build per API process: the second is refused while the
+        # first is built) and CSV (both streamed)
+        for fmt in [] if a.no_pair else ["netcdf", "csv"]:
+            idle = RssSampler.tree_rss(api.pid)
+            res: list[dict[str, Any]] = []
+            refused: list[dict[str, Any]] = []
+
+            def one(fmt: str = fmt) -> None:
+                res.append(
+                    download(data, {"format": fmt}, api.pid, a.max_download_s, base, refused)
+                )
+
+            with RssSampler({"api": api.pid}) as s2:
+                ts = [threading.Thread(target=one) for _ in range(2)]
+                for t2 in ts:
+                    t2.start()
+                    time.sleep(0.2)  # the first one's request arrives first
+                for t2 in ts:
+                    t2.join()
+            dl[f"two_{fmt}_at_once"] = {
+                "api_peak_over_idle_mb": round((s2.peak["api"] - idle) / 2**20, 1),
+                "api_peak_over_pre_sweep_idle_mb": round((s2.peak["api"] - base) / 2**20, 1),
+                "served": sum(1 for x in res if "refused" not in x),
+                "refused": refused,
+            }
+            idle_mb[f"after_two_{fmt}"] = round(settled_rss(api.pid) / 2**20, 1)
+            print(f"two {fmt} downloads at once: {dl[f'two_{fmt}_at_once']}")
+        out["downloads"] = dl
+        out["api_idle_mb"] = idle_mb
+        print(f"API idle RSS (MB, settled 1 s after each step): {idle_mb}")
         c.close()
     finally:
         for p in reversed(started):

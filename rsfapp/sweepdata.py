@@ -82,6 +82,7 @@ __all__ = [
     "write_netcdf",
     "file_pieces",
     "csv_rows",
+    "CSV_SLAB_ROWS",
     "json_chunks",
     "diagram",
     "parse_slice",
@@ -458,10 +459,20 @@ def _fmt(v: float) -> str:
     return "" if math.isnan(v) else repr(float(v))
 
 
+#: Rows of CSV text made at once: a slab of text is ~25 Python objects a row (fields, row,
+#: piece), so 2^14 rows hold ~25 MB at most (50,000 rows: +64 MB over idle in process,
+#: 2^14: +27 MB, at the same rows per CPU second).
+CSV_SLAB_ROWS = 1 << 14
+
+
 def csv_rows(
-    store: SweepStore, spec: SweepSpec, sweep_id: str, selection: Selection
+    store: SweepStore,
+    spec: SweepSpec,
+    sweep_id: str,
+    selection: Selection,
+    rows: int = CSV_SLAB_ROWS,
 ) -> Iterator[str]:
-    """CSV text in pieces (one slab at a time): a header, then one row per selected point
+    """CSV text in pieces (``rows`` rows at a time): a header, then one row per selected point
     in flat-index order: idx, the swept parameters, kind, critical_size, outcome,
     rel_accuracy, method (short name), failed, error.  A sweep in SI also has, after
     critical_size, the critical size in SI (``critical_slip_rate_m_s`` [m/s] or
@@ -493,7 +504,7 @@ def csv_rows(
     need = tuple(dict.fromkeys((*(c for c in cols if c != si_col), "computed")))
     if si_col in cols:
         need = (*need, si_col)
-    for slab in slabs(selection, 50_000):
+    for slab in slabs(selection, rows):
         flat = slab.flat
         i, j = int(flat[0]), int(flat[-1]) + 1
         vals = spec.swept_values(i, j) if j - i == flat.size else spec.swept_at(flat)

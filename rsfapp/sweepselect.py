@@ -24,6 +24,7 @@ download of any size holds one slab and one block at a time.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -45,6 +46,7 @@ __all__ = [
     "Slab",
     "parse_selection",
     "slabs",
+    "thinned",
 ]
 
 #: Result variables of every point, in file order; ``computed`` says the point's chunk
@@ -216,6 +218,25 @@ def parse_selection(
         index.get(d, np.arange(n, dtype=np.int64)) for d, n in zip(dims, shape, strict=True)
     )
     return Selection(dims, full, chosen, tuple(shape))
+
+
+def thinned(
+    selection: Selection, dims: Sequence[str], most: int
+) -> tuple[Selection, dict[str, int]] | None:
+    """Every k-th selected index of each dimension in ``dims`` that has more than
+    ``most`` (k = ceil(count / most), from the first), so that each keeps at most
+    ``most``; with {dim: k} of the thinned ones.  None if no dimension needs it."""
+    steps = {
+        d: -(-len(i) // most)
+        for d, i in zip(selection.dims, selection.index, strict=True)
+        if d in dims and len(i) > most
+    }
+    if not steps:
+        return None
+    index = tuple(
+        i[:: steps.get(d, 1)] for d, i in zip(selection.dims, selection.index, strict=True)
+    )
+    return dataclasses.replace(selection, index=index), steps
 
 
 class Slab(NamedTuple):

@@ -522,6 +522,11 @@ async def get_zarr_array(
 
 
 _JSON_OR_PNG = ("json", "png")
+#: Most points per axis drawn in a diagram PNG (the image is 650 pixels wide): a longer
+#: axis is drawn every k-th point (header ``X-Diagram-Step: <axis>:<k>``), which keeps
+#: the memory and time of a slice of 100 x 10^4 points at those of 100 x 1000 (measured:
+#: +220 MB and 12 s, drawn whole).
+PNG_AXIS_POINTS = 1000
 
 
 @router.get(
@@ -567,13 +572,22 @@ async def get_diagram(
     (as for ``/data``) narrow the two free axes to a window (zoom); only the slice is
     read.  ``?format=png``:
     the image, points not computed yet (or failed) left blank; headers
-    ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``.  Images of finished
-    sweeps are cached."""
+    ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``; an axis of more than
+    1000 points is drawn every k-th point (``X-Diagram-Step: <axis>:<k>``: no more
+    points than pixels).  Images of finished sweeps are cached."""
     fmt = choice(format, _JSON_OR_PNG, "format")
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
     fixed_idx = sweepdata.parse_slice(spec, slice)
     window = sweepselect.parse_selection(spec, sel, isel) if sel or isel else None
+    steps: dict[str, int] = {}
+    if fmt == "png":  # no more points per axis than the image has pixels
+        free = [a.name for a in spec.axes if a.name not in fixed_idx]
+        thin = sweepselect.thinned(
+            window or sweepselect.parse_selection(spec), free, PNG_AXIS_POINTS
+        )
+        if thin is not None:
+            window, steps = thin
     d = await run_in_threadpool(sweepdata.diagram, stores.sweeps, spec, st, fixed_idx, window)
     if fmt == "json":
         return _json(d)
@@ -591,6 +605,7 @@ async def get_diagram(
         headers={
             "X-Sweep-Status": d["status"],
             "X-Sweep-Progress": f"{d['n_done']}/{d['n_total']}",
+            **({"X-Diagram-Step": ",".join(f"{k}:{v}" for k, v in steps.items())} if steps else {}),
         },
     )
 

@@ -267,6 +267,27 @@ def test_retry_after_of_a_build_is_capped() -> None:
         downloads.DownloadSlots(0, 1)
 
 
+def test_diagram_png_draws_long_axes_thinned(
+    done: tuple[TestClient, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A PNG diagram with more points on an axis than PNG_AXIS_POINTS is drawn every
+    k-th point (header X-Diagram-Step); the JSON diagram is never thinned."""
+    c, sid = done
+    r = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3", "format": "png"})
+    assert r.status_code == 200 and "x-diagram-step" not in r.headers
+    monkeypatch.setattr("service.routes.sweeps.PNG_AXIS_POINTS", 3)
+    r = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3", "format": "png"})
+    assert r.status_code == 200 and r.content[:4] == b"\x89PNG"
+    assert r.headers["x-diagram-step"] == "kappa_ratio:2,eps:3"  # 6 and 7 points
+    r = c.get(
+        f"/v1/sweeps/{sid}/diagram",
+        params={"slice": "ba:3", "format": "png", "isel": "eps:0:3"},
+    )
+    assert r.headers["x-diagram-step"] == "kappa_ratio:2"  # the window has 3 eps values
+    d = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3"}).json()
+    assert (len(d["x"]), len(d["y"])) == (6, 7)
+
+
 def test_diagram_window(done: tuple[TestClient, str]) -> None:
     c, sid = done
     whole = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3"}).json()

@@ -12,7 +12,7 @@ import pytest
 from rsfapp.db.engine import Database
 from rsfapp.grid import Axis, SpecError, SweepSpec
 from rsfapp.store.sweeps import SweepStore, encode_block
-from rsfapp.sweepselect import BlockReader, parse_selection, slabs
+from rsfapp.sweepselect import BlockReader, parse_selection, slabs, thinned
 
 
 def grid3() -> SweepSpec:
@@ -158,3 +158,30 @@ def test_swept_values_gather_equals_at() -> None:
         multi = np.unravel_index(np.arange(i0, i1), spec.shape)
         for ax, k in zip(spec.axes, multi, strict=True):
             assert np.array_equal(got[ax.name], ax.at(np.asarray(k, dtype=np.int64))), ax.name
+
+
+def test_thinned_keeps_every_kth_index_of_long_dimensions() -> None:
+    spec = SweepSpec(
+        "grid",
+        [Axis("eps", 10, None, 0.0, 0.9), Axis("vo", 2501, None, 0.5, 2.0)],
+        None,
+        {"ba": 2.0, "kappa_ratio": 0.5},
+        "kappa_ratio",
+        "velocity-jump",
+        1e-10,
+        "critical",
+    )
+    full = parse_selection(spec)
+    t = thinned(full, ["eps", "vo"], 1000)
+    assert t is not None
+    sel, steps = t
+    assert steps == {"vo": 3}  # ceil(2501 / 1000); eps (10) untouched
+    assert sel.shape == (10, 834) and sel.index[1][-1] == 2499
+    np.testing.assert_array_equal(sel.index[1], np.arange(0, 2501, 3))
+    assert thinned(full, ["eps"], 1000) is None  # nothing to thin
+    # a window is thinned within itself
+    win = parse_selection(spec, isel="vo:100:2100")
+    t2 = thinned(win, ["vo"], 1000)
+    assert t2 is not None
+    sel2, steps2 = t2
+    assert steps2 == {"vo": 2} and sel2.index[1][0] == 100 and sel2.index[1][-1] == 2098

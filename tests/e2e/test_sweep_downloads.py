@@ -7,8 +7,7 @@ per-process places (service.downloads) seen from outside.
   closes their streams), so the next downloads are served.
 
 The sweep is a large grid never computed (no worker): its downloads are fill values,
-which costs the server the same reads and writes per point as computed results, so the
-NetCDF build lasts seconds."""
+read slab by slab as computed results are."""
 
 from __future__ import annotations
 
@@ -24,15 +23,19 @@ from tests.conftest import Server
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(600)]
 
-#: 2 x 10^7 points: a NetCDF build of seconds, a CSV of ~1 GB (never read whole here).
+#: 10^8 points (the default largest sweep): a NetCDF build of about a second of CPU when
+#: nothing is computed, a CSV of ~8 GB (never read whole here).
 BIG = {
     "axes": [
-        {"name": "kappa_ratio", "start": 0.3, "stop": 0.95, "n": 200},
+        {"name": "kappa_ratio", "start": 0.3, "stop": 0.95, "n": 100},
         {"name": "eps", "start": 0.0, "stop": 0.6, "n": 100},
-        {"name": "ba", "start": 1.2, "stop": 20.0, "n": 1000},
+        {"name": "ba", "start": 1.2, "stop": 20.0, "n": 10000},
     ],
     "fixed": {"vo": 1.0},
 }
+#: Attempts at sending a request while a build runs (each misses only if the whole build
+#: ends before the next request is read: a few tries make a miss by chance negligible).
+ATTEMPTS = 5
 
 
 @pytest.fixture(params=["sqlite", "postgres"])
@@ -55,22 +58,26 @@ def test_a_second_netcdf_build_waits_its_turn(server: Server) -> None:
     c = httpx.Client(base_url=server.url, timeout=300)
     sid = _submit(c)
     data = f"/v1/sweeps/{sid}/data"
-    first: dict[str, Any] = {}
-
-    def build() -> None:
-        r = c.get(data, params={"format": "netcdf"})
-        first.update(status=r.status_code, size=len(r.content))
-
-    t = threading.Thread(target=build)
-    t.start()
     refused: httpx.Response | None = None
-    while t.is_alive() and refused is None:
-        r = httpx.get(server.url + data, params={"format": "netcdf"}, timeout=300)
-        if r.status_code == 503:
-            refused = r
-        else:  # the first had not started building yet: it is this one's turn
-            assert r.status_code == 200, r.text
-    assert refused is not None, "no request arrived while the first file was being built"
+    for _ in range(ATTEMPTS):
+        first: dict[str, Any] = {}
+
+        def build(out: dict[str, Any] = first) -> None:
+            r = c.get(data, params={"format": "netcdf"})
+            out.update(status=r.status_code, size=len(r.content))
+
+        t = threading.Thread(target=build)
+        t.start()
+        while t.is_alive() and refused is None:
+            r = httpx.get(server.url + data, params={"format": "netcdf"}, timeout=300)
+            if r.status_code == 503:
+                refused = r
+            else:  # the first had not started building yet, or was done: this one's turn
+                assert r.status_code == 200, r.text
+        if refused is not None:
+            break
+        t.join()
+    assert refused is not None, "no request arrived while a file was being built"
     assert int(refused.headers["retry-after"]) >= 1
     assert refused.headers["content-type"].startswith("application/problem+json")
     body = refused.json()
@@ -81,7 +88,7 @@ def test_a_second_netcdf_build_waits_its_turn(server: Server) -> None:
         assert s.status_code == 200, s.read()
         assert next(s.iter_lines()).startswith("idx,kappa_ratio,eps,ba,")
     t.join()
-    assert first["status"] == 200 and first["size"] > 0, first
+    assert first["status"] == 200 and first["size"] > 0, first  # the first was served
     # the build is over: the next NetCDF download is served
     r = c.get(data, params={"format": "netcdf", "isel": "kappa_ratio:0:1"})
     assert r.status_code == 200 and r.content[:4] == b"\x89HDF"
@@ -112,5 +119,5 @@ def test_abandoned_downloads_give_their_places_back(server: Server) -> None:
             assert r.status_code == 503 and "retry-after" in r.headers, r.text
             assert time.monotonic() < deadline, "the abandoned downloads kept their places"
             time.sleep(0.2)
-        assert r.json()["shape"] == [200, 100, 1]
+        assert r.json()["shape"] == [100, 100, 1]
     c.close()
