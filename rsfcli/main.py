@@ -27,7 +27,7 @@ from typing import Any, NamedTuple
 import typer
 from typer.core import TyperGroup
 
-__all__ = ["COMMANDS", "Mount", "app", "main"]
+__all__ = ["COMMANDS", "LONG_RUNNING", "Mount", "app", "main"]
 
 
 class Mount(NamedTuple):
@@ -135,12 +135,20 @@ def _root() -> None:
     return None
 
 
+#: The commands that run a server: they keep the collector and OpenBLAS as they are.
+LONG_RUNNING = frozenset({"serve", "api", "worker"})
+
+
 def main() -> None:
     """Console entry point: the command, then the process ends at once, without the
     interpreter's teardown (:mod:`rsfcli._process`)."""
-    from ._process import exit_now, pause_collector
+    import sys
 
-    pause_collector()
+    from ._process import exit_now, pause_collector, quiet_blas
+
+    if not LONG_RUNNING.intersection(sys.argv[1:2]):
+        pause_collector()
+        quiet_blas()
     try:
         app()
     except SystemExit as exc:

@@ -71,7 +71,6 @@ from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
-from scipy import integrate, special
 
 from .params import ParameterError, check_range
 
@@ -174,6 +173,8 @@ def _solve(case: str, n: int) -> tuple[np.ndarray, np.ndarray]:
         stiff = gam / (4.0 * j + 3.0)  # int_0^1 phi_j L[phi_j] r dr
         # int_0^1 (1 - r^2) P_i P_j r dr = (1/8) int_{-1}^{1} (1 - t) P_i P_j dt, exact with
         # n + 1 Gauss-Legendre nodes (roots_jacobi(., 1, 0) is ~10x noisier here)
+        from scipy import special  # here only: cases A-D need no scipy (fast `rsf stiffness`)
+
         t, w = special.roots_legendre(n + 1)
         p = _jacobi_half0(n, t)
         mass = (p * (w * (1.0 - t))) @ p.T / 8.0
@@ -282,6 +283,8 @@ def circular_operator(g: Callable[[float], float], r: float) -> float:
         g: s -> sqrt(1 - s^2) d delta/ds, for s in [0, 1].
         r: evaluation radius r/R, 0 < r < 1.
     """
+    from scipy import integrate, special  # here only (a check of the printed kernel)
+
     r = check_range("r", r, 0.0, 1.0, lo_open=True, hi_open=True)
     ur = math.asin(r)
 

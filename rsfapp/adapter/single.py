@@ -1,6 +1,10 @@
 """Single queries (classify, trajectory, critical, analytic U, boundaries, stiffness,
 classify at many start points): request model of :mod:`rsfapp.requests.single` ->
-rsfcore -> JSON-safe dict, dimensionless or SI."""
+rsfcore -> JSON-safe dict, dimensionless or SI.
+
+Each function imports the rsfcore module it asks when it is called: a question that
+needs no numba kernel (stiffness) does not load numba, and one that needs some loads
+only its own (a CLI process answers one question)."""
 
 from __future__ import annotations
 
@@ -9,11 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from rsfcore import analytic
-from rsfcore import boundaries as _bounds
-from rsfcore import critical as _critical
-from rsfcore import phase as _phase
-from rsfcore import trajectory as _traj
 from rsfcore.jsonsafe import jsonsafe
 from rsfcore.params import Params, PhysicalParams
 
@@ -47,6 +46,8 @@ def classify(req: ClassifyRequest, max_steps: int | None = QUICK_STEPS) -> dict[
 
     With the default ``max_steps`` a query needing more work raises :class:`NeedsQueue`;
     ``max_steps=None`` (the worker) uses rsfcore's full budget."""
+    from rsfcore import trajectory as _traj
+
     p, phys = resolve_params(req)
     size = resolve_size(req, phys)
     start = None if req.start is None else (req.start.phi, req.start.psi)
@@ -74,6 +75,8 @@ def trajectory(req: TrajectoryRequest, max_steps: int | None = QUICK_STEPS) -> d
     """Outcome plus the trajectory downsampled to ``n_points`` (SI columns with
     ``physical`` or ``scales``), sampled as ``req.sampling`` says; ``max_steps`` as in
     :func:`classify`."""
+    from rsfcore import trajectory as _traj
+
     p, phys = resolve_params(req)
     size = resolve_size(req, phys)
     start = None if req.start is None else (req.start.phi, req.start.psi)
@@ -126,6 +129,8 @@ def critical(req: CriticalRequest) -> dict[str, Any]:
     """Critical perturbation size, same fields as ``rsf critical --json``; with
     ``physical`` also an ``si`` block (critical slip rate [m/s] and shear-stress jump [Pa]
     of a velocity jump, critical load-point velocity [m/s])."""
+    from rsfcore import critical as _critical
+
     p, phys = resolve_params(req)
     res = guard(_critical.critical_perturbation, p, req.perturbation, rtol=req.rtol)
     out = json_dict(res.to_dict())
@@ -137,6 +142,8 @@ def critical(req: CriticalRequest) -> dict[str, Any]:
 
 def analytic_u(req: AnalyticRequest) -> dict[str, Any]:
     """U at the given points or on the grid (closed form, vectorised)."""
+    from rsfcore import analytic
+
     if req.points is not None:
         phi = np.array([p.phi for p in req.points])
         psi = np.array([p.psi for p in req.points])
@@ -165,6 +172,7 @@ def boundaries(req: BoundariesRequest) -> dict[str, Any]:
     """kappa_crit, eps_crit, (a/b)_crit, acceleration possibility and line; with
     ``physical`` (BoundariesSIRequest) b/a and kappa from the SI machine, plus an ``si``
     block (k_crit [Pa/m], kappa/kappa_crit)."""
+    from rsfcore import boundaries as _bounds
 
     def soft(fn: Callable[..., Any], *a: Any) -> Any:
         try:
@@ -224,6 +232,8 @@ def stiffness(req: StiffnessRequest) -> dict[str, Any]:
 def classify_points(req: ClassifyPointsRequest) -> dict[str, Any]:
     """Outcomes of many start points for one parameter set (rsfcore.phase.classify_points:
     the separatrix once, points near it integrated); ``outcome[i]`` for (phi[i], psi[i])."""
+    from rsfcore import phase as _phase
+
     p = guard(Params, ba=req.ba, kappa=req.kappa, eps=req.eps, vo=req.vo)
     res = guard(_phase.classify_points, p, np.asarray(req.phi), np.asarray(req.psi), req.rtol)
     out = json_dict(res.to_dict())
