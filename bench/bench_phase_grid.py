@@ -12,7 +12,7 @@ margin) and how the separatrix was traced (steps, RODAS4 steps; "none" = not tra
 every start integrated).  The machine's load average is printed with the figures: on the
 shared development machine wall times are up to ~(load / cores) x the CPU times.
 
-    python bench/bench_phase_grid.py [--n 100000] [--rtol 1e-6 1e-8 1e-10] [--quick]
+    python bench/bench_phase_grid.py [--n 100000] [--rtol 1e-6 1e-8 1e-10 1e-12 1e-13] [--quick]
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def grid(quick: bool) -> list[tuple[float, float, float]]:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--n", type=int, default=100_000)
-    ap.add_argument("--rtol", type=float, nargs="+", default=[1e-6, 1e-8, 1e-10])
+    ap.add_argument("--rtol", type=float, nargs="+", default=[1e-6, 1e-8, 1e-10, 1e-12, 1e-13])
     ap.add_argument("--quick", action="store_true", help="a 6-set grid (a smoke run)")
     args = ap.parse_args()
     sets = grid(args.quick)

@@ -32,10 +32,11 @@ How each regime is decided (the same decisions, in the same order, as classify's
   search and one polynomial evaluation.  Where DOP853's steps are limited by stability
   (kappa large: b/a = kappa = 1e6, or b/a = 1e4, kappa = 1.0001e4), the tracing hands over
   to RODAS4 (rsfcore.ode.rodas4, the stiff hand-over of rsfcore.separatrix) with cubic
-  Hermite dense output, at a tolerance of rtol (not 1e-3 rtol: RODAS4 loses order there,
-  and at 1e-3 rtol it needed more than the 4e4 stored steps, so the tracing failed and
-  every start was integrated, 13-23 s per 10^5 starts); each stored step carries the
-  curve's propagated error estimate, which widens the margin there.
+  Hermite dense output, at a tolerance of rtol clamped to [1e-10, 1e-8] (not 1e-3 rtol:
+  RODAS4 loses order there, and at 1e-3 rtol, or at rtol <= 1e-12, it needed more than
+  the 4e4 stored steps, so the tracing failed and every start was integrated, 13-23 s
+  per 10^5 starts at rtol 1e-10, minutes at 1e-12); each stored step carries the curve's
+  propagated error estimate, which widens the margin there.
 
 Safety margin: a start whose distance to the separatrix (in u on branch A, in t on
 branch B) is below MARGIN_FACTOR x rtol x (1 + |t| + |u|) plus the rounding of (t, u)
@@ -46,10 +47,11 @@ calibrated (tests/core/test_phase.py): classify at rtol agrees with the side of 
 separatrix for every start farther than the margin.
 
 Accuracy: the traced separatrix is computed at 1e-3 of the requested rtol (floored at
-1e-14; RODAS4 steps at rtol), so its error is far below the margin (measured against the
-separatrix method's critical sizes, which lie on the curve: <= 3e-12 in the stiff corners
-at rtol 1e-10, where the margin is 1e-8); outcomes are exact decisions of the same kind
-as classify's.  Speed: 1e5 random points in a few ms after warm-up
+1e-14; RODAS4 steps at rtol in [1e-10, 1e-8]), so its error is far below the margin
+(measured against the separatrix method's critical sizes, which lie on the curve:
+<= 3e-12 in the stiff corners at rtol 1e-10, where the margin is 1e-8, and <= 6e-12 at
+rtol 1e-12 .. 1e-13, where the curve's estimate, <= 4e-10, widens the margin to ~4e-8);
+outcomes are exact decisions of the same kind as classify's.  Speed: 1e5 random points in a few ms after warm-up
 (bench/bench_phase.py); over a grid of parameter sets incl. the stiff corners
 bench/bench_phase_grid.py.
 """
@@ -187,6 +189,13 @@ _TRACE_TOL_STIFF = 1.0
 #: kappa = 1.0001e4) widened the margin 15x and 79 of 1e5 random starts were integrated
 #: (0.06 s CPU); at 1e-8 the tracing costs ~1-2 ms there
 _STIFF_TOL_MAX = 1e-8
+#: ... nor tighter than this: at rtol 1e-12 .. 1e-13 RODAS4 (order 4, and less on this
+#: problem) filled the 4e4 stored rows in the stiff sets (b/a >= 1e4 with kappa/kappa_crit
+#: <= 2, and the three corners), which were then integrated start by start (minutes per
+#: 10^5 starts).  At 1e-10 they are traced in 2e4 rows or fewer; the curve's estimate
+#: (<= 4e-10) enters the margin, and no random start of 10^5 fell inside it
+#: (bench/bench_phase_grid.py); its true error at the critical sizes stayed <= 6e-12
+_STIFF_TOL_MIN = 1e-10
 _H_MAX_A = 0.5
 _H_MAX_B = 0.1
 #: branch B ends when the remaining change of t is below this fraction of the margin
@@ -714,7 +723,7 @@ def trace_separatrix(params: Params, rtol: float = lim.DEFAULT_RTOL) -> Separatr
     if not math.isfinite(float(L_star(params.kappa, kc, params.eps))):
         return None
     tol = max(rtol * _TRACE_TOL, 1e-14)
-    stiff_tol = max(min(rtol * _TRACE_TOL_STIFF, _STIFF_TOL_MAX), 1e-14)
+    stiff_tol = max(min(rtol * _TRACE_TOL_STIFF, _STIFF_TOL_MAX), _STIFF_TOL_MIN)
     n = 2 * _MAX_STEPS
     xs, ys, hs, es = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     Fs = np.empty((n, 7))
