@@ -301,7 +301,7 @@ def main() -> None:
         (base / "api").mkdir(exist_ok=True)
         started.append(api)
         url = f"http://127.0.0.1:{port}"
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 300  # a loaded machine starts it slowly
         while True:
             try:
                 if httpx.get(url + "/health", timeout=2).status_code == 200:

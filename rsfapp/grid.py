@@ -14,6 +14,7 @@ the 2-D form) and its valid range; they are raised before anything is written.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 from dataclasses import dataclass, field
@@ -141,6 +142,11 @@ class Axis:
         """Every value of the axis."""
         return self.at(np.arange(self.n, dtype=np.int64))
 
+    def cached_all(self) -> F64:
+        """:meth:`all`, computed once per axis and process (read-only): a chunk
+        computed in parts lays out the same axis values for every part."""
+        return _axis_values(self)
+
     def to_json(self) -> dict[str, Any]:
         """Compact JSON form (values only if explicit)."""
         if self.values is not None:
@@ -161,6 +167,13 @@ class Axis:
         return cls(
             d["name"], int(d["n"]), None, float(d["start"]), float(d["stop"]), bool(d["log"])
         )
+
+
+@functools.lru_cache(maxsize=256)
+def _axis_values(ax: Axis) -> F64:
+    v = ax.all()
+    v.setflags(write=False)
+    return v
 
 
 @dataclass
@@ -289,11 +302,11 @@ class SweepSpec:
             elif st == 1:
                 off = i0 % ax.n
                 reps = -(-(off + size) // ax.n)
-                vals[ax.name] = np.tile(ax.all(), reps)[off : off + size]
+                vals[ax.name] = np.tile(ax.cached_all(), reps)[off : off + size]
             else:
                 runs = np.arange(i0 // st, (i1 - 1) // st + 1, dtype=np.int64)
                 counts = np.minimum(i1, (runs + 1) * st) - np.maximum(i0, runs * st)
-                vals[ax.name] = np.repeat(ax.all()[runs % ax.n], counts)
+                vals[ax.name] = np.repeat(ax.cached_all()[runs % ax.n], counts)
         return vals
 
     def swept_at(self, flat: NDArray[np.int64]) -> dict[str, F64]:
