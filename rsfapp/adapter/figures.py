@@ -1,6 +1,8 @@
 """The data behind the paper's figures (``GET /v1/figures/{name}``, ``rsf figure``,
 ``Client.figure_data``): the request model :class:`rsfapp.requests.figures.FigureRequest`
 in, rsfcore, numbers out; no matplotlib (rsfplots draws the images from these data).
+Each figure's computation imports the rsfcore modules it asks (a CLI process draws one
+figure: the velocity-step curves are closed forms and load no kernel).
 
 Each figure is computed once per (name, quality) by a ``_compute_*`` function that
 returns a dict of numpy arrays and the parameters it used; keys starting with ``_`` are
@@ -25,16 +27,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rsfcore import Params, classify, simulate
 from rsfcore import analytic as an
-from rsfcore import boundaries as bd
-from rsfcore.critical import critical_perturbation
-from rsfcore.diagram import stability_diagram
-from rsfcore.trajectory import Trajectory, TrajectoryResult
+from rsfcore.params import Params
+
+if TYPE_CHECKING:
+    from rsfcore.trajectory import Trajectory, TrajectoryResult
 
 from ..requests.figures import (
     FIGURE_FORMATS,
@@ -231,6 +232,9 @@ TK_WINDOW = (-3.0, 5.0, -3.0, 2.5)
 
 
 def _compute_trajectories_kcrit(quality: str) -> dict[str, Any]:
+    from rsfcore.critical import critical_perturbation
+    from rsfcore.trajectory import classify, simulate
+
     q = _Q[quality]
     ba = TK_BA
     kappa = ba - 1.0
@@ -304,6 +308,8 @@ CJ_EXTRA_AB = (0.1, 0.5)
 
 
 def _compute_critical_jump_kcrit(quality: str) -> dict[str, Any]:
+    from rsfcore.critical import critical_perturbation
+
     n = _Q[quality]["n_curve"]
     ba = CJ_BA
     lo = np.geomspace(1e-4, 0.5, n // 2)
@@ -353,6 +359,8 @@ RN_BA = 1.0 + 1e-9  # b/a = 1 exactly is outside rsfcore's range (1, 1e6]; see n
 
 
 def _compute_rate_neutral(quality: str) -> dict[str, Any]:
+    from rsfcore.trajectory import simulate
+
     p = Params(RN_BA, 1.0, 0.01, 1.0)
     s = simulate(p, "velocity-jump", 1.0, t_end=40.0, n_points=_Q[quality]["n_traj"])
     tr = _samples(s)
@@ -389,6 +397,10 @@ def _ratios(n: int, eps: float) -> np.ndarray:
 
 
 def _compute_stability(quality: str, perturbation: str) -> dict[str, Any]:
+    from rsfcore.critical import critical_perturbation
+    from rsfcore.diagram import stability_diagram
+    from rsfcore.trajectory import classify, simulate
+
     q = _Q[quality]
     ba = SD_BA
     eps_list = SD_EPS if quality == "paper" else SD_EPS_DRAFT
@@ -484,6 +496,10 @@ V0_BA = 2.0
 def _compute_trajectories_vo0(
     quality: str, kappa: float, eps_list: tuple[float, ...], window: Any
 ) -> dict[str, Any]:
+    from rsfcore import boundaries as bd
+    from rsfcore.critical import critical_perturbation
+    from rsfcore.trajectory import simulate
+
     q = _Q[quality]
     ba = V0_BA
     phi1, psi1, PHI, PSI = _grid(window, q["grid"])
@@ -566,6 +582,9 @@ CV_AB_EPS = (0.0, 0.25, 0.5, 0.75, 1.0)
 
 
 def _compute_critical_jump_vo0(quality: str) -> dict[str, Any]:
+    from rsfcore import boundaries as bd
+    from rsfcore.critical import critical_perturbation
+
     n = _Q[quality]["n_curve"]
     ba = V0_BA
     eps = np.unique(
@@ -617,6 +636,9 @@ PR_SIZE = 1.33
 
 
 def _compute_periodic(quality: str) -> dict[str, Any]:
+    from rsfcore.critical import critical_perturbation
+    from rsfcore.trajectory import simulate
+
     p = Params(2.0, 1.0, 0.25, 1.0)
     crit = critical_perturbation(p, "load-point-jump")
     n = 3 * _Q[quality]["n_traj"]
@@ -648,6 +670,9 @@ NP_SLIP = 50.0  # about this much slip (in Dc) is shown for the stable responses
 
 
 def _compute_non_periodic(quality: str) -> dict[str, Any]:
+    from rsfcore.critical import critical_perturbation
+    from rsfcore.trajectory import classify, simulate
+
     p = Params(2.0, 2.0, 0.25, 1.0)
     crit = critical_perturbation(p, "load-point-jump")
     rows: list[dict[str, Any]] = []

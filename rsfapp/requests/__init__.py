@@ -7,25 +7,74 @@ v_o = V_o/V_*, T = V_* t/Dc.  Ranges here are the first gate; rsfcore re-validat
 and its ParameterError is reported the same way (422 problem+json naming the field).
 """
 
-from ._base import VALID, Perturbation
-from .single import (
-    SI_PERTURBATION_FIELDS,
-    AnalyticRequest,
-    BoundariesQueryRequest,
-    BoundariesRequest,
-    BoundariesSIRequest,
-    ClassifyPointsRequest,
-    ClassifyRequest,
-    CriticalRequest,
-    GridSpec,
-    PhysicalScales,
-    PhysicalSI,
-    Point,
-    StiffnessPhysical,
-    StiffnessRequest,
-    TrajectoryRequest,
-)
-from .sweeps import AXIS_RANGES, AxisName, SweepAxis, SweepFixed, SweepRequest
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # imported on first use: a CLI command builds only its question's models
+    from ._base import VALID, Perturbation
+    from .single import (
+        SI_PERTURBATION_FIELDS,
+        AnalyticRequest,
+        BoundariesQueryRequest,
+        BoundariesRequest,
+        BoundariesSIRequest,
+        ClassifyPointsRequest,
+        ClassifyRequest,
+        CriticalRequest,
+        GridSpec,
+        PhysicalScales,
+        PhysicalSI,
+        Point,
+        StiffnessPhysical,
+        StiffnessRequest,
+        TrajectoryRequest,
+    )
+    from .sweeps import AXIS_RANGES, AxisName, SweepAxis, SweepFixed, SweepRequest
+
+#: Where each name lives (PEP 562: the module is imported, and its models built, on first
+#: access; `rsf figure` needs neither the single nor the sweep models).
+_WHERE: dict[str, str] = {
+    "VALID": "_base",
+    "Perturbation": "_base",
+    **dict.fromkeys(
+        (
+            "SI_PERTURBATION_FIELDS",
+            "AnalyticRequest",
+            "BoundariesQueryRequest",
+            "BoundariesRequest",
+            "BoundariesSIRequest",
+            "ClassifyPointsRequest",
+            "ClassifyRequest",
+            "CriticalRequest",
+            "GridSpec",
+            "PhysicalScales",
+            "PhysicalSI",
+            "Point",
+            "StiffnessPhysical",
+            "StiffnessRequest",
+            "TrajectoryRequest",
+        ),
+        "single",
+    ),
+    **dict.fromkeys(
+        ("AXIS_RANGES", "AxisName", "SweepAxis", "SweepFixed", "SweepRequest"), "sweeps"
+    ),
+}
+
+
+_MODULES = frozenset(("single", "batch", "protocols", "fits", "sweeps", "figures"))
+
+
+def __getattr__(name: str) -> Any:
+    if name in _MODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{where}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "AXIS_RANGES",
