@@ -15,7 +15,8 @@ starts them.  Steps:
 3. Reads, one at a time, each with the API's peak RSS over its idle RSS (measured just
    before it) and over the idle RSS before the sweep, time to first byte and total time:
    the whole sweep as NetCDF, CSV and JSON; a 1 % slice (NetCDF); the /diagram PNG of one
-   2-D slice; a lazy xarray read of one 2-D slice through the Zarr store (zarr + fsspec);
+   2-D slice; a lazy xarray read of one 2-D slice through the Zarr store (zarr + fsspec)
+   and of one whole variable (``kind``: every chunk);
    then two NetCDF downloads at once (the second is refused 503 with Retry-After while the
    first is built: one build per API process) and two CSV downloads at once.  The API's
    idle RSS (settled 1 s after each step) is recorded before the sweep, after it and after
@@ -456,7 +457,22 @@ def main() -> None:
             "api_peak_over_idle_mb": round((sz.peak["api"] - idle) / 2**20, 1),
             "api_peak_over_pre_sweep_idle_mb": round((sz.peak["api"] - base) / 2**20, 1),
         }
+        # lazy read of a whole variable (every chunk, fetched side by side by zarr)
+        idle = RssSampler.tree_rss(api.pid)
+        with RssSampler({"api": api.pid}) as sz:
+            t = time.perf_counter()
+            kinds = ds["kind"].values
+            dl["zarr_lazy_whole_kind"] = {
+                "points": int(kinds.size),
+                "total_s": round(time.perf_counter() - t, 3),
+            }
+        del kinds
+        dl["zarr_lazy_whole_kind"].update(
+            api_peak_over_idle_mb=round((sz.peak["api"] - idle) / 2**20, 1),
+            api_peak_over_pre_sweep_idle_mb=round((sz.peak["api"] - base) / 2**20, 1),
+        )
         idle_mb["after_zarr"] = round(settled_rss(api.pid) / 2**20, 1)
+        print(f"lazy xarray read of the whole 'kind' variable: {dl['zarr_lazy_whole_kind']}")
         print(f"lazy xarray read of one 2-D slice ({sl.size} points): {dl['zarr_lazy_slice']}")
         # two at once: NetCDF (one build per API process: the second is refused while the
         # first is built) and CSV (both streamed)

@@ -8,13 +8,16 @@ block decoded beside the slab), +40-90 MB for CSV (text of a slab), +20 MB for J
 So that the API process's resident memory stays within ~256 MB of its idle size, each
 API process admits at most
 
-* :data:`DOWNLOADS_AT_ONCE` downloads at once, of any format, and
+* :data:`DOWNLOADS_AT_ONCE` downloads at once, of any format (and JSON diagrams of more
+  than ``DIAGRAM_FREE_POINTS`` points, service.routes.sweeps), and
 * :data:`NETCDF_BUILDS_AT_ONCE` NetCDF file being built at once (the heaviest),
 
 and answers one more with 503 problem+json and ``Retry-After`` (for a NetCDF build: the
 estimated time left of the build in progress, from its progress so far), with a hint to
-ask for a subset or a streamed format.  The Python client retries such a 503 after
-Retry-After.
+ask for a subset or a streamed format; the Python client retries such a 503 after
+Retry-After.  It makes at most :data:`ZARR_CHUNKS_AT_ONCE` chunks of the Zarr store at
+once (a lazy xarray read asks for many chunks side by side, each up to one stored block,
+~30 MB while made; more wait their turn, a chunk takes milliseconds).
 
 :class:`SlotStream` is the response of an admitted download: it sends the pieces of a
 synchronous iterator, each made in the thread pool, and however the response ends (sent,
@@ -42,6 +45,8 @@ from starlette.types import Receive, Scope, Send
 from rsfapp.memory import give_back
 
 __all__ = [
+    "ZARR_CHUNKS_AT_ONCE",
+    "zarr_chunk",
     "DOWNLOADS_AT_ONCE",
     "NETCDF_BUILDS_AT_ONCE",
     "Busy",
@@ -56,6 +61,9 @@ __all__ = [
 DOWNLOADS_AT_ONCE = 2
 #: NetCDF files built at once by one API process (each holds up to ~95 MB while built).
 NETCDF_BUILDS_AT_ONCE = 1
+#: Zarr chunks made at once by one API process (each holds up to ~4 arrays of one block).
+ZARR_CHUNKS_AT_ONCE = 4
+_zarr_chunks = threading.BoundedSemaphore(ZARR_CHUNKS_AT_ONCE)
 #: Longest Retry-After given for a NetCDF build in progress [s].
 RETRY_AFTER_MAX_S = 300
 
@@ -173,6 +181,14 @@ class DownloadSlots:
 
 #: The places of this process.
 SLOTS = DownloadSlots()
+
+
+def zarr_chunk(make: Callable[[str], bytes | None], key: str) -> bytes | None:
+    """``make(key)`` once fewer than :data:`ZARR_CHUNKS_AT_ONCE` chunks are being made
+    (blocks the calling worker thread until then)."""
+    with _zarr_chunks:
+        return make(key)
+
 
 _END = object()
 

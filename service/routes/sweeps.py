@@ -481,7 +481,10 @@ async def _zarr(stores: Any, sweep_id: str, key: str) -> Response:
     st = await _status(stores, sweep_id) if meta_key else {"id": sweep_id}
     k = await run_in_threadpool(stores.sweeps.block_points, sweep_id)
     z = ZarrSweep(stores.sweeps, spec, st, k or spec.n_total)
-    data = await run_in_threadpool(z.get, key)
+    if meta_key:
+        data = await run_in_threadpool(z.get, key)
+    else:  # a chunk: a few at a time (bounded memory)
+        data = await run_in_threadpool(downloads.zarr_chunk, z.get, key)
     if data is None:
         raise ProblemError(404, "Not found", f"sweep {sweep_id} has no Zarr key {key!r}")
     media = "application/json" if meta_key else "application/octet-stream"
@@ -522,11 +525,14 @@ async def get_zarr_array(
 
 
 _JSON_OR_PNG = ("json", "png")
-#: Most points per axis drawn in a diagram PNG (the image is 650 pixels wide): a longer
-#: axis is drawn every k-th point (header ``X-Diagram-Step: <axis>:<k>``), which keeps
-#: the memory and time of a slice of 100 x 10^4 points at those of 100 x 1000 (measured:
-#: +220 MB and 12 s, drawn whole).
-PNG_AXIS_POINTS = 1000
+#: Most points per axis drawn in a diagram PNG (the image is 650 x 500 pixels): a longer
+#: axis is drawn every k-th point (header ``X-Diagram-Step: <axis>:<k>``), so an image
+#: never draws more than 600^2 points (measured: a slice of 100 x 10^4 points drawn
+#: whole +220 MB and 12 s, thinned to 100 x 1000 +58 MB and 6 s).
+PNG_AXIS_POINTS = 600
+#: A JSON diagram of more points than this takes a download place (service.downloads:
+#: ~100 bytes of Python objects a point, +95 MB measured for 10^6 points).
+DIAGRAM_FREE_POINTS = 1 << 18
 
 
 @router.get(
@@ -538,7 +544,13 @@ PNG_AXIS_POINTS = 1000
             "The sweep (or a 2-D slice of it) on its grid (JSON), or with format=png "
             "the stability diagram image (critical size, or stable/unstable when a "
             "size is given).",
-            {422: {"description": "Invalid format or slice (problem+json naming the field)."}},
+            {
+                422: {"description": "Invalid format or slice (problem+json naming the field)."},
+                503: {
+                    "description": "A large JSON diagram while every download place of this "
+                    "API process is taken (problem+json, Retry-After)."
+                },
+            },
         ),
     },
 )
@@ -573,8 +585,10 @@ async def get_diagram(
     read.  ``?format=png``:
     the image, points not computed yet (or failed) left blank; headers
     ``X-Sweep-Status`` and ``X-Sweep-Progress: n_done/n_total``; an axis of more than
-    1000 points is drawn every k-th point (``X-Diagram-Step: <axis>:<k>``: no more
-    points than pixels).  Images of finished sweeps are cached."""
+    600 points is drawn every k-th point (``X-Diagram-Step: <axis>:<k>``: no more
+    points than pixels).  Images of finished sweeps are cached.  A JSON diagram of more
+    than 2^18 points takes one of the API process's download places (503 with
+    Retry-After when none is free)."""
     fmt = choice(format, _JSON_OR_PNG, "format")
     st = await _status(stores, sweep_id)
     spec = await _spec(stores, sweep_id)
@@ -588,9 +602,26 @@ async def get_diagram(
         )
         if thin is not None:
             window, steps = thin
-    d = await run_in_threadpool(sweepdata.diagram, stores.sweeps, spec, st, fixed_idx, window)
     if fmt == "json":
-        return _json(d)
+        n = 1
+        for a, idx in zip(
+            spec.axes, (window or sweepselect.parse_selection(spec)).index, strict=True
+        ):
+            n *= 1 if a.name in fixed_idx else len(idx)
+        try:
+            slot = downloads.SLOTS.admit(DownloadKind.STREAM) if n > DIAGRAM_FREE_POINTS else None
+        except Busy as exc:
+            return _busy(exc)
+        try:
+            d = await run_in_threadpool(
+                sweepdata.diagram, stores.sweeps, spec, st, fixed_idx, window
+            )
+            return await run_in_threadpool(_json, d)
+        finally:
+            if slot is not None:
+                slot.release()
+                give_back()
+    d = await run_in_threadpool(sweepdata.diagram, stores.sweeps, spec, st, fixed_idx, window)
     final = d["status"] in ("done", "cancelled")
     tag = "-".join(f"{k}{v}" for k, v in sorted(fixed_idx.items()))
     if window is not None:

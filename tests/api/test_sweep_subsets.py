@@ -288,6 +288,32 @@ def test_diagram_png_draws_long_axes_thinned(
     assert (len(d["x"]), len(d["y"])) == (6, 7)
 
 
+def test_a_large_json_diagram_takes_a_download_place(
+    done: tuple[TestClient, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A JSON diagram of more than DIAGRAM_FREE_POINTS points is admitted like a
+    download (503 with Retry-After when every place is taken); a small one never is."""
+    from service import downloads
+
+    c, sid = done
+    slots = downloads.DownloadSlots(downloads=1, builds=1)
+    monkeypatch.setattr(downloads, "SLOTS", slots)
+    monkeypatch.setattr("service.routes.sweeps.DIAGRAM_FREE_POINTS", 41)  # 6 x 7 = 42
+    held = slots.admit(downloads.DownloadKind.STREAM)
+    r = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3"})
+    assert r.status_code == 503 and int(r.headers["retry-after"]) > 0, r.text
+    small = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3", "isel": "eps:0:6"})
+    assert small.status_code == 200  # 36 points: no place needed
+    assert (
+        c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3", "format": "png"}).status_code
+        == 200
+    )
+    held.release()
+    r = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3"})
+    assert r.status_code == 200 and len(r.json()["y"]) == 7
+    assert slots.in_use == 0
+
+
 def test_diagram_window(done: tuple[TestClient, str]) -> None:
     c, sid = done
     whole = c.get(f"/v1/sweeps/{sid}/diagram", params={"slice": "ba:3"}).json()
