@@ -2,9 +2,10 @@
 
 A download of a sweep (``GET /v1/sweeps/{id}/data``) holds about one slab of the
 selection at a time (:data:`rsfapp.sweepselect.SLAB_POINTS` points), whatever the
-sweep's size; measured on a 10^8-point sweep (bench/bench_sweep_e2e.py): +50-95 MB over
-the API's idle size for a NetCDF file being built (HDF5's filter pipeline and a stored
-block decoded beside the slab), +40-90 MB for CSV (text of a slab), +20 MB for JSON.
+sweep's size; measured on a 10^8-point sweep (bench/bench_sweep_e2e.py, README): +70 MB
+over the API's idle size for a NetCDF file being built (h5py loaded at first use, a slab,
+a stored block decoded beside it, one chunk compressed), +62 MB for CSV, +54 MB for
+JSON; two NetCDF builds at once were +292 MB.
 So that the API process's resident memory stays within ~256 MB of its idle size, each
 API process admits at most
 
