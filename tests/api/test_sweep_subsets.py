@@ -395,3 +395,37 @@ def test_zarr_chunks_follow_the_blocks(api_stack: tuple[TestClient, Any], tmp_pa
     assert np.isnan(cs[~done_mask]).all()
     assert (z["computed"].values == done_mask).all()
     assert np.isnan(z["kind"].values[~done_mask]).all()
+
+
+def test_zarr_chunks_are_made_a_few_at_a_time() -> None:
+    """However many chunk requests arrive at once, at most ZARR_CHUNKS_AT_ONCE are made
+    side by side; the others wait (none is refused) and every one is answered."""
+    import threading
+    import time
+
+    from service import downloads
+
+    lock = threading.Lock()
+    now = [0]
+    most = [0]
+
+    def make(key: str) -> bytes:
+        with lock:
+            now[0] += 1
+            most[0] = max(most[0], now[0])
+        time.sleep(0.02)
+        with lock:
+            now[0] -= 1
+        return key.encode()
+
+    got: list[bytes | None] = []
+    ts = [
+        threading.Thread(target=lambda k=k: got.append(downloads.zarr_chunk(make, f"v/{k}")))
+        for k in range(4 * downloads.ZARR_CHUNKS_AT_ONCE)
+    ]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    assert sorted(got) == sorted(f"v/{k}".encode() for k in range(len(ts)))
+    assert 1 <= most[0] <= downloads.ZARR_CHUNKS_AT_ONCE
