@@ -43,7 +43,9 @@ def fit_key_request(req: FitRequest) -> dict[str, Any]:
 def fit(req: FitRequest, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Fit the record (rsfcore.fit): the reported law's FitResult.to_dict() (params,
     stderr, residuals and series, misfit, stability answer in SI with uncertainty), plus
-    ``law_comparison`` (misfit and information criteria per law) when ``compare`` and
+    ``law_comparison`` (misfit and information criteria per law; laws other than the
+    requested or best one stop once their rejection is certain: ``stopped_early``, see
+    rsfcore.fit.compare_laws ``complete``) when ``compare`` and
     ``posterior`` (emcee) when asked.  ``progress`` is told each stage as it starts.
     Counted and timed in ``rsf_fits_total`` / ``rsf_fit_duration_seconds``."""
     with timed_fit():
@@ -73,7 +75,10 @@ def _fit(req: FitRequest, progress: Callable[[str], None] | None) -> dict[str, A
     comparison: dict[str, Any] | None = None
     if req.compare:
         stage(f"fitting {rec.n} samples with each law ({', '.join(FIT_LAWS)})")
-        cmp = guard(_fit.compare_laws, rec, laws=FIT_LAWS, **opts)
+        # the requested law is fitted completely; the others (apart from the best, which
+        # is never rejected) stop once the comparison's rejection is certain
+        complete = (req.law,) if req.law else ()
+        cmp = guard(_fit.compare_laws, rec, laws=FIT_LAWS, complete=complete, **opts)
         law = req.law or cmp.best or (req.law or "aging")
         res = cmp.fits[law]
         if res.status in _fit.STABILITY_STATUSES and res.stability is None:
@@ -91,6 +96,7 @@ def _fit(req: FitRequest, progress: Callable[[str], None] | None) -> dict[str, A
             "params": {k: f.params for k, f in cmp.fits.items()},
             "stderr": {k: f.stderr for k, f in cmp.fits.items()},
             "status": {k: f.status.value for k, f in cmp.fits.items()},
+            "stopped_early": {k: f.stopped_early for k, f in cmp.fits.items()},
         }
     else:
         assert req.law is not None

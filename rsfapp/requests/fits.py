@@ -89,7 +89,9 @@ class FitRequest(_Model):
         True,
         "true or false",
         "Also fit the other laws and report the "
-        "comparison (misfit, AIC, BIC, Akaike weight per law).",
+        "comparison (misfit, AIC, BIC, Akaike weight per law). A law other than the "
+        "requested or best one stops once its rejection is certain (stopped_early: "
+        "parameters not polished, no standard errors).",
         name="compare",
     )
     k_Pa_per_m: float | None = F(

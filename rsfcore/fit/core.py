@@ -52,7 +52,7 @@ import inspect
 import math
 import time
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any
 
@@ -113,6 +113,16 @@ _FD_STEP = 1e-6
 #: Optimiser tolerances (ftol, xtol, gtol of least_squares).
 _TOL = 1e-10
 _LOG = ("Dc_m", "k_per_m")
+#: least_squares status of a minimisation ended by its ``stop`` (rsfcore.fit.lsq).
+_STOPPED = 5
+#: A comparison stops a law's fit when its AIC stays above the rejection threshold even if
+#: the misfit fell by this many times what the Gauss-Newton model still predicts.  On the
+#: test and bench records the decrease still to come was at most 2.1x the prediction
+#: after the 2nd iteration (a 5-step record's slip fit; 0.5-1.3x otherwise).
+_REJECT_SAFETY = 10.0
+#: ... and only when the best law's rms misfit is this many times the misfit floor (so a
+#: floor raised by a later law's model accuracy cannot change the verdict).
+_REJECT_FLOOR_MARGIN = 1e3
 
 
 class FitStatus(StrEnum):
@@ -182,6 +192,11 @@ class FitResult:
         warnings: why the status is SUSPECT or REJECTED (also in the message), and notes
             (e.g. a start moved because it ran away).
         stiffness_mode: "fitted", "fixed" or "rigid" (infinitely stiff machine).
+        stopped_early: a law of a comparison whose fit was stopped once the comparison's
+            rejection was certain (compare_laws ``complete``): status REJECTED, parameters
+            not polished (the optimiser's iterate), no standard errors, covariance,
+            identifiability or stability answer, converged False, model_accuracy NaN;
+            rss_lower_bound: the misfit it was certain not to go below.
         sigma_Pa: normal stress [Pa] when given (stiffnesses also in Pa/m).
         used: samples that entered the misfit (time windows / step selection; None: all).
         v_ref_m_s: reference velocity of mu0 and of the stability answer [m/s].
@@ -224,6 +239,8 @@ class FitResult:
     stiffness_mode: str = "fixed"
     sigma_Pa: float | None = None
     used: NDArray[np.bool_] | None = field(repr=False, default=None)
+    stopped_early: bool = False
+    rss_lower_bound: float | None = field(repr=False, default=None)
     x_internal: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.empty(0))
     bounds_internal: tuple[NDArray[np.float64], NDArray[np.float64]] = field(
         repr=False, default=(np.empty(0), np.empty(0))
@@ -278,6 +295,7 @@ class FitResult:
             "message": self.message,
             "warnings": list(self.warnings),
             "stiffness_mode": self.stiffness_mode,
+            "stopped_early": self.stopped_early,
             "sigma_Pa": self.sigma_Pa,
             "steps": self.step_residuals(),
             "law": self.law,
@@ -687,6 +705,7 @@ def _fit_record(
     time_budget_s: float,
     stability: bool,
     scans: StartScans | None = None,
+    reject_above: tuple[float, float] | None = None,
 ) -> FitResult:
     t_start = time.perf_counter()
     rec = read_record(record)
@@ -852,6 +871,25 @@ def _fit_record(
             J[:, j] = (resid(xp) - r0) / h[j]
         return J
 
+    # A comparison's law that cannot come within REJECT_DELTA_AIC of the best law found so
+    # far: stopped once that is certain (compare_laws, ``complete``).  reject_above is
+    # (AIC threshold, misfit floor); certain when even the Gauss-Newton model's lowest
+    # misfit, its predicted decrease taken _REJECT_SAFETY times, is above the threshold.
+    stop_lower: list[float] = []
+
+    def stop(rss_k: float, rss_lin: float, k: int) -> bool:
+        if reject_above is None or k < 2:
+            return False
+        threshold, floor = reject_above
+        nu = int(mu_data.shape[0] if used is None else int(used.sum()))
+        low = max(rss_k - _REJECT_SAFETY * (rss_k - rss_lin), nu * floor**2)
+        if not low > 0.0:
+            return False
+        if nu * math.log(low / nu) + 2.0 * (len(names) + 1) > threshold:
+            stop_lower.append(low)
+            return True
+        return False
+
     out_of_time = False
     nfev = 0
     opt_message = ""
@@ -870,6 +908,7 @@ def _fit_record(
                 xtol=_TOL,
                 gtol=_TOL,
                 max_nfev=max_nfev,
+                stop=stop if reject_above is not None else None,
             )
             x, nfev, opt_message, opt_status = (
                 sol.x,
@@ -885,6 +924,9 @@ def _fit_record(
     # forward runs (bounded), and an optimisation that ended just before the deadline must
     # not turn it into an escaping _OutOfTime.  resid reads `deadline` when called.
     deadline = math.inf
+    stopped = opt_status == _STOPPED
+    if stopped:
+        opt_message = "stopped once the law comparison's rejection was certain"
     p_hat = model.full(_from_x(names, x))
     mu_model, n_ok = model.friction(p_hat)
     complete = n_ok == rec.n
@@ -894,7 +936,9 @@ def _fit_record(
     ru = r if used is None else r[used]
 
     # -- accuracy of the forward model at the solution ------------------------------------
-    if math.isinf(p_hat["k_per_m"]):
+    if stopped:
+        model_acc = math.nan  # not polished: no accuracy claim (and no share in the floor)
+    elif math.isinf(p_hat["k_per_m"]):
         model_acc = 1e-15 * float(np.max(np.abs(mu_data)))
     else:
         tight = ForwardModel(
@@ -920,7 +964,7 @@ def _fit_record(
     rss = float(np.sum(ru[np.isfinite(ru)] ** 2)) if complete else math.inf
     rms = math.sqrt(rss / n) if complete else math.inf
     sigma = math.sqrt(rss / max(1, n - p)) if complete else math.inf
-    sigma_eff = max(sigma, model_acc)
+    sigma_eff = sigma if stopped else max(sigma, model_acc)
     floor_rss = n * misfit_floor**2
     rss_eff = max(rss, floor_rss)
     aic = n * math.log(rss_eff / n) + 2.0 * (p + 1) if complete else math.inf
@@ -933,7 +977,7 @@ def _fit_record(
     cond: float | None = None
     linearity: tuple[float, float] | None = None
     problems: list[str] = []
-    if complete and not out_of_time and not start_message:
+    if complete and not out_of_time and not start_message and not stopped:
         J = jac(x)
         norms = np.sqrt(np.sum(J**2, axis=0))
         dead = [names[j] for j in range(p) if not norms[j] > 1e-300]
@@ -1004,8 +1048,14 @@ def _fit_record(
                 for nm in culprits:
                     identified[nm] = False
 
-    converged = opt_status > 0
-    if start_message:
+    converged = 0 < opt_status < _STOPPED
+    if stopped and complete:
+        status = FitStatus.REJECTED
+        message = (
+            f"Stopped after {nfev} evaluations, once the law comparison's rejection was "
+            "certain: parameters not polished, no standard errors."
+        )
+    elif start_message:
         status = FitStatus.FAILED
         message = start_message
     elif out_of_time:
@@ -1152,6 +1202,8 @@ def _fit_record(
         stiffness_mode=mode,
         sigma_Pa=sig,
         used=used,
+        stopped_early=stopped,
+        rss_lower_bound=stop_lower[-1] if stopped and stop_lower else None,
         x_internal=x,
         bounds_internal=(lb, ub),
     )
@@ -1167,11 +1219,12 @@ def attach_stability(
     """Compute (or recompute) ``res.stability`` from the fit's parameters and covariance.
 
     For the statuses in STABILITY_STATUSES (an ill-conditioned, unconverged or failed fit
-    gets no stability answer: None).  SUSPECT and REJECTED fits get it with their warning
+    gets no stability answer: None; nor does a fit stopped early by a comparison).
+    SUSPECT and REJECTED fits get it with their warning
     (``StabilityAnswer.warning``, also leading its message).  The trend (trend_per_m)
     does not enter: stability uses a, b, Dc, eps and k.
     """
-    if res.status not in STABILITY_STATUSES:
+    if res.status not in STABILITY_STATUSES or res.stopped_early:
         res.stability = None
         return None
     model = ForwardModel(res.record, res.spec)
@@ -1359,9 +1412,52 @@ _FIT_OPTIONS: dict[str, Any] = {
 }
 
 
+def _usable(f: FitResult) -> bool:
+    """A comparison's fit that competes for best: converged, complete, determined or not."""
+    return (
+        f.status in (FitStatus.OK, FitStatus.SUSPECT, FitStatus.ILL_CONDITIONED)
+        and f.converged
+        and math.isfinite(f.rss)
+    )
+
+
+def _criteria(f: FitResult, floor: float) -> tuple[float, float]:
+    """(AIC, BIC) of a fit with the misfit floored at ``floor`` (inf without a misfit)."""
+    if not math.isfinite(f.rss):
+        return math.inf, math.inf
+    rss_eff = max(f.rss, f.n * floor**2)
+    k = f.n_params + 1
+    return f.n * math.log(rss_eff / f.n) + 2.0 * k, f.n * math.log(rss_eff / f.n) + k * math.log(
+        f.n
+    )
+
+
+def _floor(fits: Iterable[FitResult], misfit_floor: float) -> float:
+    """The common misfit floor: max(misfit_floor, 10 x the largest model accuracy)."""
+    return max(
+        [misfit_floor] + [10.0 * f.model_accuracy for f in fits if math.isfinite(f.model_accuracy)]
+    )
+
+
+def _reject_threshold(fits: Iterable[FitResult], misfit_floor: float) -> tuple[float, float] | None:
+    """(AIC above which a law is rejected, floor) from the fits so far; None when no fit
+    competes yet or the best one's misfit is within _REJECT_FLOOR_MARGIN of the floor."""
+    done = list(fits)
+    floor = _floor(done, misfit_floor)
+    usable = [f for f in done if _usable(f)]
+    if not usable:
+        return None
+    best = min(usable, key=lambda f: _criteria(f, floor)[0])
+    if not best.rms >= _REJECT_FLOOR_MARGIN * floor:
+        return None
+    return _criteria(best, floor)[0] + REJECT_DELTA_AIC, floor
+
+
 def compare_laws(
     record: Record | str | Mapping[str, Any],
     laws: Iterable[str | Law] = ("aging", "slip", "nagata", "eps"),
+    *,
+    complete: Iterable[str | Law] | None = None,
     **options: Any,
 ) -> LawComparison:
     """Fit ``record`` with each law (same options as :func:`fit_record`) and rank them by AIC.
@@ -1369,6 +1465,24 @@ def compare_laws(
     The common misfit floor is max(misfit_floor, 10 x the largest forward-model accuracy of
     the fits), so that misfit differences the model cannot resolve do not decide; then the
     law with fewer parameters wins.  Stability answers are computed only for the best law.
+
+    Shared work: the start scan (rsfcore.fit.start) is computed once for all laws, and
+    BLAS is limited to one thread once.  Each law starts from its own start values, as
+    fit_record would (a warm start of the eps law from the aging solution took 3x fewer
+    forward runs but ended noise-free records' eps fits at a better minimum, turning
+    their ``ill_conditioned`` into ``ok``: verdicts that must not change).
+
+    complete: the laws fitted to convergence whatever their score (default None: every
+    law).  The others are stopped as soon as their rejection is certain: after at least
+    2 iterations, when their AIC would stay more than REJECT_DELTA_AIC above the best
+    (completely fitted) law's so far even if the misfit fell by _REJECT_SAFETY (10) times
+    what the Gauss-Newton model at the iterate still predicts (measured: the decrease
+    still to come was at most 2.1x that prediction), on records whose best misfit is
+    above 1000x the misfit floor.  Such a fit is REJECTED with ``stopped_early`` (its
+    parameters are the optimiser's iterate, not polished; no standard errors, no stability
+    answer; its score's AIC is that of the iterate, an upper bound).  The best law is
+    never stopped (it is never rejected), so every reported best fit is complete; the
+    CLI and HTTP fits pass the requested law (if any) here so that it is complete too.
     """
     rec = read_record(record)
     lws = [_law(x) for x in laws]
@@ -1376,35 +1490,24 @@ def compare_laws(
         raise ParameterError(
             "laws", list(laws), "a non-empty list of " + ", ".join(m.value for m in Law)
         )
+    keep = None if complete is None else {_law(x) for x in complete}
     want_stab = options.pop("stability", True)
     unknown = sorted(set(options) - set(_FIT_OPTIONS))
     if unknown:
         raise TypeError(f"compare_laws() got an unexpected keyword argument {unknown[0]!r}")
     kw = {**_FIT_OPTIONS, **options, "stability": False}
+    misfit_floor = float(kw["misfit_floor"])
     scans = StartScans()  # the start grid, shared by the laws
+    fits: dict[str, FitResult] = {}
     with _one_blas_thread():
-        fits = {lw.value: _fit_record(rec, lw, scans=scans, **kw) for lw in lws}
-    floor = max(
-        [options.get("misfit_floor", 1e-9)]
-        + [10.0 * f.model_accuracy for f in fits.values() if math.isfinite(f.model_accuracy)]
-    )
-    rows = []
-    for name, f in fits.items():
-        if math.isfinite(f.rss):
-            rss_eff = max(f.rss, f.n * floor**2)
-            k = f.n_params + 1
-            aic = f.n * math.log(rss_eff / f.n) + 2.0 * k
-            bic = f.n * math.log(rss_eff / f.n) + k * math.log(f.n)
-        else:
-            aic = bic = math.inf
-        rows.append((name, f, aic, bic))
-    usable = [
-        r
-        for r in rows
-        if r[1].status in (FitStatus.OK, FitStatus.SUSPECT, FitStatus.ILL_CONDITIONED)
-        and r[1].converged
-        and math.isfinite(r[2])
-    ]
+        for lw in lws:
+            reject = None
+            if keep is not None and lw not in keep:
+                reject = _reject_threshold(fits.values(), misfit_floor)
+            fits[lw.value] = _fit_record(rec, lw, scans=scans, reject_above=reject, **kw)
+    floor = _floor(fits.values(), misfit_floor)
+    rows = [(name, f, *_criteria(f, floor)) for name, f in fits.items()]
+    usable = [r for r in rows if _usable(r[1])]
     best = min(usable, key=lambda r: (r[2], r[1].n_params))[0] if usable else None
     amin = min((r[2] for r in usable), default=math.inf)
     bmin = min((r[3] for r in usable), default=math.inf)
@@ -1412,7 +1515,17 @@ def compare_laws(
     if best is not None:
         for name, f, aic, _ in rows:
             d_aic = aic - amin
-            if (
+            if f.stopped_early:
+                low = f.rss_lower_bound if f.rss_lower_bound is not None else f.rss
+                d_low = _criteria(replace(f, rss=low), floor)[0] - amin
+                why = (
+                    f"the {name} law is rejected by the record: its AIC is at least "
+                    f"{_num(d_low)} units above the {best} law's (rejected beyond "
+                    f"{_num(REJECT_DELTA_AIC)}); the record supports the {best} law."
+                )
+                f.warnings.append(why)
+                f.message = "Rejected: " + why + " " + f.message
+            elif (
                 name != best
                 and f.status in (FitStatus.OK, FitStatus.SUSPECT)
                 and (d_aic > REJECT_DELTA_AIC)
@@ -1434,6 +1547,7 @@ def compare_laws(
     scores = []
     for name, f, aic, bic in rows:
         use = any(r[0] == name for r in usable)
+        scored = use or f.stopped_early
         scores.append(
             LawScore(
                 law=name,
@@ -1442,8 +1556,8 @@ def compare_laws(
                 n_params=f.n_params,
                 aic=aic,
                 bic=bic,
-                delta_aic=aic - amin if use else math.inf,
-                delta_bic=bic - bmin if use else math.inf,
+                delta_aic=aic - amin if scored else math.inf,
+                delta_bic=bic - bmin if scored else math.inf,
                 akaike_weight=math.exp(-0.5 * (aic - amin)) / wsum if use and wsum > 0 else 0.0,
             )
         )

@@ -46,6 +46,7 @@ _MESSAGES = {
     2: "`ftol` termination condition is satisfied.",
     3: "`xtol` termination condition is satisfied.",
     4: "Both `ftol` and `xtol` termination conditions are satisfied.",
+    5: "Stopped by the caller.",
 }
 
 
@@ -56,8 +57,8 @@ class LsqResult:
     Attributes:
         x: the solution (the last accepted point); fun: its residuals; cost: 0.5 ||fun||^2.
         nfev, njev: residual and Jacobian evaluations.
-        status: 0 evaluation budget, 1 gtol, 2 ftol, 3 xtol, 4 ftol and xtol (> 0:
-            converged); message: a sentence saying which.
+        status: 0 evaluation budget, 1 gtol, 2 ftol, 3 xtol, 4 ftol and xtol (1-4:
+            converged), 5 stopped by ``stop``; message: a sentence saying which.
     """
 
     x: Vector
@@ -130,12 +131,18 @@ def least_squares(
     xtol: float = 1e-10,
     gtol: float = 1e-10,
     max_nfev: int = 200,
+    stop: Callable[[float, float, int], bool] | None = None,
 ) -> LsqResult:
     """Minimise 0.5 ||fun(x)||^2 over lb <= x <= ub from x0 (inside the box).
 
     ``jac(x)`` is called only at points where ``fun`` was just evaluated (the fits reuse
     that run's states).  Exceptions raised by ``fun`` or ``jac`` propagate (the fits' time
     budget).  See the module docstring for the method and the termination tests.
+
+    ``stop(rss, rss_linear, k)``, when given, is asked at each iterate after the first
+    with ||r||^2, the minimum of the Gauss-Newton (linear) model's ||r + J s||^2 over the
+    free coordinates (bounds ignored: a lower value than the bounded model's) and the
+    number k of accepted steps; True ends the minimisation there (status 5).
     """
     lb, ub = (np.asarray(b, dtype=np.float64) for b in bounds)
     x = np.clip(np.asarray(x0, dtype=np.float64).copy(), lb, ub)
@@ -150,6 +157,7 @@ def least_squares(
     v = _cl_scale(x, g, lb, ub)
     Delta = float(np.linalg.norm(d * x / np.sqrt(np.where(g != 0.0, v * d, 1.0)))) or 1.0
     status = -1
+    n_acc = 0
     while True:
         g = J.T @ r
         v = _cl_scale(x, g, lb, ub)
@@ -167,6 +175,11 @@ def least_squares(
         Jf = J[:, free]
         Q, R = np.linalg.qr(Jf)
         qtr = Q.T @ r
+        if stop is not None and n_acc > 0:
+            rss = 2.0 * F
+            if stop(rss, max(rss - float(qtr @ qtr), 0.0), n_acc):
+                status = 5
+                break
         actual = -1.0
         x_new, r_new, F_new = x, r, F
         step_norm = 0.0
@@ -211,6 +224,7 @@ def least_squares(
                 break
         if actual > 0.0:
             x, r, F = x_new, r_new, F_new
+            n_acc += 1
             if status >= 0:
                 break
             J = jac(x)
