@@ -1333,7 +1333,12 @@ def _sample(
         # where a leg is entered shifts tau by O(1) per unit of phi above the threshold, so
         # the classification's tau_end, from its own frame, does not fit)
         if res0 is None:
-            res0, _ = run(t_end=te, stop_on_return=sor)
+            # (logging its steps when the samples are in hybrid time up to its end)
+            if sampling == "tau" and t_end is None:
+                steplog = np.empty((min(STEP_LOG_ROWS, MAX_STEPS), LOG_Y + NSTATE))
+            else:
+                steplog = _EMPTY_LOG
+            res0, _ = run(t_end=te, stop_on_return=sor, steplog=steplog)
         tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         if sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)

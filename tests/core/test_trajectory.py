@@ -307,6 +307,8 @@ def test_state_frozen_at_underflowed_velocity_stops_at_the_time_limit() -> None:
             1e-8,
         ),  # fast-slip legs in closed form  # fmt: skip
         (Params(2, 1, 0.3, 0), "velocity-jump", 1.5, 1e-6),  # v_o = 0, peak passed
+        # decided in closed form (psi0 beyond 1e8), integrated for the samples only
+        (Params(1e6, 1e6, 1.0, 1.0), "load-point-jump", 1.2070337877465452e156, 1e-8),
     ],
 )
 def test_samples_from_the_step_log_equal_a_second_run(
