@@ -3,6 +3,7 @@ kernels already compiled in the per-user cache) and, with ``--cold``, against an
 cache (the first run after installing or changing rsfcore).
 
     python bench/bench_cli.py [--repeat 5] [--cold] [--only classify,critical]
+    python bench/bench_cli.py --figures      # also draw each of the paper's 12 figures
     python bench/bench_cli.py --root /path/to/other/checkout   # time another version
 
 Prints per command the best and median wall time [s] and the median and best CPU time
@@ -17,9 +18,12 @@ The children run as an installed package does: Python's bytecode cache on (a
 temporary ``PYTHONPYCACHEPREFIX``, written by the untimed warm-up run), so the times do
 not include compiling the sources.  ``--no-bytecode`` keeps the environment as it is.
 
-Server commands (serve, api, worker) and ``rsf sweep`` against a running service are
-not answers of the CLI itself and are not timed here; ``rsf sweep status`` is timed
-against a closed port (it must fail at once, without retrying a refused connection).
+Every command of `rsf --help` is timed, each group's subcommands too, except the
+server commands (serve, api, worker: they start processes, not answer) and the ones
+that write to the deployment (``keys create|revoke``, ``db upgrade|revision``); ``rsf
+sweep`` is timed against a closed port (it must fail at once, without retrying a refused
+connection: submit, status, download, cancel).  ``--figures`` adds the drawing of each
+figure of the paper (``figure-<name>``, PNG at paper quality).
 """
 
 from __future__ import annotations
@@ -60,8 +64,33 @@ def _record(path: Path) -> None:
     path.write_text(rec.to_csv())
 
 
-def commands(tmp: Path) -> dict[str, list[str]]:
+#: The paper's figures (rsfapp.requests.figures.FIGURES), for ``--figures``.
+FIGURES = (
+    "velocity-step",
+    "trajectories-kcrit",
+    "critical-jump-kcrit",
+    "rate-neutral",
+    "stability-diagram-velocity",
+    "stability-diagram-load-point",
+    "trajectories-vo0-soft",
+    "trajectories-vo0-stiff",
+    "critical-jump-vo0",
+    "periodic-response",
+    "non-periodic-response",
+    "continuum-modes",
+)
+REFUSED = ["--url", "http://127.0.0.1:9"]  # nothing listens on port 9 (discard)
+
+
+def commands(tmp: Path, figures: bool = False) -> dict[str, list[str]]:
     """name -> argv after `rsf`."""
+    out = _commands(tmp)
+    if figures:
+        out.update({f"figure-{n}": ["figure", n, "--out", str(tmp / f"{n}.png")] for n in FIGURES})
+    return out
+
+
+def _commands(tmp: Path) -> dict[str, list[str]]:
     return {
         "help": ["--help"],
         "classify": ["classify"],
@@ -142,6 +171,8 @@ def commands(tmp: Path) -> dict[str, list[str]]:
             "--no-compare",
             "--json",
         ],  # fmt: skip
+        # the default: four laws fitted and compared (bench/bench_fit.py times the fit)
+        "fit-10k-compare": ["fit", str(tmp / "record.csv")],
         "boundaries": ["boundaries", "--ba", "2", "--kappa", "2", "--phi", "0", "--phi", "1"],
         "analytic-u": [
             "analytic-u",
@@ -174,10 +205,24 @@ def commands(tmp: Path) -> dict[str, list[str]]:
         "critical-batch": ["critical-batch", str(tmp / "critical-batch.json")],
         "classify-batch": ["classify-batch", str(tmp / "classify-batch.json")],
         "figure-list": ["figure", "--list"],
+        "figure-list-json": ["figure", "--list", "--json"],
         "figure-draw": ["figure", "velocity-step", "--out", str(tmp / "f.png")],
+        "figure-draw-svg": ["figure", "velocity-step", "--out", str(tmp / "f.svg")],
+        "figure-json": ["figure", "velocity-step", "--json"],
         "db-current": ["db", "current"],
+        "db-history": ["db", "history"],
         "keys-list": ["keys", "list"],
-        "sweep-status-refused": ["sweep", "status", "abc", "--url", "http://127.0.0.1:9"],
+        "sweep-submit-refused": ["sweep", "submit", str(tmp / "sweep.json"), *REFUSED],
+        "sweep-status-refused": ["sweep", "status", "abc", *REFUSED],
+        "sweep-download-refused": [
+            "sweep",
+            "download",
+            "abc",
+            "-o",
+            str(tmp / "s.nc"),
+            *REFUSED,
+        ],  # fmt: skip
+        "sweep-cancel-refused": ["sweep", "cancel", "abc", *REFUSED],
     }
 
 
@@ -204,6 +249,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--cold", action="store_true", help="also time each command once cold")
     ap.add_argument("--only", default="", help="comma-separated command names")
+    ap.add_argument("--figures", action="store_true", help="also draw each of the 12 figures")
     ap.add_argument("--root", type=Path, default=ROOT, help="checkout whose rsf is timed")
     ap.add_argument(
         "--no-bytecode", action="store_true", help="leave PYTHONDONTWRITEBYTECODE as it is"
@@ -218,13 +264,21 @@ def main() -> int:
         (tmp / "classify-batch.json").write_text(
             json.dumps({"items": [{"ba": 2.0, "kappa": 2.0, "size": 3.0}]})
         )
+        (tmp / "sweep.json").write_text(
+            json.dumps(
+                {
+                    "x": {"name": "kappa_ratio", "start": 1, "stop": 5, "n": 4},
+                    "y": {"name": "eps", "start": 0, "stop": 0.99, "n": 4},
+                }
+            )
+        )
         root = args.root.resolve()
         env = dict(os.environ, PYTHONPATH=str(root), RSF_DATA_DIR=str(tmp / "data"))
         if not args.no_bytecode:
             env.pop("PYTHONDONTWRITEBYTECODE", None)
             env["PYTHONPYCACHEPREFIX"] = str(tmp / "pyc")
         env["BENCH_CWD"] = str(tmp)
-        cmds = commands(tmp)
+        cmds = commands(tmp, figures=args.figures or "figure-" in args.only)
         if args.only:
             cmds = {k: v for k, v in cmds.items() if k in args.only.split(",")}
         print(f"rsf of {root}; {os.cpu_count()} CPUs; load average {os.getloadavg()}")
