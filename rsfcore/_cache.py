@@ -17,24 +17,21 @@ kernels inline (rsfcore/ode/rk.py), so each version of the sources gets its own 
 and a stale compiled kernel is never loaded.  Hashing the ~40 source files takes about a
 millisecond.
 
-When the directory holds no compiled kernel yet, the first import of numba (the first
-use of a kernel module) prints one line to stderr saying that the kernels are being
-compiled and where: about a minute in all, once per version; later processes load them
-in a fraction of a second.
+The first time a process has to compile a kernel (one not in the directory yet), it
+prints one line to stderr saying that the kernels are being compiled and where
+(:func:`announce_compile`, called by rsfcore/_kernel_load.py at the cache miss): about a
+minute in all, once per version; later processes load them in a fraction of a second.
+A process that loads no kernel, or finds every kernel it asks compiled, prints nothing.
 """
 
 from __future__ import annotations
 
 import hashlib
-import importlib.abc
 import os
 import sys
-from collections.abc import Sequence
-from importlib.machinery import ModuleSpec
 from pathlib import Path
-from types import ModuleType
 
-__all__ = ["cache_dir", "configure", "source_digest"]
+__all__ = ["announce_compile", "cache_dir", "configure", "source_digest"]
 
 _PACKAGE = Path(__file__).resolve().parent
 
@@ -68,46 +65,29 @@ def cache_dir() -> Path:
     return base / "numba" / source_digest()
 
 
-def _is_warm(path: Path) -> bool:
-    """True when ``path`` holds at least one compiled-kernel index (``*.nbi``)."""
-    try:
-        return any(True for _ in path.rglob("*.nbi"))
-    except OSError:
-        return False
+_announced = False
 
 
-class _Announce(importlib.abc.MetaPathFinder):
-    """Prints the first-compile line when numba is first imported, then steps aside
-    (finds nothing itself: the normal finders import numba)."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-
-    def find_spec(
-        self,
-        fullname: str,
-        path: Sequence[str] | None = None,
-        target: ModuleType | None = None,
-    ) -> ModuleSpec | None:
-        if fullname == "numba":
-            sys.meta_path.remove(self)
-            sys.stderr.write(
-                f"rsfcore: compiling the numerical kernels into {self.path} (once per "
-                "version of rsfcore, about a minute in all; later runs load them in a "
-                "fraction of a second)\n"
-            )
-            sys.stderr.flush()
-        return None
+def announce_compile() -> None:
+    """Say on stderr, once per process, that the kernels are being compiled and where."""
+    global _announced
+    if _announced:
+        return
+    _announced = True
+    sys.stderr.write(
+        f"rsfcore: compiling the numerical kernels into {cache_dir()} (once per "
+        "version of rsfcore, about a minute in all; later runs load them in a "
+        "fraction of a second)\n"
+    )
+    sys.stderr.flush()
 
 
 def configure() -> Path:
     """Point numba at :func:`cache_dir` (sets ``NUMBA_CACHE_DIR``; if numba was already
-    imported, its config too) and arrange the first-compile message; returns the path."""
+    imported, its config too); returns the path."""
     path = cache_dir()
     os.environ["NUMBA_CACHE_DIR"] = str(path)
     numba = sys.modules.get("numba")
     if numba is not None:  # imported before rsfcore: numba's config read the old value
         numba.config.CACHE_DIR = str(path)
-    elif not _is_warm(path):
-        sys.meta_path.insert(0, _Announce(path))
     return path

@@ -12,7 +12,8 @@ has none of).
 
 :func:`install` replaces ``numba.core.caching.Cache.load_overload`` by
 :func:`_load_overload`, which sets up just those and loads the cached kernel; on a cache
-miss it does what numba does (the full refresh, then numba compiles, and every compile
+miss it says once that the kernels are being compiled (:func:`rsfcore._cache.announce_compile`)
+and does what numba does (the full refresh, then numba compiles, and every compile
 refreshes the contexts itself: ``CompilerBase.__init__``).  The loaded machine code is
 the same bytes either way, so every answer is bit for bit the same (the whole test suite
 runs through this path).  Measured (2-core machine, warm cache, ``rsf classify``): CPU of
@@ -54,6 +55,9 @@ def _patch(caching: ModuleType) -> None:
         with self._guard_against_spurious_io_errors():
             data = self._load_overload(sig, target_context)
         if data is None:  # not cached: numba's own path (full refresh, then compile)
+            from ._cache import announce_compile
+
+            announce_compile()
             return original(self, sig, target_context)
         return data
 
@@ -76,7 +80,7 @@ class _PatchAfterImport(importlib.abc.MetaPathFinder):
             return None
         sys.meta_path.remove(self)
         spec = None
-        # a copy: a finder may remove itself while asked (rsfcore._cache._Announce does)
+        # a copy: a finder may remove itself while asked
         for finder in list(sys.meta_path):
             find = getattr(finder, "find_spec", None)
             if find is not None:

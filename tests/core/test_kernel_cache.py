@@ -56,18 +56,18 @@ def test_numba_imported_first_is_pointed_there_too(tmp_path: Path) -> None:
 
 
 def test_first_compile_says_so_once(tmp_path: Path) -> None:
-    """An empty cache: importing a kernel module prints one line naming the directory;
-    with a compiled kernel there, nothing is printed."""
-    code = "from rsfcore import laws"
-    r = _run(code, {"RSF_CACHE_DIR": str(tmp_path)})
+    """An empty cache: importing a kernel module compiles nothing and says nothing; the
+    first kernel compiled prints one line naming the directory, once however many kernels
+    compile; with the kernels compiled there, nothing is printed."""
+    env = {"RSF_CACHE_DIR": str(tmp_path)}
+    r = _run("from rsfcore import laws", env)
+    assert r.returncode == 0 and "compiling" not in r.stderr, r.stderr
+    code = "from rsfcore.laws import G, L_star\nprint(float(G(0.3, 0.7) + L_star(2.0, 1.0, 0.5)))"
+    r = _run(code, env, timeout=600)  # compiles G and L_star
     assert r.returncode == 0, r.stderr
-    assert "compiling the numerical kernels into" in r.stderr
+    assert r.stderr.count("compiling the numerical kernels into") == 1, r.stderr
     assert str(tmp_path / "numba") in r.stderr
-    # a compiled-kernel index present: silent
-    d = Path(r.stderr.split(" into ")[1].split(" (")[0])
-    (d / "x").mkdir(parents=True, exist_ok=True)
-    (d / "x" / "k.nbi").write_bytes(b"")
-    r = _run(code, {"RSF_CACHE_DIR": str(tmp_path)})
+    r = _run(code, env)
     assert r.returncode == 0 and "compiling" not in r.stderr, r.stderr
 
 
