@@ -16,9 +16,15 @@ Routes (stiffness fitted in every route, as the library does by default):
 * library: ``rsfcore.fit.fit_record(record, "aging")`` (the default options: covariance,
   identifiability and linearity checks, stability answer with 400 covariance samples);
   best of 3 after a warm-up, wall and CPU time;
+* library comparison: ``rsfcore.fit.compare_laws(record)`` of the four laws (aging,
+  slip, nagata, eps) with every law fitted completely (the library's default), and with
+  ``complete=()`` as the CLI and HTTP fits run it (laws stop once their rejection is
+  certain; the best law is always complete); best of 3, wall and CPU time, and the
+  status per law;
 * CLI: ``rsf fit FILE --law aging --no-compare [--trend] --json`` as a subprocess
-  (python -m rsfcli.main), warm (second run; kernels cached), wall time end to end;
-  also the default ``rsf fit FILE`` (all four laws compared);
+  (python -m rsfcli.main), warm (second run; kernels cached), wall and CPU time end to
+  end; and the DEFAULT ``rsf fit FILE [--trend] --json`` (all four laws compared, the
+  aging law reported as best), timed the same way;
 * do-it-yourself: an rsfmodel-style forward model written here (the textbook SI
   equations, mu = mu0 + a ln(V/V0) + b ln(V0 theta/Dc) [+ trend x_lp],
   d mu/dt = k (v_lp - V), d theta/dt = 1 - V theta/Dc, integrated by
@@ -61,7 +67,7 @@ from numpy.typing import NDArray  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
-from rsfcore.fit import Record, fit_record, synthetic_record  # noqa: E402
+from rsfcore.fit import Record, compare_laws, fit_record, synthetic_record  # noqa: E402
 
 N = 10_000
 NOISE = 1e-4
@@ -183,6 +189,18 @@ def library_fit(case: Case) -> tuple[float, float, object]:
     return best_wall, best_cpu, res
 
 
+def library_compare(case: Case, complete: tuple[str, ...] | None) -> tuple[float, float, object]:
+    kw = {"trend": case.trend != 0.0, "complete": complete}
+    compare_laws(case.record, **kw)  # warm-up
+    best_wall, best_cpu, res = math.inf, math.inf, None
+    for _ in range(3):
+        w0, c0 = time.perf_counter(), time.process_time()
+        res = compare_laws(case.record, **kw)
+        best_wall = min(best_wall, time.perf_counter() - w0)
+        best_cpu = min(best_cpu, time.process_time() - c0)
+    return best_wall, best_cpu, res
+
+
 def _children_cpu() -> float:
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     return ru.ru_utime + ru.ru_stime
@@ -236,6 +254,16 @@ def main() -> None:
                 f"{res.status.value}, {res.n_model_evals} forward runs"  # type: ignore[attr-defined]
             )
             print(f"           errors: {errors(res.params, truth, se)}")  # type: ignore[attr-defined]
+            for label, complete in (("complete", None), ("CLI-style", ())):
+                w, c, cmp = library_compare(case, complete)
+                laws = ", ".join(
+                    f"{k} {f.status.value}{' (stopped)' if f.stopped_early else ''}"
+                    for k, f in cmp.fits.items()  # type: ignore[attr-defined]
+                )
+                print(
+                    f"  compare  {w:6.3f} s wall ({c:.3f} s CPU), 4 laws, {label}: best "
+                    f"{cmp.best}; {laws}"  # type: ignore[attr-defined]
+                )
             path = Path(tmp) / f"{case.name}.csv"
             path.write_text(case.record.to_csv())
             t_cli, c_cli, d = cli_fit(path, case, compare=False)
@@ -246,9 +274,11 @@ def main() -> None:
                 f"library's: {same}"
             )
             t_cmp, c_cmp, d2 = cli_fit(path, case, compare=True)
+            same2 = all(d2["params"][n] == res.params[n] for n in truth)  # type: ignore[attr-defined]
             print(
-                f"  rsf fit  {t_cmp:6.3f} s wall ({c_cmp:.3f} s CPU) warm with the default law "
-                f"comparison (best: {d2['law_comparison']['best']}, status {d2['status']})"
+                f"  rsf fit  {t_cmp:6.3f} s wall ({c_cmp:.3f} s CPU) warm, end to end, DEFAULT "
+                f"(4 laws compared; best {d2['law_comparison']['best']}, status {d2['status']}; "
+                f"parameters equal to the library's: {same2})"
             )
             if diy:
                 t_diy, est, msg, runs = diy_fit(case)
