@@ -55,7 +55,7 @@ from typing import NamedTuple
 
 import numba as nb
 
-from .laws import EXP_CLIP, G, L_star
+from .laws import EXP_CLIP, G, L_star, two_prod
 
 __all__ = ["PHI_LEG", "LEG_MIN_RISE", "LegResult", "leg", "fast_leg", "leg_dJ", "leg_phi"]
 
@@ -78,29 +78,48 @@ def _log1p_ratio(z: float) -> float:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def leg_dJ(L: float, L_in: float, r: float, eps: float, rg_in: float) -> float:
-    """J(L) - J(L_in) of (leg 3); ``rg_in`` = r + G(L_in) > 0.
-
-    Valid while r + G > 0 on [L, L_in] and eps L > -EXP_CLIP; relative accuracy a few ulp
-    plus the conditioning of rg_in (tests/core/test_excursion.py: <= 2e-15 against
-    50-digit quadrature).
-    """
+def _leg_dJ_q(L: float, L_in: float, r: float, eps: float, rg_in: float, q: float) -> float:
+    """:func:`leg_dJ` with q = eps r - 1 given (fast_leg forms it as -(1 - x) exactly)."""
     dL = L - L_in
     E = G(-dL, eps)  # expm1(eps dL)/eps, -> dL at eps = 0, series for small eps dL
-    q = eps * r - 1.0
     z = q * E / rg_in
     if z < -0.5:
         # 1 + z = e^(eps dL) (r + G(L))/rg_in is small: log1p(z) would amplify the rounding
         # of z by 1/(1 + z); its two factors are taken separately (no cancellation: the
         # sum is log1p(z) < -0.69)
+        if eps * L < -EXP_CLIP:
+            # G(L) overflows beyond eps L < -709: ln(r + G(L)) = -eps L - ln(eps) +
+            # log1p(q e^(eps L)) exactly (z < -0.5 needs q > 0, so eps > 0), and eps dL -
+            # eps L = -eps L_in (no cancellation of the two large terms)
+            lq = math.log1p(q * math.exp(eps * L))
+            return (-eps * L_in - math.log(eps * rg_in) + lq) / q
         return (eps * dL + math.log((r + G(L, eps)) / rg_in)) / q
     return _log1p_ratio(z) * E / rg_in
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def leg_dJ(L: float, L_in: float, r: float, eps: float, rg_in: float) -> float:
+    """J(L) - J(L_in) of (leg 3); ``rg_in`` = r + G(L_in) > 0.
+
+    Valid while r + G > 0 on [L, L_in] and eps L_in > -EXP_CLIP (L itself may lie beyond
+    the double range of G, where J saturates); relative accuracy a few ulp
+    plus the conditioning of rg_in and of q = eps r - 1 (tests/core/test_excursion.py:
+    <= 2e-15 against 50-digit quadrature).
+    """
+    return _leg_dJ_q(L, L_in, r, eps, rg_in, eps * r - 1.0)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _leg_phi_q(
+    L: float, L_in: float, ba: float, r: float, eps: float, rg_in: float, q: float
+) -> float:
+    return ba * (L - L_in) - r * _leg_dJ_q(L, L_in, r, eps, rg_in, q)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def leg_phi(L: float, L_in: float, ba: float, r: float, eps: float, rg_in: float) -> float:
     """kc (phi(L) - phi_in) of (leg 1): (b/a)(L - L_in) - r (J(L) - J(L_in))."""
-    return ba * (L - L_in) - r * leg_dJ(L, L_in, r, eps, rg_in)
+    return _leg_phi_q(L, L_in, ba, r, eps, rg_in, eps * r - 1.0)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -112,9 +131,17 @@ def fast_leg(
 
     Returns (ok, L_exit, phi_peak, dJ_exit, rate_in, rate_exit).  ``ok`` is False (and the
     integrator should go on stepping) where the closed form does not apply or gains
-    nothing: kappa or kappa_crit not positive, L_in at or above L* (the runaway side) or
-    within its own rounding of it, phi not rising (L_in <= L_peak), a rise below
-    LEG_MIN_RISE, or an exit in the clipped range of G (eps L < -EXP_CLIP).
+    nothing: kappa or kappa_crit not positive, an entry in the clipped range of G (eps L_in
+    < -EXP_CLIP), L_in at or above L* (the runaway side) or within its own rounding of it,
+    phi not rising (L_in <= L_peak), or a rise below LEG_MIN_RISE.  An exit in the clipped
+    range is taken (the engine's G is clipped there, but its rates are saturated).
+
+    q = eps r - 1 = -(1 - x) and, for x >= 1/2, r + G(L_in) = (e^(-eps L_in) - (1 - x))/eps
+    are formed from 1 - x of the input doubles (eps kappa = p + e exactly, as in
+    rsfcore.laws.L_star): near x -> 1 both are differences of nearly equal terms, and from
+    r = kappa/kc and G(L_in) rounded they lost 1/(1 - x) and r/(r + G(L_in)) ulps (a peak
+    phi = 1.3e6 was 3e-6 relative off at b/a = 1e5, x = 1 - 1e-12, against a 60-digit
+    evaluation of (leg 1)).
     """
     kc = ba - 1.0
     bad = (False, math.nan, math.nan, math.nan, math.nan, math.nan)
@@ -124,16 +151,25 @@ def fast_leg(
         return bad
     r = kappa / kc
     g_in = G(L_in, eps)
-    rg_in = r + g_in
+    p, e = two_prod(eps, kappa)
+    omx = ((kc - p) - e) / kc  # 1 - x to a few ulp (Sterbenz near x = 1)
+    q = -omx
+    if eps > 0.0 and omx <= 0.5:
+        ex = math.exp(-eps * L_in)
+        rg_in = (ex - omx) / eps
+        rg_round = 64.0 * _U * (ex * (1.0 + abs(eps * L_in)) + omx) / eps
+    else:
+        rg_in = r + g_in
+        rg_round = 64.0 * _U * (r + abs(g_in))
     # r + G must be clear of the rounding of L (dG/dL = -e^(-eps L)), else the side of L*
     # (and the exit) is not resolved here
     blur = 64.0 * _U * (abs(phi_in) + abs(L_in)) * math.exp(-eps * L_in)
-    if not (rg_in > blur + 64.0 * _U * (r + abs(g_in))):
+    if not (rg_in > blur + rg_round):
         return bad
     L_pk = L_star(kappa, ba, eps)  # root of kappa + (b/a) G(L): the peak of phi
     if not (L_in > L_pk):
         return bad
-    rise = leg_phi(L_pk, L_in, ba, r, eps, rg_in)  # kc (phi_peak - phi_in)
+    rise = _leg_phi_q(L_pk, L_in, ba, r, eps, rg_in, q)  # kc (phi_peak - phi_in)
     if not (rise > kc * LEG_MIN_RISE):
         return bad
     # bracket the exit below the peak: leg_phi increases with L there
@@ -141,9 +177,12 @@ def fast_leg(
     lo = L_pk - step
     found = False
     for _ in range(80):
-        if eps * lo < -EXP_CLIP:
-            return bad
-        if leg_phi(lo, L_in, ba, r, eps, rg_in) < 0.0:
+        # (an exit in the clipped range of the engine's G, eps L < -EXP_CLIP, is taken too:
+        # (leg 1, 3) stay exact there, J saturating as L -> -inf, and past the exit the
+        # engine's rates are saturated by its time change D, so the clipping changes them
+        # by < e^-500 relative; refused, such legs were stepped through: 3.4e3 steps to a
+        # peak phi = 1.3e6 at b/a = 1e5, x = 1 - 1e-12, classify's check run out of budget)
+        if _leg_phi_q(lo, L_in, ba, r, eps, rg_in, q) < 0.0:
             found = True
             break
         step *= 2.0
@@ -155,14 +194,15 @@ def fast_leg(
         mid = 0.5 * (lo + hi)
         if mid <= lo or mid >= hi:
             break
-        if leg_phi(mid, L_in, ba, r, eps, rg_in) < 0.0:
+        if _leg_phi_q(mid, L_in, ba, r, eps, rg_in, q) < 0.0:
             lo = mid
         else:
             hi = mid
     L_exit = hi  # phi(L_exit) >= phi_in by at most the resolution of L
-    dJ = leg_dJ(L_exit, L_in, r, eps, rg_in)
+    dJ = _leg_dJ_q(L_exit, L_in, r, eps, rg_in, q)
     rate_in = -(kappa + ba * g_in)
-    rate_exit = kappa + ba * G(L_exit, eps)
+    # (+inf beyond the double range of G: the exit flank then takes no time)
+    rate_exit = kappa + ba * G(L_exit, eps) if eps * L_exit > -EXP_CLIP else math.inf
     return (True, L_exit, phi_in + rise / kc, dJ, rate_in, rate_exit)
 
 

@@ -91,12 +91,18 @@ MAX_STEPS = STEP_BUDGET
 #: Step budget when a closed form has already decided the outcome and a trajectory is
 #: wanted (~0.5 s).
 DECIDED_BUDGET = 500_000
-#: The same when only the outcome is asked (classify): its times are reported where they
-#: come within this many steps (~3.5 ms at ~0.7 us per step, plus ~4.5 ms for the accuracy
-#: check at rtol/10), else None with complete False.  Slow outward spirals at kappa <
-#: kappa_crit near b/a -> 1 need 1e4 .. 1e7 steps to blow up (bench/bench_stress.py: 5e5
-#: steps, 0.33 s, still short of it).
-DECIDED_OUTCOME_BUDGET = 5_000
+#: The same when only the outcome is asked (classify): its times are a by-product, reported
+#: where the first run reaches them within this many steps and :func:`simulate`'s check
+#: runs within DECIDED_CERTIFY_BUDGET steps in all, else None with complete False.  Slow
+#: outward spirals at kappa < kappa_crit near b/a -> 1 need 1e4 .. 1e7 steps to blow up
+#: (bench/bench_stress.py: 5e5 steps, 0.33 s, still short of it).
+DECIDED_OUTCOME_BUDGET = 3_500
+#: Steps of all runs of such an outcome together (the first, the check at rtol/10 and the
+#: probe): ~5.6 ms at ~0.7 us per step, so that classify answers within 10 ms (issue 22).
+#: It was 5,000 per run, up to 15,000 in all (10 - 50 ms), and a check run cut short by it
+#: left the first run's claim unchecked: a blow-up time at rtol 1e-3 was 1.7e3 x off its
+#: claim of 0.04 (b/a = 1 + 8e-12, kappa < kappa_crit, a load-point jump dv = 5.7e6).
+DECIDED_CERTIFY_BUDGET = 8_000
 EQ_TOL = 1e-6
 #: The ``converged_to_steady_state`` certificate needs the box |phi - ln v_o|, |L| < eq_tol
 #: to lie inside the basin of steady sliding.  The basin's narrowest extent, the load-point
@@ -735,10 +741,23 @@ def simulate(
         return res
     r = float(rtol)
     other = r / 10.0 if r / 10.0 >= lim.RTOL_RANGE[0] else r * 10.0
+    # Only the outcome asked and certain before integrating (a closed form, the separatrix
+    # side, kappa < kappa_crit): the times are a by-product, and all runs share
+    # DECIDED_CERTIFY_BUDGET steps.  Where a check cannot finish within what is left, the
+    # first run's times are not checked and are not reported (_unchecked); a tighter run
+    # rarely takes fewer steps than the first, so it is not started with less than that.
+    only_outcome = not n_points and (times is None or len(times) == 0) and t_end is None
+    budgeted = only_outcome and method == "auto" and not res.integration_decided
+    left = DECIDED_CERTIFY_BUDGET - res.n_steps
+    if budgeted and other < r and left < res.n_steps:
+        return _unchecked(res)
     try:
-        check = run(rtol=other)
+        check = run(rtol=other, decided_budget=left if budgeted else None)
     except (UndecidedError, ParameterError):
         return res  # no second opinion to be had; the first run's estimate stands
+    if budgeted and not check.complete:
+        return _unchecked(res)
+    left -= check.n_steps
     ok, acc = _certified(res, check, other / r)
     if ok and (_erratic(res, r) or acc > CERTIFIED_ACCURACY):
         # a third run, much tighter where the range allows (NOISE_PROBE_TIGHTEN; the
@@ -748,10 +767,19 @@ def simulate(
         probe_r = max(r * tighten, lim.RTOL_RANGE[0])
         if probe_r > r / NOISE_PROBE_RATIO:
             probe_r = min(r * NOISE_PROBE_RATIO, lim.RTOL_RANGE[1])
+        if budgeted and probe_r != other and probe_r < r and left < res.n_steps:
+            return _unchecked(res)
         try:
-            probe = run(rtol=probe_r)
+            # (at rtol 1e-12 the probe's tolerance is the check run's, 1e-13: the same run)
+            probe = (
+                check
+                if probe_r == other
+                else run(rtol=probe_r, decided_budget=left if budgeted else None)
+            )
         except (UndecidedError, ParameterError):
             probe = None
+        if budgeted and probe is not None and not probe.complete:
+            return _unchecked(res)
         if probe is not None:
             ok_p, acc_p = _certified(res, probe, probe_r / r)
             ok, acc = ok and ok_p, max(acc, acc_p)
@@ -842,6 +870,13 @@ NOISE_PROBE_RTOL = 1e-11
 NOISE_PROBE_MIN_STEPS = 16
 
 
+def _unchecked(res: TrajectoryResult) -> TrajectoryResult:
+    """``res`` (an outcome certain before integrating) without the times that its check
+    runs could not confirm within DECIDED_CERTIFY_BUDGET: times None, complete False (the
+    peak is the first run's, unchecked, as after a budget cut)."""
+    return replace(res, blowup_time=None, return_time=None, peak_time=None, complete=False)
+
+
 def _erratic(res: TrajectoryResult, rtol: float) -> bool:
     """Whether the error of ``res`` may not scale with rtol: near the tolerance floor, a
     run of few steps, or an excursion above the fast-slip threshold PHI_LEG (whose entry
@@ -922,9 +957,12 @@ def _simulate(
     log_size: float | None = None,
     side_rtol: float | None = None,
     separatrix_side: bool = True,
+    decided_budget: int | None = None,
 ) -> TrajectoryResult:
     """:func:`simulate` without the second run (one integration); ``side_rtol`` is the
-    tolerance of the separatrix side of a large load-point jump (default ``rtol``)."""
+    tolerance of the separatrix side of a large load-point jump (default ``rtol``);
+    ``decided_budget`` replaces DECIDED_OUTCOME_BUDGET (a check run's share of
+    DECIDED_CERTIFY_BUDGET)."""
     rtol = lim.RTOL.check(rtol)
     if integrator not in _INTEGRATORS:
         raise ParameterError("integrator", integrator, "'auto', 'explicit' or 'rosenbrock'")
@@ -1052,6 +1090,10 @@ def _simulate(
         )
     frame_shift = 0.0  # ln v_o of the run when it is integrated in the v_o = 1 frame
     steplog = _EMPTY_LOG
+    if not only_outcome:
+        cap = DECIDED_BUDGET
+    else:
+        cap = DECIDED_OUTCOME_BUDGET if decided_budget is None else int(decided_budget)
     if (
         beyond
         or plan.certificate in ("at_equilibrium", "below_separatrix", "above_separatrix")
@@ -1070,8 +1112,8 @@ def _simulate(
             or (p_run.kappa < p_run.kappa_crit and method == "auto")
         )
         # only the outcome asked (classify): the times are a by-product worth at most
-        # DECIDED_OUTCOME_BUDGET steps (~10 ms); a trajectory request gets DECIDED_BUDGET
-        cap = DECIDED_OUTCOME_BUDGET if only_outcome else DECIDED_BUDGET
+        # DECIDED_OUTCOME_BUDGET steps (a check run: what is left of
+        # DECIDED_CERTIFY_BUDGET); a trajectory request gets DECIDED_BUDGET
         budget = min(cap, max_steps) if decided else max_steps
         # A named perturbation is integrated in the v_o = 1 frame, where its start is exact
         # (from (phi0, psi0) it is blurred by the rounding of psi0 = (1 - b/a) ln v_o + ...:
@@ -1168,7 +1210,7 @@ def _simulate(
         outcome, cert = "unstable", "linear_instability"
         peak_phi, peak_T = math.inf, None
         complete = False
-    elif sep_side and max_steps >= (DECIDED_OUTCOME_BUDGET if only_outcome else DECIDED_BUDGET):
+    elif sep_side and max_steps >= cap:
         # overruled by the separatrix just below (when the caller's own max_steps ran out
         # first, that budget bounds the work: BudgetExceeded as for any undecided run)
         outcome = "undecided"

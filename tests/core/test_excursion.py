@@ -256,3 +256,51 @@ def test_leg_exit_error_within_its_conditioning() -> None:
             assert abs(L_exit - float(root)) <= max(1.0, c) * math.ulp(dl), (L_in, c)
             n += 1
     assert n >= 30
+
+
+def test_leg_dJ_beyond_the_double_range_of_G() -> None:
+    """J(L) - J(L_in) where G(L) overflows (eps L = -1000, the clipped range of the engine's
+    G), on both branches of (leg 3): q < 0 (x < 1, log1p form) and q > 0 with z < -0.5 (the
+    logarithm of r + G(L), formed without G), against J = ln(1 + q e^(eps L))/q in 50 digits."""
+    mp.mp.dps = 50
+    for r, eps, L_in in ((1.5, 0.5, 2.0), (3.0, 0.5, 2.0), (0.5, 1.0, -3.0)):
+        L = -1000.0 / eps
+        q = mp.mpf(eps) * mp.mpf(r) - 1
+
+        def J(t: float, q: mp.mpf = q, eps: float = eps) -> mp.mpf:
+            return mp.log(1 + q * mp.e ** (mp.mpf(eps) * mp.mpf(t))) / q
+
+        ref = J(L) - J(L_in)
+        got = leg_dJ(L, L_in, r, eps, r + G(L_in, eps))
+        assert math.isfinite(got)
+        assert abs((got - ref) / ref) <= 1e-14, (r, eps, got, ref)
+
+
+def test_leg_with_its_exit_beyond_the_clipped_range() -> None:
+    """b/a = 1e5, x = eps kappa/kappa_crit = 1 - 1e-12, d = 0.9 d_crit: the excursion climbs
+    to phi = 1.3e6 and its leg exits at L = -1.3e6 (eps L = -6.5e5), where the engine's G is
+    clipped.  The leg was refused there and stepped through: 3,436 steps, and classify's
+    check run ran out of its budget (31 ms); and q, r + G(L_in) rounded from r = kappa/kc
+    lost 1/(1 - x) ulps (the peak was 3e-6 off).  Now ~20 steps, and the peak is the
+    60-digit value of (leg 1) from the exact start (phi_in = d < 50, where the load terms
+    are below e^-49 of the rates, so the leg's invariant holds from the start)."""
+    ba, kappa, eps, d = 100000.0, 199997.9999998, 0.5, 49.7358063025455
+    mp.mp.dps = 60
+    B, K, E, D = mp.mpf(ba), mp.mpf(kappa), mp.mpf(eps), mp.mpf(d)
+    kc = B - 1
+    R = K / kc
+    q = E * R - 1
+
+    def J(t: mp.mpf) -> mp.mpf:
+        return mp.log(1 + q * mp.e ** (E * t)) / q
+
+    L_pk = -mp.log(1 - E * K / B) / E  # root of kappa + (b/a) G
+    peak = D + (B * (L_pk - D) - R * (J(L_pk) - J(D))) / kc
+    lg = leg(d, 0.0, ba, kappa, eps)
+    assert lg.ok and eps * lg.L_exit < -600.0
+    assert abs(lg.phi_peak - float(peak)) <= 1e-14 * float(peak)
+    for rtol in (1e-3, 1e-10, 1e-13):
+        res = rsfcore.classify(Params(ba, kappa, eps, 1.0), "velocity-jump", log_size=d, rtol=rtol)
+        assert res.outcome == "stable" and res.complete
+        assert res.n_steps < 100
+        assert abs(res.peak_phi - float(peak)) <= res.rel_accuracy * float(peak)
