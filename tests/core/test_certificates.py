@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from typing import Any
 
 import mpmath as mp
 import pytest
@@ -374,3 +375,47 @@ def test_start_within_resolution_of_Lstar_has_no_times(
         r = classify(p, pert, log_size=lg, rtol=r_)
         assert r.outcome == outcome
         assert not r.complete and r.blowup_time is None and r.peak_time is None
+
+
+def _count_runs(monkeypatch: pytest.MonkeyPatch) -> tuple[list[float], list[int]]:
+    """The rtol and the steps of every integration run of simulate/classify from now on."""
+    from rsfcore import trajectory
+
+    runs: list[float] = []
+    steps: list[int] = []
+    orig = trajectory._simulate
+
+    def counting(*a: Any, **k: Any) -> trajectory.TrajectoryResult:
+        res = orig(*a, **k)
+        runs.append(float(k["rtol"]))
+        steps.append(res.n_steps)
+        return res
+
+    monkeypatch.setattr(trajectory, "_simulate", counting)
+    return runs, steps
+
+
+def test_decided_outcome_check_runs_share_one_budget(monkeypatch: pytest.MonkeyPatch) -> None:
+    """kappa < kappa_crit near b/a -> 1 (linear instability, certain): the first run blows up
+    at T = 7.4e10 at rtol 1e-3, its check at 1e-4 at 6.8e7, and the probe cannot finish.
+    Each run had 5e3 steps (up to 1.5e4, 30 - 57 ms under load) and a check cut short left
+    the first run's claim (0.04) unchecked; now the runs share DECIDED_CERTIFY_BUDGET and
+    the times that no check confirms are not reported."""
+    from rsfcore.trajectory import DECIDED_CERTIFY_BUDGET
+
+    _, steps = _count_runs(monkeypatch)
+    p = Params(1.0000000000079898, 5.841243497050659e-12, 0.999999999759374, 0.012634944941148137)
+    res = classify(p, "load-point-jump", 5713901.966454521, rtol=1e-3)
+    assert res.outcome == "unstable"
+    assert sum(steps) <= DECIDED_CERTIFY_BUDGET
+    assert not res.complete and res.blowup_time is None
+
+
+def test_probe_at_the_check_tolerance_reuses_the_check(monkeypatch: pytest.MonkeyPatch) -> None:
+    """At rtol 1e-12 the check (rtol/10) and the probe (the tightest, 1e-13) are one run:
+    two integrations, not three, and the answer is complete."""
+    runs, _ = _count_runs(monkeypatch)
+    p = Params(100000.0, 199997.9999998, 0.5, 1.0)
+    res = classify(p, "velocity-jump", log_size=49.7358063025455, rtol=1e-12)
+    assert res.complete and res.outcome == "stable"
+    assert runs == [1e-12, 1e-13]
