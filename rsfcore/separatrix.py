@@ -16,8 +16,8 @@ The velocity-jump critical size is u at s_theta = 0; the load-point jump's is
 expm1(s_theta) at u = 0 (module docstring of rsfcore.critical for the derivation and
 the measured accuracy).  Both phases are integrated by :func:`_scalar_run`, one scalar
 driver (events, landing, error propagation) over the shared DOP853 kernels of
-rsfcore.ode.rk and the RODAS4 kernels of rsfcore.ode.rodas4 (the same methods as the
-spring-slider engine), with steps capped (``_H_MAX``) because the
+rsfcore.ode.rk and RODASP (rsfcore.ode.rodasp, through rsfcore.ode.rodas4's step
+kernel), with steps capped (``_H_MAX``) because the
 embedded error estimate under-estimates long steps on this problem.
 
 The stiff corner (kappa large, e.g. b/a = kappa = 1e6): the separatrix attracts its
@@ -25,14 +25,19 @@ neighbours at a rate ~kappa (d(rhs)/du of (A) is ~ -kappa e^(s_theta - u)/|G(u)|
 DOP853's steps are limited by stability and the old driver ran out of its 2e5 steps
 (bisection fallback, 0.2 - 0.6 s) or took 2e6 right-hand sides.  Now:
 
-* DOP853 hands over to RODAS4 (:func:`_scalar_run` with RODAS4 steps: L-stable, the scalar ODE as the
-  pair (x, y) with x' = 1 and the analytic Jacobian) once its steps are stability-limited
-  (Hairer's test with the analytic d(rhs)/dy), and back where the problem stops being
-  stiff before the end;
-* RODAS4's local tolerance is relaxed (up to 1e6 x, never above 1e-6) where the
-  contraction still to come damps the errors (:func:`_relax`); RODAS4 loses order on this
-  problem (local error ~h/kappa), so this, not the stiffness switch alone, makes it cheap;
-* a velocity jump whose end lies near the separatrix's turning point (RODAS4 reaches
+* DOP853 hands over to RODASP (:func:`_scalar_run` with RODASP steps: L-stable, the
+  scalar ODE as the pair (x, y) with x' = 1 and the analytic Jacobian) once its steps are
+  stability-limited (Hairer's test with the analytic d(rhs)/dy), and back where steps
+  are no longer limited by stability (EASY_HJ) or little damping is left before the end;
+* RODASP keeps its order on this stiff problem (NUMERICS_VERSION 7; RODAS4, used before,
+  falls to order ~1 there, like on the Prothero-Robinson problem: 10x the steps per
+  decade of tolerance);
+* its local tolerance is relaxed (up to 1e6 x, never above 1e-6) where the contraction
+  still to come damps the errors (:func:`_relax`);
+* the error weight includes the rounding of the right-hand side (:func:`_rhs_noise`):
+  where kappa is large (A) and (B) are differences of terms ~kappa, and a tolerance
+  below that rounding made steps shrink without end (2e6 right-hand sides);
+* a velocity jump whose end lies near the separatrix's turning point (RODASP reaches
   |du/ds_theta| > 1 before s_theta = 0, where (A) is nearly singular) is finished in (B),
   locating the crossing of s_theta = 0;
 * the phase-A error of a load-point jump enters phase B as its initial error and is
@@ -40,7 +45,9 @@ DOP853's steps are limited by stability and the old driver ran out of its 2e5 st
   possible l = ln(1 + 1/(kappa_crit (1 - eps))) (l ~ 1e-6 at b/a = 1e6 needs s_theta to
   ~1e-16);
 * runs whose propagated estimate misses rtol are repeated with tighter settings
-  (``_RETRIES``).
+  (``_RETRIES``), within a budget of right-hand sides (``_RETRY_NR_BUDGET``) and never
+  below the rounding floor (``_RT_FLOOR``); the answer then states the best run's
+  estimate (accuracy_met false) instead of costing 0.3 - 0.5 s per retry.
 
 Measured (docs/accuracy.md, "The stiff corner"): b/a = kappa = 1e5 and 1e6, both
 perturbations, in 2e4 - 2e5 right-hand sides (0.5 - 7 ms) with rel_accuracy 1e-10 met.
@@ -65,7 +72,7 @@ import numpy as np
 # (numba's cache does not track callees in other modules: this file was touched when
 # rsfcore.laws.L_star began deciding x >= 1 on the exact 1 - x, NUMERICS_VERSION 5)
 from .laws import G, L_star
-from .ode import rk, rodas4
+from .ode import rk, rodas4, rodasp
 
 __all__ = [
     "SeparatrixStatus",
@@ -87,9 +94,9 @@ __all__ = [
     "separatrix_explicit",
 ]
 
-# The kernels of rsfcore.ode.rk and rsfcore.ode.rodas4 are inlined into _scalar_run; numba's
+# The kernels of rsfcore.ode.rk, .rodas4 and .rodasp are inlined into _scalar_run; numba's
 # cache does not see edits there, so touch this file (or clear NUMBA_CACHE_DIR) after
-# changing rk.py or rodas4.py.
+# changing rk.py, rodas4.py or rodasp.py.
 
 #: length of the stage workspace K the drivers take (13 stages: 12 + f at the step end)
 N_WORK = rk.N_STAGES + 1
@@ -117,13 +124,25 @@ _MAX_STEPS = 200_000
 _PHI_FROZEN = 60.0
 #: ulp(1): the rounding unit of s_theta relative to its size
 _ULP1 = 2.220446049250313e-16
-#: stiffness switch: DOP853 hands over to RODAS4 after STIFF_RUN accepted steps with
+#: rounding of the right-hand side counted in the error weight, in ulp of its largest
+#: term (:func:`_rhs_noise`)
+_NOISE_ULPS = 4.0
+#: stiffness switch: DOP853 hands over to RODASP after STIFF_RUN accepted steps with
 #: h |d(rhs)/dy| > STIFF_HJ (not interrupted by 6 in a row below it) (DOP853's stability interval on the negative real
 #: axis ends near -6, so such steps are limited by stability, not accuracy; where kappa is
 #: large the separatrix attracts at a rate ~kappa and explicit steps shrink like 1/kappa)
 STIFF_HJ = 2.0
 STIFF_RUN = 10
-#: largest relaxation of RODAS4's local tolerance where later contraction damps the
+#: and back: RODASP hands over to DOP853 after EASY_RUN accepted steps in a row with
+#: h |d(rhs)/dy| < EASY_HJ (accuracy, not stability, limits them; DOP853's 8th order
+#: then takes ~10x longer steps at tight tolerances).  Measured at b/a = kappa = 1e6: the
+#: separatrix's last part before s_theta = 0 moves u at a rate ~700 while |J| ~ kappa/2,
+#: so RODASP's steps there (3e-9 at rtol 1e-13) are far inside its stability region
+EASY_HJ = 0.25
+EASY_RUN = 6
+#: at most this many hand-overs per phase (the last leg is RODASP without switching)
+_MAX_SWITCHES = 6
+#: largest relaxation of RODASP's local tolerance where later contraction damps the
 #: errors (:func:`_scalar_run`); the propagated estimate checks the outcome
 _RELAX_CAP = 1.0e6
 _RELAX_RATE = 0.25
@@ -154,6 +173,22 @@ _LADDER_RTOL_MAX = 1.0e-10
 _RUN_RTOL_MAX = 1.0e-6
 #: no retries after a first run that took more right-hand sides than this (~30 ms)
 _RETRY_NR_MAX = 200_000
+#: all retries together take at most this many right-hand sides (~5 ms on a quiet
+#: machine); each run's legs get that many steps of DOP853 (12 right-hand sides each), a
+#: run out of them ends the retries and the best run so far stands (before: retries at
+#: rtol 1e-12 .. 1e-13 in the stiff corner ran out of the 2e5-step budget, 0.3 - 0.5 s
+#: each, and stood anyway)
+_RETRY_NR_BUDGET = 60_000
+#: a first run whose estimate misses rtol by more than this factor is repeated unrelaxed
+#: first
+_FAR_OFF = 1.0e3
+#: no retry with fewer than this many right-hand sides left
+_RETRY_NR_MIN = 5_000
+#: no retry whose internal local tolerance (rtol x _TOL_FACTOR_V/_L) is below this: the
+#: right-hand side of (A) is a difference of terms ~kappa, so its rounding is ~kappa ulp
+#: and RODASP's steps at a local 2e-15 were rejected 6.5e3 times in 2.1e4 (b/a = kappa
+#: = 1e6), and a retry there ran out of budget
+_RT_FLOOR = 1.0e-15
 #: contraction profile buffer (steps per phase) of the retries; a run with more steps
 #: leaves no profile (the next one relaxes by the linear model)
 _PROF_LEN = 8192
@@ -179,7 +214,7 @@ class SeparatrixStatus(IntEnum):
     #: asymptotic start not usable
     NO_START = 6
     #: internal (never returned by the method): DOP853's steps are limited by stability,
-    #: the driver continues with RODAS4
+    #: the driver continues with RODASP
     STIFF = 7
 
 
@@ -228,6 +263,28 @@ def _f_u(u, t, kappa, kc, eps):
 
 
 @nb.njit(cache=True, nogil=True)
+def _rhs_noise(mode, x, y, kappa, kc, eps):
+    """Rounding of one evaluation of the right-hand side, in its units: _NOISE_ULPS ulp of
+    the largest term it is the difference of ((A): kappa expm1(s_theta - u)/G(u) and
+    kappa_crit; (B): the denominator's kappa expm1(s_theta - u) and kappa_crit G(u),
+    relative to the denominator).  Where kappa is large these terms are ~kappa while the
+    difference is O(1), so local errors below ~h kappa ulp cannot be resolved."""
+    if mode == 0:
+        g = G(y, eps)
+        t = abs(kappa * math.expm1(x - y) / g) + kc
+    else:
+        g = G(x, eps)
+        a = kappa * math.expm1(y - x)
+        b = kc * g
+        den = a - b
+        if den == 0.0:
+            return 0.0  # (the right-hand side is not finite there: the step is rejected)
+        t = abs(g / den) * (abs(a) + abs(b)) / abs(den)
+    r = _NOISE_ULPS * _ULP1 * t
+    return r if math.isfinite(r) else 0.0
+
+
+@nb.njit(cache=True, nogil=True)
 def dfdy(mode, x, y, kappa, kc, eps):
     """d(rhs)/dy of (A) (mode 0) or (B) (mode 1), analytic; used to propagate error estimates."""
     g = G(y if mode == 0 else x, eps)
@@ -244,7 +301,7 @@ def dfdy(mode, x, y, kappa, kc, eps):
 
 @nb.njit(cache=True, nogil=True)
 def dfdx(mode, x, y, kappa, kc, eps):
-    """d(rhs)/dx of (A) (mode 0, x = s_theta) or (B) (mode 1, x = u), analytic (RODAS4)."""
+    """d(rhs)/dx of (A) (mode 0, x = s_theta) or (B) (mode 1, x = u), analytic (RODASP)."""
     if mode == 0:
         # f = kappa expm1(t - u)/G(u) - kc: d/dt = kappa e^(t - u)/G(u)
         return kappa * math.exp(x - y) / G(y, eps)
@@ -266,7 +323,7 @@ def _rhs(mode, x, y, kappa, kc, eps):
 
 #: the method of a scalar run (:func:`_scalar_run`)
 _EXPLICIT = 0  # DOP853 (rsfcore.ode.rk)
-_ROSENBROCK = 1  # RODAS4 (rsfcore.ode.rodas4)
+_ROSENBROCK = 1  # RODASP (rsfcore.ode.rodasp)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -302,9 +359,10 @@ def _scalar_run(
     use,
     use_n,
     tail,
+    max_steps=_MAX_STEPS,
 ):
     """Integrate the scalar ODE (mode 0: (A), mode 1: (B)) from (x0, y0) towards x_end
-    with DOP853 (method _EXPLICIT) or RODAS4 (method _ROSENBROCK).
+    with DOP853 (method _EXPLICIT) or RODASP (method _ROSENBROCK).
 
     One driver, one set of events for both methods:
 
@@ -326,18 +384,23 @@ def _scalar_run(
       is capped so that the relaxed tolerance stays <= _RELAX_TOL_MAX;
     * switch: DOP853 returns S_STIFF at the end of an accepted step once STIFF_RUN
       consecutive steps had h |J| > STIFF_HJ (not interrupted by 6 in a row below it:
-      Hairer's counting in dop853.f); RODAS4 returns S_STIFF before a step once
+      Hairer's counting in dop853.f); RODASP returns S_STIFF before a step once
       _RELAX_RATE |J| rem < 1 (little damping left before x_end: DOP853, whose 8th order
-      needs few steps for the tight tolerance such undamped errors need, finishes).
+      needs few steps for the tight tolerance such undamped errors need, finishes), or
+      after EASY_RUN accepted steps in a row with h |J| < EASY_HJ;
+    * the error weight adds h x the right-hand side's rounding (:func:`_rhs_noise`;
+      divided by 1 + h |J| for RODASP, whose linear solve damps it);
+    * at most max_steps attempted steps (S_BUDGET).
 
     DOP853: the shared kernels of rsfcore.ode.rk on K (N_WORK = 13 floats, the stages),
-    elementary controller.  RODAS4: rsfcore.ode.rodas4 on the autonomous pair (x, y),
+    elementary controller.  RODASP: rsfcore.ode.rodasp on the autonomous pair (x, y),
     x' = 1 (:func:`_pair_rhs`), whose Jacobian [[0, 0], [df/dx, df/dy]] is analytic
     (:func:`dfdx`, :func:`dfdy`): L-stable, so where the separatrix attracts at a rate
     ~kappa the step is limited by accuracy, not stability; rodas.f's controller without
-    the predictive correction.  RODAS4 loses order on this stiff problem (a local error
-    ~h/kappa, as on the Prothero-Robinson test problem), so tight tolerances need short
-    steps; the relaxation makes that cheap where the errors die out anyway.
+    the predictive correction.  RODASP keeps order ~3-4 on this stiff problem, where
+    RODAS4 fell to order ~1 (a local error ~h/kappa, as on the Prothero-Robinson test
+    problem; tests/core/test_rodasp.py): at b/a = kappa = 1e6 to s_theta = 0, rtol 1e-12
+    took 2.4e3 steps against 2.1e5.
 
     Returns (status, x, y, err_prop, n_rhs, h).
     """
@@ -345,7 +408,7 @@ def _scalar_run(
     Kw = K.reshape((K.shape[0], 1))  # the shared DOP853 kernels take (stages, components)
     relax_cap = min(relax_cap, max(1.0, _RELAX_TOL_MAX / rtol))
     sc = np.empty(1)
-    W = np.zeros((rodas4.SCALAR_WORK, 2))  # RODAS4's workspace (rodas4.scalar_step)
+    W = np.zeros((rodas4.SCALAR_WORK, 2))  # RODASP's workspace (rodasp.scalar_step)
     args = (mode, kappa, kc, eps)
     x = x0
     y = y0
@@ -365,7 +428,7 @@ def _scalar_run(
     n_easy = 0
     last_rejected = False
     stop = stiff and math.isfinite(y_stop)
-    while n < _MAX_STEPS:
+    while n < max_steps:
         n += 1
         rem = (x_end - x) * direction
         if rem <= 0.0:
@@ -375,6 +438,12 @@ def _scalar_run(
             h = rem
             final = True
         hs = h * direction
+        # the right-hand side's rounding (:func:`_rhs_noise`) enters the weight: a local
+        # error at that level is accepted (and counted in the propagated estimate) instead
+        # of shrinking the step without end (measured before: b/a = kappa = 1e6, rtol
+        # 1e-13, 2.3e6 right-hand sides and out of budget, in phase (B) near s_theta = 0);
+        # a stiff step damps it by 1/(1 + h |J|) (the linear solve)
+        noise = _rhs_noise(mode, x, y, kappa, kc, eps)
         if stiff and switch and math.isfinite(rem) and _RELAX_RATE * abs(J) * rem < 1.0:
             return S_STIFF, x, y, err_sum, n_rhs, h
         if use_n > 1:
@@ -387,8 +456,10 @@ def _scalar_run(
         fnew = math.nan
         err = math.inf
         if stiff:
-            ok, ynew, fnew = rodas4.scalar_step(_pair_rhs, args, x, y, f, fx, J, hs, W)
-            sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
+            ok, ynew, fnew = rodasp.scalar_step(_pair_rhs, args, x, y, f, fx, J, hs, W)
+            sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap) + h * noise / (
+                1.0 + h * abs(J)
+            )
             if ok:
                 n_rhs += rodas4.N_STAGES
                 if math.isfinite(ynew) and math.isfinite(fnew):
@@ -408,7 +479,7 @@ def _scalar_run(
                 fnew = _rhs(mode, x + hs, ynew, kappa, kc, eps)
                 if math.isfinite(fnew) and math.isfinite(ynew):
                     Kw[rk.N_STAGES, 0] = fnew
-                    sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap)
+                    sc[0] = rk.error_scale(y, ynew, rtol * relax, atol * relax, ycap) + h * noise
                     err = rk.error_norm(Kw, h, sc, 1)
         if not (err <= 1.0):
             h *= rodas4.reject_factor(err) if stiff else rk.reject_factor(err)
@@ -428,7 +499,7 @@ def _scalar_run(
                 sm = s1 - g1 * (s1 - s0) / (g1 - g0)
                 if not (min(s0, s1) < sm < max(s0, s1)):
                     sm = 0.5 * (s0 + s1)
-                okm, ym, _ = rodas4.scalar_step(_pair_rhs, args, x, y, f, fx, J, sm, W)
+                okm, ym, _ = rodasp.scalar_step(_pair_rhs, args, x, y, f, fx, J, sm, W)
                 if not okm:
                     break
                 n_rhs += rodas4.N_STAGES
@@ -462,6 +533,15 @@ def _scalar_run(
         if switch_slope > 0.0 and abs(f) > switch_slope:
             return S_OK, x, y, err_sum, n_rhs, h
         if stiff:
+            if switch:
+                # steps no longer limited by stability (h |J| < EASY_HJ, EASY_RUN in a
+                # row): accuracy limits them, and DOP853 (order 8) takes longer ones
+                if h * abs(J) < EASY_HJ:
+                    n_easy += 1
+                    if n_easy >= EASY_RUN:
+                        return S_STIFF, x, y, err_sum, n_rhs, h
+                else:
+                    n_easy = 0
             # rodas.f's controller (no predictive correction: h_prev = 0)
             fac, _ = rodas4.accept_factor(err, h, 0.0, 1.0, last_rejected)
         else:
@@ -574,32 +654,43 @@ def _integrate(
     use,
     use_n,
     tail,
+    max_steps,
 ):
-    """DOP853 (:func:`_scalar_run`), handing over to RODAS4 (the same driver, with
-    relax_cap and switch slope stiff_slope) for the rest of the phase once its steps are
+    """DOP853 (:func:`_scalar_run`), handing over to RODASP (the same driver, with
+    relax_cap and switch slope stiff_slope) and back (up to _MAX_SWITCHES times; each leg
+    at most max_steps steps) once its steps are
     limited by stability (never with stiff_ok False: DOP853 alone, the reference the
     tests compare with).  rec/rec_n: the contraction profile is recorded there;
     use/use_n/tail: a profile recorded by an earlier run relaxes the tolerance
-    (:func:`_relax_profile`).  Returns (status, x, y, err_prop, n_rhs, h, used RODAS4)."""
+    (:func:`_relax_profile`).  Returns (status, x, y, err_prop, n_rhs, h, used RODASP)."""
     st, x, y, es, nr, h = _scalar_run(
         _EXPLICIT, mode, x0, y0, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h0, K,
-        h_max, err0, relax_cap, math.nan, stiff_ok, rec, rec_n, use, use_n, tail,
+        h_max, err0, relax_cap, math.nan, stiff_ok, rec, rec_n, use, use_n, tail, max_steps,
     )  # fmt: skip
-    if st != S_STIFF:
-        return st, x, y, es, nr, h, False
-    st, x, y, es, nr2, h = _scalar_run(
-        _ROSENBROCK, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, stiff_slope, h, K,
-        h_max, es, relax_cap, math.nan, True, rec, rec_n, use, use_n, tail,
-    )  # fmt: skip
-    nr += nr2
-    if st == S_STIFF:
-        # no longer stiff: the rest (little damping left) with DOP853
-        st, x, y, es, nr3, h = _scalar_run(
-            _EXPLICIT, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h, K,
-            h_max, es, relax_cap, math.nan, False, rec, rec_n, use, use_n, tail,
-        )  # fmt: skip
-        nr += nr3
-    return st, x, y, es, nr, h, True
+    used = False
+    method = _EXPLICIT
+    n_sw = 0
+    while st == S_STIFF:
+        n_sw += 1
+        if method == _EXPLICIT or n_sw > _MAX_SWITCHES:
+            # stiff: RODASP (the last leg without switching back)
+            method = _ROSENBROCK
+            used = True
+            st, x, y, es, nr2, h = _scalar_run(
+                _ROSENBROCK, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, stiff_slope,
+                h, K, h_max, es, relax_cap, math.nan, n_sw < _MAX_SWITCHES, rec, rec_n, use,
+                use_n, tail, max_steps,
+            )  # fmt: skip
+        else:
+            # no longer stiff (little damping left, or steps not limited by stability)
+            method = _EXPLICIT
+            st, x, y, es, nr2, h = _scalar_run(
+                _EXPLICIT, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h,
+                K, h_max, es, relax_cap, math.nan, True, rec, rec_n, use, use_n, tail,
+                max_steps,
+            )  # fmt: skip
+        nr += nr2
+    return st, x, y, es, nr, h, used
 
 
 @nb.njit(cache=True, nogil=True)
@@ -622,11 +713,11 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
     # checked against): in the stiff corner a loose tolerance ran out of budget
     rr = min(rtol, _RUN_RTOL_MAX)
     st, val, err, nr, _ = _separatrix_run(
-        kappa, kc, eps, pert, rr, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
+        kappa, kc, eps, pert, rr, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0, _MAX_STEPS
     )
     if st == S_BUDGET:
         # the requested tolerance is beyond the step budget (the stiff corner at rtol
-        # <= 1e-12, where RODAS4's order loss makes steps ~ rtol/kappa): the answer at the
+        # <= 1e-12 before RODASP and the rounding floor): the answer at the
         # tightest tolerance within it, 10x looser at a time up to _LADDER_RTOL_MAX, with
         # its own error estimate (accuracy_met False) instead of a bisection on classify
         # (2 - 5 s); retries (tighter still) would run out of budget too
@@ -635,7 +726,7 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
         while st == S_BUDGET and r * 10.0 <= _LADDER_RTOL_MAX * (1.0 + 1e-9):
             r *= 10.0
             st, val, err, nr_last, _ = _separatrix_run(
-                kappa, kc, eps, pert, r, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0
+                kappa, kc, eps, pert, r, K, _RELAX_CAP, True, tiny, tiny_n, tiny, 0, 0, _MAX_STEPS
             )
             nr += nr_last
         return st, val, err + _rounding_floor(st, val, pert, nr_last), nr
@@ -657,12 +748,36 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
     na = 0
     nb_ = 0
     nr_run = nr
+    tol_factor = _TOL_FACTOR_V if pert == 0 else _TOL_FACTOR_L
+    nr_first = nr
+    if err + fl > _FAR_OFF * rtol * abs(val):
+        # far off: the relaxation over-relaxed (the contraction it counted on did not
+        # come), and tighter relaxed retries cost more than one unrelaxed run at rtol
+        # (b/a = 6.0e5, kappa = 1e6, eps = 0.051, load-point, rtol 1e-10: relaxed 2.7e-7,
+        # unrelaxed 1.5e-11 in 4.1e4 right-hand sides, relaxed retries 2.8e5)
+        st2, val2, err2, nr2, _ = _separatrix_run(
+            kappa, kc, eps, pert, rr, K, 1.0, True, tiny, tiny_n, tiny, 0, 0,
+            _RETRY_NR_BUDGET // rk.N_STAGES,
+        )  # fmt: skip
+        nr += nr2
+        if st2 == S_OK:
+            fl2 = _rounding_floor(st2, val2, pert, nr2)
+            if err2 + fl2 < err + fl:
+                st, val, err, nr_run, fl = st2, val2, err2, nr2, fl2
+            if err + fl <= rtol * abs(val):
+                return st, val, err + fl, nr
     for i in range(len(_RETRIES)):
+        r_i = rr * _RETRIES[i][0]
+        left = _RETRY_NR_BUDGET - (nr - nr_first)
+        if r_i * tol_factor < _RT_FLOOR or left < _RETRY_NR_MIN:
+            # a local tolerance within rounding of the right-hand side (every later retry
+            # is tighter), or the retries' budget spent: the best run so far stands
+            break
         pn[cur, 0] = 0
         pn[cur, 1] = 0
         st2, val2, err2, nr2, _ = _separatrix_run(
-            kappa, kc, eps, pert, rr * _RETRIES[i][0], K, _RETRIES[i][1], True, prof[cur],
-            pn[cur], prof[1 - cur], na, nb_,
+            kappa, kc, eps, pert, r_i, K, _RETRIES[i][1], True, prof[cur], pn[cur],
+            prof[1 - cur], na, nb_, left // rk.N_STAGES,
         )  # fmt: skip
         nr += nr2
         if st2 == S_BUDGET:
@@ -699,8 +814,10 @@ def _rounding_floor(st, val, pert, nr_run):
 
 
 @nb.njit(cache=True, nogil=True)
-def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec_n, use, na, nb_):
-    """One run of the separatrix method: (status, value, abs_err, n_rhs, used RODAS4).
+def _separatrix_run(
+    kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec_n, use, na, nb_, max_steps
+):  # fmt: skip
+    """One run of the separatrix method: (status, value, abs_err, n_rhs, used RODASP).
 
     rec (2, 2, P), rec_n (2,): the contraction profiles of phases A and B are recorded
     there; use (2, 2, P) with counts na, nb_ (0: none): profiles of an earlier run, which
@@ -733,12 +850,13 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
     l_lo = math.log1p(1.0 / (kc * (1.0 - eps)))
     atol_b = rt * 1e-3 * min(1.0, l_lo)
     if pert == 0:
-        # (A) from s0 to s_theta = 0; atol keeps a floor for tiny d_crit.  If RODAS4 took
+        # (A) from s0 to s_theta = 0; atol keeps a floor for tiny d_crit.  If RODASP took
         # over (stiff) and the slope |du/ds_theta| exceeds 1 first, the end lies near the
         # turning point: continue in (B) down in u until s_theta crosses 0
         st, t, u, es, nr, h, stiff = _integrate(
             0, s0, u0, 0.0, kappa, kc, eps, rt, rt * 1e-3 * Ls, math.inf, 0.0, 1.0, K, _H_MAX,
             0.0, relax_cap, 1.0, stiff_ok, rec[0], rec_n[0:1], use[0], na, tail_a,
+            max_steps,
         )  # fmt: skip
         if st != S_OK:
             if st == S_NO_START:
@@ -752,6 +870,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
         st2, u2, t2, es2, nr2, h2 = _scalar_run(
             _ROSENBROCK, 1, u, t, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K,
             _H_MAX_B, es * abs(fb), relax_cap, 0.0, False, rec[1], rec_n[1:2], use[1], nb_, 0.0,
+            max_steps,
         )  # fmt: skip
         nr += nr2
         if st2 != S_OK or t2 != 0.0 or not (u2 > 0.0):
@@ -770,7 +889,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
     t_far = math.inf
     st, t, u, es, nr, h, stiff = _integrate(
         0, s0, u0, t_far, kappa, kc, eps, rt, rt * 1e-3, 1.0, 1.0, 1.0, K, _H_MAX, 0.0,
-        relax_cap, 1.0, stiff_ok, rec[0], rec_n[0:1], use[0], na, tail_a,
+        relax_cap, 1.0, stiff_ok, rec[0], rec_n[0:1], use[0], na, tail_a, max_steps,
     )  # fmt: skip
     if st != S_OK:
         if st == S_NO_START:
@@ -791,7 +910,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
     u_stop = u_f if 0.0 < u_f < u else 0.0
     st2, u2, t2, es2, nr2, h2, stiff2 = _integrate(
         1, u, t, u_stop, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K, _H_MAX_B, es_t,
-        relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0,
+        relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0, max_steps,
     )  # fmt: skip
     nr += nr2
     stiff = stiff or stiff2
@@ -807,6 +926,7 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
             st2, u2, t2, es2, nr3, h2, stiff3 = _integrate(
                 1, u2, t2, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, h2, K, _H_MAX_B, es2,
                 relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0,
+                max_steps,
             )  # fmt: skip
             nr += nr3
             stiff = stiff or stiff3
@@ -824,10 +944,10 @@ def _separatrix_run(kappa, kc, eps, pert, rtol, K, relax_cap, stiff_ok, rec, rec
 
 @nb.njit(cache=True, nogil=True)
 def separatrix_explicit(kappa, kc, eps, pert, rtol, K):
-    """The separatrix method with DOP853 alone (no RODAS4, no relaxation): a reference."""
+    """The separatrix method with DOP853 alone (no RODASP, no relaxation): a reference."""
     tiny = np.empty((2, 2, 1))
     tiny_n = np.zeros(2, dtype=np.int64)
     st, val, err, nr, _ = _separatrix_run(
-        kappa, kc, eps, pert, rtol, K, 1.0, False, tiny, tiny_n, tiny, 0, 0
+        kappa, kc, eps, pert, rtol, K, 1.0, False, tiny, tiny_n, tiny, 0, 0, _MAX_STEPS
     )
     return st, val, err, nr

@@ -9,11 +9,16 @@
 * :mod:`rsfcore.ode.rodas4_tableau`: the published RODAS4 coefficients.
 * :mod:`rsfcore.ode.rodas4`: the Rosenbrock method RODAS4 (step, linear solve, error norm,
   step-size controller, Hermite dense output) as numba kernels, used by the engine's stiff
-  phases and by the separatrix integrator's stiff corner.
+  phases; its step kernel takes any tableau of RODAS's layout (``step_tableau``).
+* :mod:`rsfcore.ode.rodasp_tableau`: the published RODASP coefficients (Steinebach 1995)
+  and their transformed form.
+* :mod:`rsfcore.ode.rodasp`: RODASP's step (RODAS4's kernel with RODASP's coefficients),
+  which keeps its order on stiff problems where RODAS4 loses it; used by the separatrix
+  integrator's stiff corner.
 """
 
 from __future__ import annotations
 
-from . import dop853_tableau, rk, rodas4, rodas4_tableau
+from . import dop853_tableau, rk, rodas4, rodas4_tableau, rodasp, rodasp_tableau
 
-__all__ = ["dop853_tableau", "rk", "rodas4", "rodas4_tableau"]
+__all__ = ["dop853_tableau", "rk", "rodas4", "rodas4_tableau", "rodasp", "rodasp_tableau"]

@@ -1,12 +1,16 @@
-"""RODAS4, the L-stable Rosenbrock method of order 4(3), as compiled seams shared by the
-spring-slider engine (rsfcore.engine, stiff phases) and the separatrix integrator
-(rsfcore.separatrix, the stiff corner).
+"""RODAS4, the L-stable Rosenbrock method of order 4(3), as compiled seams used by the
+spring-slider engine (rsfcore.engine, stiff phases) and the separatrix phase portraits
+(rsfcore.phase); its step kernel also runs RODASP (rsfcore.ode.rodasp, the separatrix
+integrator's stiff corner).
 
 The method is written once here; a driver owns its right-hand side, its Jacobian, its
 loop and its events, and calls
 
 * :func:`step`: one step of length h for y' = f(y) (6 right-hand sides), the driver's
   right-hand side passed in as a compiled function ``rhs(y, out, *args)``;
+* :func:`step_tableau`, :func:`scalar_step_tableau`: the same step for any 6-stage
+  stiffly accurate method of RODAS's layout given its transformed coefficients (RODASP,
+  rsfcore.ode.rodasp, shares the code this way);
 * :func:`error_norm`: the step's normalised local error (the embedded estimate k_6,
   optionally with the gap between the cubic Hermite dense output and RODAS4's own
   continuous extension);
@@ -61,6 +65,7 @@ __all__ = [
     "MIN_FACTOR",
     "MAX_FACTOR",
     "step",
+    "step_tableau",
     "solve",
     "error_norm",
     "reject_factor",
@@ -69,6 +74,7 @@ __all__ = [
     "spectral_radius",
     "SCALAR_WORK",
     "scalar_step",
+    "scalar_step_tableau",
     "scalar_error",
 ]
 
@@ -110,19 +116,13 @@ def solve(r, out, m00, m01, m10, m11, inv_det, J, fac):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def step(rhs, args, y, f0, h, J, R, tmp, ftmp, buf, ynew, fnew):
-    """One RODAS4 step of signed length h from (y, f0 = f(y)) with the Jacobian J at y.
-
-    rhs: compiled right-hand side, called as rhs(state, out, *args); J (n, 2): the
-    columns d f/d y_0, d f/d y_1 (all other columns zero); R (6, n): filled with the stage
-    increments k_1..k_6 (k_6 the embedded error estimate); tmp, ftmp, buf (n,): workspace;
-    ynew, fnew (n,): the 4th-order solution and f(ynew).  Six right-hand sides.  Returns
-    False (and fills nothing) when I/(h gamma) - J is singular or its determinant is not
-    finite (the driver then shrinks the step); non-finite stages show as a non-finite
-    ynew or fnew, which the driver checks.
-    """
+def step_tableau(A, C, gamma, rhs, args, y, f0, h, J, R, tmp, ftmp, buf, ynew, fnew):
+    """One step of a 6-stage stiffly accurate Rosenbrock method of RODAS's layout, given
+    its transformed coefficients A (5, 5) (rows = stages 1..5; stage 6 is stage 5's
+    argument plus k_5), C (6, 5) and gamma: RODAS4 (:func:`step`) and RODASP
+    (rsfcore.ode.rodasp.step) share this code.  Arguments and result as :func:`step`."""
     n = y.shape[0]
-    fac = 1.0 / (h * _GAMMA)
+    fac = 1.0 / (h * gamma)
     m00 = fac - J[0, 0]
     m01 = -J[0, 1]
     m10 = -J[1, 0]
@@ -138,7 +138,7 @@ def step(rhs, args, y, f0, h, J, R, tmp, ftmp, buf, ynew, fnew):
             for j in range(n):
                 acc = y[j]
                 for m in range(s):
-                    acc += _A[s, m] * R[m, j]
+                    acc += A[s, m] * R[m, j]
                 tmp[j] = acc
         else:
             for j in range(n):
@@ -147,13 +147,28 @@ def step(rhs, args, y, f0, h, J, R, tmp, ftmp, buf, ynew, fnew):
         for j in range(n):
             acc = ftmp[j]
             for m in range(s):
-                acc += (_C[s, m] / h) * R[m, j]
+                acc += (C[s, m] / h) * R[m, j]
             buf[j] = acc
         solve(buf, R[s], m00, m01, m10, m11, inv_det, J, fac)
     for j in range(n):
         ynew[j] = tmp[j] + R[N_STAGES - 1, j]
     rhs(ynew, fnew, *args)
     return True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def step(rhs, args, y, f0, h, J, R, tmp, ftmp, buf, ynew, fnew):
+    """One RODAS4 step of signed length h from (y, f0 = f(y)) with the Jacobian J at y.
+
+    rhs: compiled right-hand side, called as rhs(state, out, *args); J (n, 2): the
+    columns d f/d y_0, d f/d y_1 (all other columns zero); R (6, n): filled with the stage
+    increments k_1..k_6 (k_6 the embedded error estimate); tmp, ftmp, buf (n,): workspace;
+    ynew, fnew (n,): the 4th-order solution and f(ynew).  Six right-hand sides.  Returns
+    False (and fills nothing) when I/(h gamma) - J is singular or its determinant is not
+    finite (the driver then shrinks the step); non-finite stages show as a non-finite
+    ynew or fnew, which the driver checks.
+    """
+    return step_tableau(_A, _C, _GAMMA, rhs, args, y, f0, h, J, R, tmp, ftmp, buf, ynew, fnew)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -241,20 +256,29 @@ SCALAR_WORK = 16
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def scalar_step(rhs, args, x, y, f, fx, fy, hs, W):
-    """One RODAS4 step of signed length hs for y' = f(x, y) from (x, y), as the pair
-    z = (x, y) with z' = (1, f): rhs(z, out, *args) is the pair's right-hand side, f, fx,
-    fy = f and its partials d f/dx, d f/dy at (x, y) (J = [[0, 0], [fx, fy]]); W the
-    (SCALAR_WORK, 2) workspace.  Returns (ok, y_new, f(x + hs, y_new)); ok False when the
-    linear system is singular (non-finite stages show as a non-finite y_new or slope)."""
+def scalar_step_tableau(A, C, gamma, rhs, args, x, y, f, fx, fy, hs, W):
+    """:func:`scalar_step` for any tableau of RODAS's layout (:func:`step_tableau`)."""
     W[6, 0] = x
     W[6, 1] = y
     W[7, 0] = 1.0
     W[7, 1] = f
     W[15, 0] = fx
     W[15, 1] = fy
-    ok = step(rhs, args, W[6], W[7], hs, W[14:16], W[0:6], W[8], W[9], W[10], W[11], W[12])
+    ok = step_tableau(
+        A, C, gamma, rhs, args, W[6], W[7], hs, W[14:16], W[0:6], W[8], W[9], W[10], W[11],
+        W[12],
+    )  # fmt: skip
     return ok, W[11, 1], W[12, 1]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def scalar_step(rhs, args, x, y, f, fx, fy, hs, W):
+    """One RODAS4 step of signed length hs for y' = f(x, y) from (x, y), as the pair
+    z = (x, y) with z' = (1, f): rhs(z, out, *args) is the pair's right-hand side, f, fx,
+    fy = f and its partials d f/dx, d f/dy at (x, y) (J = [[0, 0], [fx, fy]]); W the
+    (SCALAR_WORK, 2) workspace.  Returns (ok, y_new, f(x + hs, y_new)); ok False when the
+    linear system is singular (non-finite stages show as a non-finite y_new or slope)."""
+    return scalar_step_tableau(_A, _C, _GAMMA, rhs, args, x, y, f, fx, fy, hs, W)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -1,0 +1,113 @@
+"""Coefficients of RODASP, the 6-stage L-stable Rosenbrock method of order 4(3) that keeps
+its order on stiff problems of Prothero-Robinson type.
+
+Published by G. Steinebach, Order-reduction of ROW-methods for DAEs and method of lines
+applications, Preprint 1741, Technische Hochschule Darmstadt, 1995: the structure of
+RODAS (Hairer & Wanner, Solving Ordinary Differential Equations II, 2nd ed., Springer
+1996, Sec. VI.4; gamma = 1/4, stiffly accurate, embedded solution at stage 5) with
+coefficients chosen so that the method keeps order 4 on y' = lambda (y - g(x)) + g'(x)
+for |h lambda| -> infinity, where RODAS4 drops to order ~1 (on the separatrix's stiff
+scalar ODE, rsfcore.separatrix, RODAS4 needs ~10x the steps per decade of tolerance,
+RODASP ~1.8x).  The literals below are the published ones in the method's original
+notation (Hairer & Wanner II, eq. (7.4)):
+
+    (I - gamma h J) k_i = h f(y + sum_{j<i} alpha_ij k_j) + h J sum_{j<i} gamma_ij k_j,
+    y_1 = y + sum_j b_j k_j,
+
+with beta_ij = alpha_ij + gamma_ij as printed (``ALPHA``, ``BETA``), b_j = beta_6j
+(j < 6), b_6 = gamma, and the embedded b^_j = beta_5j (j < 5), b^_5 = gamma.
+
+The transformed coefficients that rsfcore.ode.rodas4's step kernel takes (its eq.
+(7.4') form, the same stiffly accurate layout as RODAS4: stage 6 at the embedded solution
+"stage-5 argument + k_5", the solution that plus k_6) are derived here from the printed
+literals in exact rational arithmetic (:class:`fractions.Fraction`) and rounded once:
+with Gamma = (gamma_ij) (diagonal gamma), a = alpha Gamma^-1 and c = diag(1/gamma) -
+Gamma^-1 (Hairer & Wanner II, Sec. IV.7).  tests/core/test_rodasp.py checks the layout
+(rows 5 and 6 of a, the weights) and the orders.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+__all__ = [
+    "GAMMA",
+    "ALPHA",
+    "BETA",
+    "A",
+    "C",
+    "ORDER",
+]
+
+#: order of the solution; the embedded estimate is of order 3 (error exponent 1/4)
+ORDER = 4
+
+_GAMMA_TEXT = "0.25"
+#: alpha_ij as printed (row i = stage i+1, 0-based; rows of fewer entries end in zeros)
+_ALPHA_TEXT = (
+    (),
+    ("0.75",),
+    ("8.6120400814152190E-2", "0.1238795991858478"),
+    ("0.7749345355073236", "0.1492651549508680", "-0.2941996904581916"),
+    ("5.308746682646142", "1.330892140037269", "-5.374137811655562", "-0.2655010110278497"),
+    (
+        "-1.764437648774483",
+        "-0.4747565572063027",
+        "2.369691846915802",
+        "0.6195023590649829",
+        "0.25",
+    ),
+)
+#: beta_ij = alpha_ij + gamma_ij as printed (beta_21 = 0; row 6 gives the solution weights)
+_BETA_TEXT = (
+    (),
+    ("0.0",),
+    ("-0.049392", "-0.014112"),
+    ("-0.4820494693877561", "-0.1008795555555556", "0.9267290249433117"),
+    ("-1.764437648774483", "-0.4747565572063027", "2.369691846915802", "0.6195023590649829"),
+    (
+        "-8.0368370789113464E-2",
+        "-5.6490613592447572E-2",
+        "0.4882856300427991",
+        "0.5057162114816189",
+        "-0.1071428571428569",
+    ),
+)
+
+GAMMA = float(Fraction(_GAMMA_TEXT))
+#: the printed alpha_ij and beta_ij as floats (nested tuples, row i = stage i+1)
+ALPHA = tuple(tuple(float(Fraction(v)) for v in row) for row in _ALPHA_TEXT)
+BETA = tuple(tuple(float(Fraction(v)) for v in row) for row in _BETA_TEXT)
+
+
+def _transformed() -> tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]]:
+    """(a, c) of the transformed form from the printed literals, exactly, rounded once."""
+    n = 6
+    g = Fraction(_GAMMA_TEXT)
+    alpha = [[Fraction(0)] * n for _ in range(n)]
+    gam = [[Fraction(0)] * n for _ in range(n)]
+    for i in range(n):
+        for j, (a_txt, b_txt) in enumerate(zip(_ALPHA_TEXT[i], _BETA_TEXT[i], strict=False)):
+            alpha[i][j] = Fraction(a_txt)
+            gam[i][j] = Fraction(b_txt) - Fraction(a_txt)
+        gam[i][i] = g
+    # Gamma^-1 of the lower-triangular Gamma by forward substitution, column by column
+    inv = [[Fraction(0)] * n for _ in range(n)]
+    for col in range(n):
+        for i in range(n):
+            acc = Fraction(1) if i == col else Fraction(0)
+            for j in range(i):
+                acc -= gam[i][j] * inv[j][col]
+            inv[i][col] = acc / gam[i][i]
+    a = tuple(
+        tuple(float(sum(alpha[i][m] * inv[m][j] for m in range(n))) for j in range(i))
+        for i in range(n - 1)
+    )
+    c = tuple(tuple(float(-inv[i][j]) for j in range(i)) for i in range(n))
+    return a, c
+
+
+#: a_ij of the transformed form, A[i] for stage i+1 (i = 0..4; stage 6 is stage 5's
+#: argument plus k_5, as in RODAS4)
+#: c_ij of the transformed form, C[i] for stage i+1 (i = 1..5)
+A, C = _transformed()
