@@ -173,9 +173,10 @@ _LADDER_RTOL_MAX = 1.0e-10
 _RUN_RTOL_MAX = 1.0e-6
 #: no retries after a first run that took more right-hand sides than this (~30 ms)
 _RETRY_NR_MAX = 200_000
-#: all retries together take at most this many right-hand sides (~5 ms on a quiet
-#: machine); each run's legs get that many steps of DOP853 (12 right-hand sides each), a
-#: run out of them ends the retries and the best run so far stands (before: retries at
+#: all retries together take about this many right-hand sides (~5 ms on a quiet
+#: machine): each leg of a retry gets what is left / 6 steps (RODASP's right-hand sides
+#: per step; DOP853's legs take 12 per step); a run out of them ends the retries and the
+#: best run so far stands (before: retries at
 #: rtol 1e-12 .. 1e-13 in the stiff corner ran out of the 2e5-step budget, 0.3 - 0.5 s
 #: each, and stood anyway)
 _RETRY_NR_BUDGET = 60_000
@@ -757,7 +758,7 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
         # unrelaxed 1.5e-11 in 4.1e4 right-hand sides, relaxed retries 2.8e5)
         st2, val2, err2, nr2, _ = _separatrix_run(
             kappa, kc, eps, pert, rr, K, 1.0, True, tiny, tiny_n, tiny, 0, 0,
-            _RETRY_NR_BUDGET // rk.N_STAGES,
+            _RETRY_NR_BUDGET // rodas4.N_STAGES,
         )  # fmt: skip
         nr += nr2
         if st2 == S_OK:
@@ -777,7 +778,7 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
         pn[cur, 1] = 0
         st2, val2, err2, nr2, _ = _separatrix_run(
             kappa, kc, eps, pert, r_i, K, _RETRIES[i][1], True, prof[cur], pn[cur],
-            prof[1 - cur], na, nb_, left // rk.N_STAGES,
+            prof[1 - cur], na, nb_, left // rodas4.N_STAGES,
         )  # fmt: skip
         nr += nr2
         if st2 == S_BUDGET:
