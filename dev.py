@@ -51,16 +51,20 @@ def _ensure_env() -> None:
     _ensure_kernels()
 
 
+#: Prints "1 <dir>" when rsfcore's kernel cache directory holds a compiled kernel's index
+#: (``*.nbi``), else "0 <dir>" (run by the venv's Python; tests/app/test_dev_script.py).
+WARM_PROBE = (
+    "from rsfcore._cache import cache_dir; d = cache_dir(); "
+    "print(int(d.is_dir() and any(True for _ in d.rglob('*.nbi'))), d)"
+)
+
+
 def _ensure_kernels() -> None:
     """Compile rsfcore's kernels once per version of its sources, saying so.  The cache
     is rsfcore's own (rsfcore/_cache.py: per user, keyed by the sources' digest; the same
     one ``rsf``, the API and the workers use), never inside the source tree."""
-    probe = (
-        "from rsfcore._cache import cache_dir, _is_warm; d = cache_dir(); "
-        "print(int(_is_warm(d)), d)"
-    )
     warm, _, cache = (
-        subprocess.check_output([str(PY), "-c", probe], text=True).strip().partition(" ")
+        subprocess.check_output([str(PY), "-c", WARM_PROBE], text=True).strip().partition(" ")
     )
     if warm == "1":
         return
