@@ -23,8 +23,9 @@ raises :class:`NeedsQueue`.  Nothing here does I/O or knows about HTTP.  Sweep c
 computed by :func:`rsfapp.sweepdata.compute_chunk` (rsfcore.batch).
 """
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rsfapp.lazy import lazy_getattr
 
 from ._common import QUICK_STEPS, ComputeError, NeedsQueue, guard, numerics_version
 
@@ -87,15 +88,7 @@ _WHERE: dict[str, str] = {
 _MODULES = frozenset(("single", "batch", "protocols", "fits", "sweeps", "figures"))
 
 
-def __getattr__(name: str) -> Any:
-    if name in _MODULES:
-        return importlib.import_module(f"{__name__}.{name}")
-    where = _WHERE.get(name)
-    if where is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{where}"), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _MODULES, _WHERE, globals())
 
 
 __all__ = [

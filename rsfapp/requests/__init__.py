@@ -7,8 +7,9 @@ v_o = V_o/V_*, T = V_* t/Dc.  Ranges here are the first gate; rsfcore re-validat
 and its ParameterError is reported the same way (422 problem+json naming the field).
 """
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rsfapp.lazy import lazy_getattr
 
 if TYPE_CHECKING:  # imported on first use: a CLI command builds only its question's models
     from ._base import VALID, Perturbation
@@ -65,15 +66,7 @@ _WHERE: dict[str, str] = {
 _MODULES = frozenset(("single", "batch", "protocols", "fits", "sweeps", "figures"))
 
 
-def __getattr__(name: str) -> Any:
-    if name in _MODULES:
-        return importlib.import_module(f"{__name__}.{name}")
-    where = _WHERE.get(name)
-    if where is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{where}"), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _MODULES, _WHERE, globals())
 
 
 __all__ = [
