@@ -322,6 +322,21 @@ def _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _dop853_step(K, y, f, h, ynew, fnew, tmp, ftmp, ba, kappa, eps, vo, c, lnc):
+    """One DOP853 step of size h from (y, f = rhs(y)): stages 1-12 into K, the new state
+    into ynew, its right-hand side into fnew and K[_NS] (12 right-hand sides)."""
+    n = y.shape[0]
+    for j in range(n):
+        K[0, j] = f[j]
+    for s in range(1, _NS):
+        _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+    rk.step_state(K, y, h, ynew)
+    _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
+    for j in range(n):
+        K[_NS, j] = fnew[j]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _dense_coeffs(K, y0, y1, f0, f1, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp):
     """Fill F (7, n) with the DOP853 dense-output polynomial of the last step.
 
@@ -626,14 +641,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
             n_stiff_steps += 1
         else:
             # ---- one DOP853 step --------------------------------------------------
-            for j in range(n):
-                K[0, j] = f[j]
-            for s in range(1, _NS):
-                _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            rk.step_state(K, y, h, ynew)
-            _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
-            for j in range(n):
-                K[_NS, j] = fnew[j]
+            _dop853_step(K, y, f, h, ynew, fnew, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
             n_rhs += _NS
 
             finite = True
@@ -1073,14 +1081,7 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
             rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
             rodas4.hermite_coeffs(y, ynew, f, fnew, h, F)
         else:
-            for j in range(n):
-                K[0, j] = f[j]
-            for s in range(1, _NS):
-                _stage(K, y, h, s, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            rk.step_state(K, y, h, ynew)
-            _rhs(ynew, fnew, ba, kappa, eps, vo, c, lnc)
-            for j in range(n):
-                K[_NS, j] = fnew[j]
+            _dop853_step(K, y, f, h, ynew, fnew, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
             _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
         while i_tau < n_tau and sample_tau[i_tau] <= tau_lim:
             rk.dense_eval(F, y, (sample_tau[i_tau] - tau) / h, tmp)
