@@ -377,6 +377,9 @@ def main() -> None:
                 with open(a.checkpoint, "a") as fh:
                     fh.write(json.dumps({"i": i, "rows": recs}) + "\n")
     wall = time.perf_counter() - t_start
+    if not rows:
+        where = f"in {a.checkpoint}" if a.checkpoint else "(no --checkpoint given)"
+        raise SystemExit(f"no query records {where}: nothing to summarise")
     out = summarise(rows, wall, f"seed {a.seed}, n {a.n}, {len(idx)} points, this run's wall")
     if a.json:
         with open(a.json, "w") as fh:
