@@ -64,21 +64,6 @@ def _record(path: Path) -> None:
     path.write_text(rec.to_csv())
 
 
-#: The paper's figures (rsfapp.requests.figures.FIGURES), for ``--figures``.
-FIGURES = (
-    "velocity-step",
-    "trajectories-kcrit",
-    "critical-jump-kcrit",
-    "rate-neutral",
-    "stability-diagram-velocity",
-    "stability-diagram-load-point",
-    "trajectories-vo0-soft",
-    "trajectories-vo0-stiff",
-    "critical-jump-vo0",
-    "periodic-response",
-    "non-periodic-response",
-    "continuum-modes",
-)
 REFUSED = ["--url", "http://127.0.0.1:9"]  # nothing listens on port 9 (discard)
 
 
@@ -86,6 +71,8 @@ def commands(tmp: Path, figures: bool = False) -> dict[str, list[str]]:
     """name -> argv after `rsf`."""
     out = _commands(tmp)
     if figures:
+        from rsfapp.requests.figures import FIGURES  # the catalogue the CLI draws from
+
         out.update({f"figure-{n}": ["figure", n, "--out", str(tmp / f"{n}.png")] for n in FIGURES})
     return out
 
