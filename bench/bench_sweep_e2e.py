@@ -234,6 +234,85 @@ def download(
     return out
 
 
+#: Where a worker's on-CPU samples go, by the innermost frame that matches (file
+#: substring, function name or None for any): the first match from the innermost frame
+#: outwards names the sample's category.
+PROFILE_CATEGORIES: tuple[tuple[str, str, str | None], ...] = (
+    ("kernel", "rsfcore/", None),
+    ("parameters", "rsfapp/grid.py", None),
+    ("block encoding", "rsfapp/store/sweeps.py", "add"),
+    ("block encoding", "rsfapp/store/sweeps.py", "finish"),
+    ("block encoding", "rsfapp/store/sweeps.py", "_same_bits"),
+    ("result arrays", "rsfapp/sweepdata.py", None),
+    ("store transactions", "rsfapp/store/", None),
+    ("store transactions", "rsfapp/db/", None),
+    ("lease thread", "rsfapp/reaper.py", None),
+    ("task (worker.tasks)", "worker/tasks.py", None),
+    ("metrics", "prometheus_client/", None),
+    ("Celery and broker", "celery/", None),
+    ("Celery and broker", "kombu/", None),
+    ("Celery and broker", "redis/", None),
+    ("Celery and broker", "billiard/", None),
+)
+
+
+def start_profiles(workers: dict[str, Any]) -> dict[str, tuple[Any, Path]]:
+    """Start ``py-spy record`` (raw collapsed stacks, 250 samples/s, on-CPU only) on each
+    worker; returns {node: (process, output file)}."""
+    import shutil
+    import subprocess
+
+    spy = shutil.which("py-spy") or str(Path(sys.executable).with_name("py-spy"))
+    (ROOT / "bench" / "out").mkdir(exist_ok=True)
+    out = {}
+    for node, w in workers.items():
+        f = ROOT / "bench" / "out" / f"profile_{node}.txt"
+        cmd = [spy, "record", "-p", str(w.pid), "-r", "250", "-f", "raw", "-o", str(f)]
+        out[node] = (subprocess.Popen([*cmd, "--nonblocking"], stdout=subprocess.DEVNULL), f)
+    time.sleep(1.0)  # py-spy attaches
+    return out
+
+
+def stop_profiles(spies: dict[str, tuple[Any, Path]]) -> dict[str, dict[str, float]]:
+    """Stop the samplers and return, per worker, the share [%] of its on-CPU samples in
+    each category of :data:`PROFILE_CATEGORIES` (the rest: "other")."""
+    import signal
+
+    shares: dict[str, dict[str, float]] = {}
+    for node, (p, f) in spies.items():
+        p.send_signal(signal.SIGINT)
+        p.wait(30)
+        counts: dict[str, int] = {}
+        for line in f.read_text().splitlines():
+            stack, _, n = line.rpartition(" ")
+            frames = stack.split(";")
+            cat = "other"
+            for fr in reversed(frames):
+                fn, _, where = fr.partition(" (")
+                hit = next(
+                    (
+                        c
+                        for c, path, name in PROFILE_CATEGORIES
+                        if path in where and (name is None or fn == name)
+                    ),
+                    None,
+                )
+                if hit:
+                    cat = hit
+                    break
+            counts[cat] = counts.get(cat, 0) + int(n)
+        total = max(1, sum(counts.values()))
+        shares[node] = {
+            "samples": total,
+            **{
+                k: round(100 * v / total, 1)
+                for k, v in sorted(counts.items(), key=lambda kv: -kv[1])
+            },
+        }
+        print(f"profile of {node} (% of on-CPU samples): {shares[node]}")
+    return shares
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--shape", type=int, nargs=3, default=[100, 100, 100], metavar="N")
@@ -249,6 +328,13 @@ def main() -> None:
         action="store_true",
         help="skip rsfcore's batch kernel reference (throughput ratios; saves shared CPU "
         "when only the downloads are measured)",
+    )
+    ap.add_argument(
+        "--profile",
+        action="store_true",
+        help="sample each worker with py-spy during the sweep (on-CPU samples only) and "
+        "print where its time goes (the kernel, parameters, block encoding, the store's "
+        "transactions, Celery and the broker); the stacks are written to bench/out/",
     )
     ap.add_argument(
         "--max-download-s",
@@ -329,6 +415,7 @@ def main() -> None:
         idle_mb: dict[str, float] = {}
         base = settled_rss(api.pid)
         idle_mb["before_sweep"] = round(base / 2**20, 1)
+        spies = start_profiles(workers) if a.profile else {}
         with RssSampler(pids) as rss:
             t0 = time.perf_counter()
             r = c.post("/v1/sweeps", json=b)
@@ -341,6 +428,8 @@ def main() -> None:
                 assert time.perf_counter() - t0 < a.timeout, st
                 time.sleep(0.5)  # as the client polls (timing: the server's clock)
             wall = time.perf_counter() - t0
+        if spies:
+            out["worker_profile"] = stop_profiles(spies)
         # submitted -> last chunk stored, by the server's clock (ms; no polling delay)
         dt = _epoch(st["finished_at"]) - _epoch(st["created_at"])
         out["sweep_wall_s"] = round(wall, 2)

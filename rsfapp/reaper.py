@@ -187,7 +187,7 @@ class Reaper(threading.Thread):
                 len(expired),
                 ", ".join(f"{a[:8]}/{b}" for a, b in expired[:10]),
             )
-        closed, nxt = st.sweeps.close_finished(s.sweep_window)
+        closed, nxt = st.sweeps.close_finished(s.sweep_window, s.lease_s)
         for sweep_id, idx in nxt:
             self.send(sweep_id, idx)
         REQUEUES.labels(Requeue.repair).inc(len(nxt))

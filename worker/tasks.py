@@ -5,8 +5,11 @@ A chunk is a range [i0, i1) of flat point indices of the sweep's spec
 by compiled batch calls on cache-sized parts (:func:`rsfapp.sweepdata.compute_block` ->
 :func:`rsfcore.batch.critical_points`), and its results stored as one compressed block,
 written once (a chunk delivered twice, or recomputed after its worker was killed, is
-stored once).  After a chunk, the worker sends the sweep's next pending chunk (lazy
-dispatch, :meth:`rsfapp.store.SweepStore.next_chunks`).  Task names are stable strings
+stored once).  A task goes on with the sweep's next pending chunks, each claimed in the
+transaction that completes the one before (chunk chaining,
+:meth:`rsfapp.store.SweepStore.complete_chunk`), for about ``RSF_CHUNK_SECONDS``; then
+it sends the sweep's next pending chunk to the queue (lazy dispatch), where it waits its
+turn behind other sweeps' chunks.  Task names are stable strings
 (:data:`rsfapp.queue.RUN_CHUNK`, ...).
 """
 
@@ -15,6 +18,8 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from celery import Task
@@ -31,59 +36,91 @@ from rsfapp.sweepdata import compute_block
 
 from .celery_app import app
 
-__all__ = ["run_chunk", "run_chunk_body", "compute_single", "fit_record", "fit_record_body"]
+__all__ = [
+    "ChainPosition",
+    "run_chunk",
+    "run_chunk_body",
+    "compute_single",
+    "fit_record",
+    "fit_record_body",
+]
 log = logging.getLogger("rsf.worker")
 
 
-def run_chunk_body(sweep_id: str, idx: int) -> dict[str, Any]:
-    """Compute and store one chunk; returns a small summary (also for direct calls).
+@dataclass
+class ChainPosition:
+    """The chunk a task is on: its message's chunk, then each chunk it chains to (an
+    error is retried on this chunk, :func:`run_chunk`)."""
+
+    idx: int
+
+
+def run_chunk_body(
+    sweep_id: str, idx: int, chain_s: float = 0.0, at: ChainPosition | None = None
+) -> dict[str, Any]:
+    """Compute and store chunk ``idx``, then, while the task has run less than
+    ``chain_s`` seconds, the sweep's next pending chunks; returns a small summary (also
+    for direct calls, which compute one chunk by default).
 
     A chunk of a cancelled sweep is skipped; a chunk already running elsewhere is left to
     its worker; a chunk whose block is already stored is only marked done.  Cancellation
-    therefore takes effect within one chunk per worker process.  Two transactions per
-    chunk: the claim (which also says whether the block is stored) and the completion
-    (block, done mark, sweep closed when complete, next chunks marked queued:
-    :meth:`rsfapp.store.SweepStore.complete_chunk`); then one broker message per chunk
-    to send.
+    therefore takes effect within one chunk per worker process.  One transaction to
+    claim the message's chunk, then one per chunk (:meth:`rsfapp.store.SweepStore.complete_chunk`:
+    its block, done mark, counters, the sweep closed when complete, and either the next
+    pending chunk claimed for this task or, when the chain stops, the next chunks marked
+    queued and sent to the broker).  ``at`` follows the chunk being computed.
     """
     s = get_settings()
     sweeps = stores_for(s).sweeps
+    at = at or ChainPosition(idx)
+    t_start = time.monotonic()
     rng = sweeps.claim(sweep_id, idx, s.lease_s)
     if rng is None:
         metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
         return {"skipped": True}
-    i0, i1 = rng.i0, rng.i1
-    block = None
-    result = metrics.ChunkResult.stored
-    if not rng.stored:
-        spec = sweeps.get_spec(sweep_id)
-        if spec is None:  # deleted meanwhile, or stored in the pre-array layout
-            sweeps.finish_chunk(sweep_id, idx, complete=False)
-            metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
-            return {"skipped": True}
-        # the lease is renewed while the chunk computes (rsfapp.reaper)
-        t0 = time.perf_counter()
-        with Lease(lambda: sweeps.heartbeat(sweep_id, idx), s.heartbeat_s):
-            data, errors = compute_block(spec, i0, i1)
-        metrics.CHUNK_SECONDS.observe(time.perf_counter() - t0)
-        metrics.POINTS.labels("ok").inc(i1 - i0 - len(errors))
-        metrics.POINTS.labels("failed").inc(len(errors))
-        result = metrics.ChunkResult.computed
-        block = (i0, i1, data, errors)
-    done = sweeps.complete_chunk(sweep_id, idx, block, s.sweep_window)
-    metrics.CHUNKS.labels(result).inc()
-    if done.todo:
-        q = Queue(s, app)
-        for c in done.todo:
-            q.send_chunk(sweep_id, c)
-    return {"stored": done.stored, "points": i1 - i0}
+    n_chunks = n_points = n_stored = 0
+    while rng is not None:
+        at.idx = idx = rng.idx
+        i0, i1 = rng.i0, rng.i1
+        block = None
+        result = metrics.ChunkResult.stored
+        if not rng.stored:
+            spec = sweeps.get_spec(sweep_id)
+            if spec is None:  # deleted meanwhile, or stored in the pre-array layout
+                sweeps.finish_chunk(sweep_id, idx, complete=False)
+                metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
+                return {"skipped": True, "chunks": n_chunks, "points": n_points}
+            # the lease is renewed while the chunk computes (rsfapp.reaper)
+            t0 = time.perf_counter()
+            with Lease(partial(sweeps.heartbeat, sweep_id, idx), s.heartbeat_s):
+                data, errors = compute_block(spec, i0, i1)
+            metrics.CHUNK_SECONDS.observe(time.perf_counter() - t0)
+            metrics.POINTS.labels("ok").inc(i1 - i0 - len(errors))
+            metrics.POINTS.labels("failed").inc(len(errors))
+            result = metrics.ChunkResult.computed
+            block = (i0, i1, data, errors)
+        chain = time.monotonic() - t_start < chain_s
+        done = sweeps.complete_chunk(sweep_id, idx, block, s.sweep_window, chain, s.lease_s)
+        metrics.CHUNKS.labels(result).inc()
+        n_chunks += 1
+        n_points += i1 - i0
+        n_stored += done.stored
+        if done.todo:
+            q = Queue(s, app)
+            for c in done.todo:
+                q.send_chunk(sweep_id, c)
+        rng = done.next
+    return {"stored": n_stored, "chunks": n_chunks, "points": n_points}
 
 
 @app.task(name=RUN_CHUNK, bind=True, acks_late=True, reject_on_worker_lost=True, max_retries=5)
 def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
-    """Celery entry point; on an infrastructure error (e.g. DB locked) retry later."""
+    """Celery entry point: the message's chunk, then chained ones for about
+    ``RSF_CHUNK_SECONDS``.  On an infrastructure error (e.g. DB locked) the chunk being
+    computed is released and the task retried later on that chunk."""
+    at = ChainPosition(idx)
     try:
-        return run_chunk_body(sweep_id, idx)
+        return run_chunk_body(sweep_id, idx, get_settings().chunk_seconds, at)
     except Exception as exc:  # noqa: BLE001
         metrics.CHUNKS.labels(metrics.ChunkResult.error).inc()
         # backoff 2, 4, 8, 16, 30, 30, ... s.  The database or broker being down is an
@@ -97,22 +134,27 @@ def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
             log.warning(
                 "chunk %s/%d: %s; retrying in %.0f s",
                 sweep_id,
-                idx,
+                at.idx,
                 str(exc).strip().splitlines()[0] if str(exc) else type(exc).__name__,
                 delay,
             )
         else:
-            log.exception("chunk %s/%d failed; retrying in %.0f s", sweep_id, idx, delay)
+            log.exception("chunk %s/%d failed; retrying in %.0f s", sweep_id, at.idx, delay)
         try:
-            stores_for(get_settings()).sweeps.release_chunk(sweep_id, idx)
+            stores_for(get_settings()).sweeps.release_chunk(sweep_id, at.idx)
         except Exception as exc2:  # noqa: BLE001 - the reaper takes it back after the lease
             log.warning(
                 "could not release chunk %s/%d: %s",
                 sweep_id,
-                idx,
+                at.idx,
                 str(exc2).strip().splitlines()[0] if str(exc2) else "",
             )
-        raise self.retry(exc=exc, countdown=delay, max_retries=None if outage else 5) from exc
+        raise self.retry(
+            args=(sweep_id, at.idx),
+            exc=exc,
+            countdown=delay,
+            max_retries=None if outage else 5,
+        ) from exc
 
 
 _SINGLE: dict[str, tuple[type[BaseModel], Callable[..., dict[str, Any]]]] = {

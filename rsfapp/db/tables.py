@@ -17,7 +17,9 @@
 
 Flat point indices, point counts and chunk numbers of sweeps are BIGINT (64-bit): a sweep
 may hold more than 2^31 points (Alembic revision 0002, :mod:`rsfapp.db.migrate`), and so
-may the sweep points a key submits in a day (``key_usage.points``, revision 0003).
+may the sweep points a key submits in a day (``key_usage.points``, revision 0003).  A
+sweep's progress is kept in counters of its row (chunks done, points stored and failed)
+and its chunks are indexed by status (revision 0004).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from sqlalchemy import (
     Column,
     Float,
     ForeignKey,
+    Index,
     Integer,
     LargeBinary,
     MetaData,
@@ -86,6 +89,11 @@ sweeps = Table(
     Column("created_at", Float, nullable=False),
     Column("started_at", Float),
     Column("finished_at", Float),
+    # progress counters, updated in the transaction that stores a block or marks a chunk
+    # done (revision 0004): completion and status are O(1), not a count over the chunks
+    Column("chunks_done", BigInteger, nullable=False, server_default="0"),
+    Column("points_done", BigInteger, nullable=False, server_default="0"),
+    Column("points_failed", BigInteger, nullable=False, server_default="0"),
 )
 
 chunks = Table(
@@ -100,6 +108,9 @@ chunks = Table(
     Column("heartbeat", Float),
     Column("attempts", Integer, nullable=False, default=0),
 )
+# a sweep's chunks by status in index order (revision 0004): the next pending chunk and
+# the chunks in flight are found without reading the sweep's other chunks
+Index("ix_sweep_chunks_status", chunks.c.sweep_id, chunks.c.status, chunks.c.idx)
 
 points = Table(
     "sweep_points",

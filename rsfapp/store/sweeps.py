@@ -28,9 +28,18 @@ Guarantees:
   PostgreSQL (READ COMMITTED) cannot both see the other unfinished (write skew) and leave
   the sweep running; a purge cannot interleave with a block being stored;
 * flat indices and counts are BIGINT (sweeps of more than 2^31 points);
-* lazy dispatch: chunk rows start ``pending``; only ``sweep_window`` of them are sent to
-  the queue (``queued``), and each finished chunk sends the next pending one, so a sweep
-  of 10^8 points costs a few thousand small rows and never floods the broker;
+* lazy dispatch: chunk rows start ``pending``; only ``sweep_window`` of them (at most as
+  many as the live worker processes in the registry, when ``lease_s`` is given: the
+  sweep's lanes) are sent to the queue (``queued``), so a sweep of 10^8 points costs a
+  few thousand small rows and never floods the broker;
+* chunk chaining: a worker that finishes a chunk may claim the sweep's next pending chunk
+  in the same transaction (:meth:`SweepStore.complete_chunk` with ``chain``) and compute
+  it without a broker message; a lane that stops chaining sends the next pending chunk
+  to the queue instead.  A chained chunk is claimed like any other (running, owner,
+  lease): a worker that dies holding it loses it to the reaper after its lease;
+* progress is counted in the sweep's row (``chunks_done``, ``points_done``,
+  ``points_failed``) in the transaction that stores a block or marks a chunk done, so a
+  completion, the sweep's closing and its status cost the same at any number of chunks;
 * cancel marks the sweep and its pending/queued chunks; a running chunk (one compiled
   call) finishes and is stored, so work stops within one chunk per worker process;
 * failures are flagged per point in the block, with their messages; the sweep goes on.
@@ -52,9 +61,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Connection, Row, and_, delete, func, select, update
+from sqlalchemy import Connection, Row, and_, case, delete, func, select, update
 
 from ..db.engine import Database, insert_ignore
+from ..db.ops import workers
 from ..db.tables import chunks, points, sweep_blocks, sweep_inputs, sweeps
 from ..grid import SPEC_VERSION, SweepSpec
 
@@ -227,19 +237,24 @@ def decode_block(data: bytes, names: tuple[str, ...] | None = None) -> dict[str,
 
 class ChunkRange(NamedTuple):
     """Flat indices [i0, i1) of a claimed chunk; ``stored``: its block is already stored
-    (an earlier attempt finished; only its bookkeeping is left)."""
+    (an earlier attempt finished; only its bookkeeping is left); ``idx``: the chunk's
+    number (-1 where the caller named it)."""
 
     i0: int
     i1: int
     stored: bool = False
+    idx: int = -1
 
 
 class Completed(NamedTuple):
     """Outcome of :meth:`SweepStore.complete_chunk`: was the block new (False: stored
-    before, or the sweep was purged), which chunks to send to the queue now."""
+    before, or the sweep was purged), which chunks to send to the queue now, and the
+    sweep's next chunk claimed for this process in the same transaction (``chain``
+    asked for it and a pending chunk was left; None otherwise)."""
 
     stored: bool
     todo: list[int]
+    next: ChunkRange | None = None
 
 
 class Created(NamedTuple):
@@ -279,9 +294,11 @@ class SweepStore:
         chunk_points: int,
         numerics_version: str,
         window: int = 64,
+        lease_s: float | None = None,
     ) -> Created:
         """Create the sweep and its (pending) chunks unless it exists; dispatch the first
-        ``window`` chunks.
+        ``window`` chunks (with ``lease_s``: at most one per live worker process,
+        :meth:`_dispatch`).
 
         An existing cancelled sweep is resumed (its unfinished chunks pending again, the
         first ``window`` dispatched); an existing active or done sweep dispatches nothing.
@@ -328,7 +345,7 @@ class SweepStore:
                         for c in range(n_chunks)
                     ],
                 )
-                return Created(True, False, self._dispatch(conn, sweep_id, window))
+                return Created(True, False, self._dispatch(conn, sweep_id, window, None, lease_s))
             if row is None:
                 row = self._lock_sweep(conn, sweep_id)
             if row is None or row != "cancelled":
@@ -343,16 +360,43 @@ class SweepStore:
                 .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status == "cancelled"))
                 .values(status="pending", owner=None)
             )
-            return Created(False, True, self._dispatch(conn, sweep_id, window))
+            return Created(False, True, self._dispatch(conn, sweep_id, window, None, lease_s))
 
     @staticmethod
+    def _lanes(conn: Connection, window: int, lease_s: float | None) -> int:
+        """Chunks of one sweep to keep in flight: ``window``, capped at the processes of
+        the live workers in the registry (heartbeat within ``lease_s``; none registered,
+        or no ``lease_s``: ``window``).  A chaining worker keeps its lane busy without
+        messages, so a message more than there are processes to take it would only
+        wait in the broker (and cost its own claim when it comes)."""
+        if lease_s is None:
+            return window
+        procs = int(
+            conn.execute(
+                select(func.coalesce(func.sum(workers.c.concurrency), 0)).where(
+                    workers.c.heartbeat >= time.time() - lease_s
+                )
+            ).scalar()
+            or 0
+        )
+        return min(window, procs) if procs > 0 else window
+
+    @classmethod
     def _dispatch(
-        conn: Connection, sweep_id: str, window: int, busy: int | None = None
+        cls,
+        conn: Connection,
+        sweep_id: str,
+        window: int,
+        busy: int | None = None,
+        lease_s: float | None = None,
     ) -> list[int]:
-        """Mark up to ``window`` minus the chunks in flight (queued/running: ``busy`` if
-        the caller counted them) pending chunks queued, lowest index first; returns them
-        (the caller sends them).  One statement besides the count (an UPDATE of the
-        first pending chunks, RETURNING them)."""
+        """Mark up to the sweep's lanes (:meth:`_lanes` of ``window``) minus the chunks in
+        flight (queued/running: ``busy`` if the caller counted them) pending chunks
+        queued, lowest index first; returns them (the caller sends them).  The count and
+        the pick read the index of chunks by status (the chunks in flight and the first
+        pending ones, not the sweep's other chunks); one UPDATE of the first pending
+        chunks, RETURNING them."""
+        window = cls._lanes(conn, window, lease_s)
         if busy is None:
             busy = int(
                 conn.execute(
@@ -386,13 +430,13 @@ class SweepStore:
         ).scalars()
         return sorted(int(i) for i in rows)
 
-    def next_chunks(self, sweep_id: str, window: int) -> list[int]:
+    def next_chunks(self, sweep_id: str, window: int, lease_s: float | None = None) -> list[int]:
         """Chunks to send now to keep ``window`` in flight (none unless the sweep is
         active)."""
         with self.db.write() as conn:
             if self._lock_sweep(conn, sweep_id) not in ACTIVE:
                 return []
-            return self._dispatch(conn, sweep_id, window)
+            return self._dispatch(conn, sweep_id, window, None, lease_s)
 
     def get_spec(self, sweep_id: str) -> SweepSpec | None:
         """The stored spec of a sweep; cached per process (immutable).  None if unknown or
@@ -426,15 +470,18 @@ class SweepStore:
     def claim(self, sweep_id: str, idx: int, lease_s: float) -> ChunkRange | None:
         """Claim chunk ``idx`` for this process; None if there is nothing to do.  One
         transaction of three statements (the sweep's lock; the chunk with whether its
-        block is already stored; its update), a fourth at the sweep's first claim.
+        block is already stored; its update), a fourth at the sweep's first claim; one
+        (the lock) when the sweep is done.
 
-        Nothing to do: the sweep is unknown or cancelled, the chunk is done or cancelled,
-        or another live worker holds it.
+        Nothing to do: the sweep is unknown, done or cancelled, the chunk is done or
+        cancelled, or another live worker holds it.
         """
         me = owner_id()
         now = time.time()
         with self.db.write() as conn:
             s = self._lock_sweep(conn, sweep_id)  # sweep row first: the one lock order
+            if s is None or s == "done":  # every chunk done (a message left behind)
+                return None
             # the chunk and whether its block is stored, read after the lock (a fresh
             # snapshot on PostgreSQL: a completion that held the lock is seen)
             stored_q = (
@@ -474,7 +521,7 @@ class SweepStore:
                     .where(and_(sweeps.c.id == sweep_id, sweeps.c.status == "queued"))
                     .values(status="running", started_at=func.coalesce(sweeps.c.started_at, now))
                 )
-            return ChunkRange(int(c.i0), int(c.i1), bool(c.stored))
+            return ChunkRange(int(c.i0), int(c.i1), bool(c.stored), idx)
 
     def heartbeat(self, sweep_id: str, idx: int) -> bool:
         """Refresh the lease of a running chunk held by this process; False if it is no
@@ -534,11 +581,56 @@ class SweepStore:
         self, sweep_id: str, idx: int, i0: int, i1: int, data: bytes, errors: dict[int, str]
     ) -> bool:
         """Store chunk ``idx``'s results once (a second write is ignored); True if new."""
-        row = self._block_row(sweep_id, idx, i0, i1, data, errors)
         with self.db.write() as conn:
             if self._lock_sweep(conn, sweep_id) is None:  # purged meanwhile
                 return False
-            return insert_ignore(conn, sweep_blocks, [row]) > 0
+            return self._insert_block(conn, sweep_id, idx, (i0, i1, data, errors), time.time())
+
+    @classmethod
+    def _insert_block(
+        cls,
+        conn: Connection,
+        sweep_id: str,
+        idx: int,
+        block: tuple[int, int, bytes, dict[int, str]],
+        now: float,
+    ) -> bool:
+        """Store a block once and count its points in the sweep's row; True if new."""
+        i0, i1, data, errors = block
+        row = cls._block_row(sweep_id, idx, i0, i1, data, errors)
+        if insert_ignore(conn, sweep_blocks, [row]) == 0:
+            return False
+        cls._count(conn, sweep_id, now, points=i1 - i0, failed=len(errors))
+        return True
+
+    @staticmethod
+    def _count(
+        conn: Connection,
+        sweep_id: str,
+        now: float,
+        chunks_done: int = 0,
+        points: int = 0,
+        failed: int = 0,
+    ) -> str | None:
+        """Add to the sweep's progress counters (one UPDATE) and close it (``done``,
+        finished now) when its last chunk is done; returns its status after (None: no
+        such sweep).  The caller holds the sweep's row lock."""
+        complete = sweeps.c.chunks_done + chunks_done >= sweeps.c.n_chunks
+        return conn.execute(
+            update(sweeps)
+            .where(sweeps.c.id == sweep_id)
+            .values(
+                chunks_done=sweeps.c.chunks_done + chunks_done,
+                points_done=sweeps.c.points_done + points,
+                points_failed=sweeps.c.points_failed + failed,
+                status=case((complete, "done"), else_=sweeps.c.status),
+                finished_at=case(
+                    (and_(complete, sweeps.c.status != "done"), now),
+                    else_=sweeps.c.finished_at,
+                ),
+            )
+            .returning(sweeps.c.status)
+        ).scalar()
 
     def is_cancelled(self, sweep_id: str) -> bool:
         """True once the sweep has been cancelled (or deleted)."""
@@ -572,37 +664,62 @@ class SweepStore:
                 )
             )
 
-    @staticmethod
-    def _mark_done(conn: Connection, sweep_id: str, idx: int, now: float) -> int | None:
-        """Mark chunk ``idx`` done if its block is stored, and the sweep done when every
-        chunk is; returns None if the sweep is done, else how many of its chunks are in
-        flight (queued or running).  Done only with the block: a worker that finishes a
-        chunk of a sweep purged and re-submitted meanwhile (the same id) must not mark
-        the new sweep's chunk done without its block."""
+    @classmethod
+    def _mark_done(cls, conn: Connection, sweep_id: str, idx: int, now: float) -> bool:
+        """Mark chunk ``idx`` done if its block is stored, count it in the sweep's row and
+        close the sweep when every chunk is done; returns True if the sweep is done.
+        Done only with the block: a worker that finishes a chunk of a sweep purged and
+        re-submitted meanwhile (the same id) must not mark the new sweep's chunk done
+        without its block.  A chunk already done is counted once (the update's
+        condition).  Two statements (the mark, the counters); the caller holds the
+        sweep's row lock."""
         stored = (
             select(sweep_blocks.c.idx)
             .where(and_(sweep_blocks.c.sweep_id == sweep_id, sweep_blocks.c.idx == idx))
             .exists()
         )
-        conn.execute(
+        n = conn.execute(
             update(chunks)
-            .where(and_(_chunk(sweep_id, idx), stored))
+            .where(and_(_chunk(sweep_id, idx), chunks.c.status != "done", stored))
             .values(status="done", heartbeat=now)
+        ).rowcount
+        if not n:
+            return False
+        return cls._count(conn, sweep_id, now, chunks_done=1) == "done"
+
+    @staticmethod
+    def _claim_next(conn: Connection, sweep_id: str, now: float) -> ChunkRange | None:
+        """Claim the sweep's lowest pending chunk for this process (running, owner, lease
+        from now; one UPDATE RETURNING it); None if none is pending.  The caller holds the
+        sweep's row lock.  Its block is taken as not stored: a pending chunk has none
+        unless a block was stored without completing its chunk (:meth:`store_block`
+        alone), and then the block computed again is not stored twice."""
+        first = chunks.alias("next_pending")
+        pick = (
+            select(first.c.idx)
+            .where(and_(first.c.sweep_id == sweep_id, first.c.status == "pending"))
+            .order_by(first.c.idx)
+            .limit(1)
+            .scalar_subquery()
         )
-        left, busy = conn.execute(
-            select(
-                func.count().filter(chunks.c.status != "done"),
-                func.count().filter(chunks.c.status.in_(ACTIVE)),
-            ).where(chunks.c.sweep_id == sweep_id)
-        ).one()
-        if left:
-            return int(busy)
-        conn.execute(
-            update(sweeps)
-            .where(and_(sweeps.c.id == sweep_id, sweeps.c.status != "done"))
-            .values(status="done", finished_at=now)
-        )
-        return None
+        r = conn.execute(
+            update(chunks)
+            .where(
+                and_(
+                    chunks.c.sweep_id == sweep_id,
+                    chunks.c.idx == pick,
+                    chunks.c.status == "pending",
+                )
+            )
+            .values(
+                status="running",
+                owner=owner_id(),
+                heartbeat=now,
+                attempts=chunks.c.attempts + 1,
+            )
+            .returning(chunks.c.idx, chunks.c.i0, chunks.c.i1)
+        ).first()
+        return None if r is None else ChunkRange(int(r.i0), int(r.i1), False, int(r.idx))
 
     def complete_chunk(
         self,
@@ -610,31 +727,36 @@ class SweepStore:
         idx: int,
         block: tuple[int, int, bytes, dict[int, str]] | None,
         window: int,
+        chain: bool = False,
+        lease_s: float | None = None,
     ) -> Completed:
         """Everything after a chunk was computed, in one transaction: store its block
         ``(i0, i1, data, errors)`` once (none: it was stored before), mark the chunk
-        done, close the sweep when every chunk is done, and mark the next pending
-        chunks queued to keep ``window`` in flight (an active sweep only; the caller
-        sends them).  The same as :meth:`store_block`, :meth:`finish_chunk` and
-        :meth:`next_chunks` in a row, with one lock of the sweep's row and one commit
-        instead of three (the per-chunk cost that dominates sweeps of cheap points):
-        five statements (the lock, the block, the done mark, the count of the chunks
-        left and in flight, the next chunks queued), six when the sweep is done."""
+        done, count both in the sweep's row and close the sweep when every chunk is
+        done; then, for an active sweep, with ``chain`` claim its next pending chunk
+        for this process (:attr:`Completed.next`: the caller computes it without a
+        broker message), else (or if none is pending) mark the next pending chunks
+        queued to keep the sweep's lanes in flight (``window``, capped by the live
+        worker processes with ``lease_s``; the caller sends them).  The same as
+        :meth:`store_block`, :meth:`finish_chunk`, :meth:`next_chunks` and
+        :meth:`claim` in a row with one lock of the sweep's row and one commit.
+        Statements: the lock, the block, the done mark, the counters, then the next
+        chunk claimed (one) or the dispatch (the lanes with ``lease_s``, the count of
+        chunks in flight, the pick); every one reads the sweep's row or the chunks by
+        index, none all of the sweep's chunks."""
         now = time.time()
         with self.db.write() as conn:
             s = self._lock_sweep(conn, sweep_id)
             if s is None:  # purged meanwhile
                 return Completed(False, [])
-            stored = False
-            if block is not None:
-                i0, i1, data, errors = block
-                row = self._block_row(sweep_id, idx, i0, i1, data, errors)
-                stored = insert_ignore(conn, sweep_blocks, [row]) > 0
-            busy = self._mark_done(conn, sweep_id, idx, now)
-            if busy is None:  # the sweep is done
-                return Completed(stored, [])
-            todo = self._dispatch(conn, sweep_id, window, busy) if s in ACTIVE else []
-            return Completed(stored, todo)
+            stored = block is not None and self._insert_block(conn, sweep_id, idx, block, now)
+            if self._mark_done(conn, sweep_id, idx, now) or s not in ACTIVE:
+                return Completed(stored, [])  # done, or cancelled: nothing more to send
+            if chain:
+                nxt = self._claim_next(conn, sweep_id, now)
+                if nxt is not None:
+                    return Completed(stored, [], nxt)
+            return Completed(stored, self._dispatch(conn, sweep_id, window, None, lease_s))
 
     # -- API -------------------------------------------------------------------------------
     def cancel(self, sweep_id: str) -> tuple[str, bool] | None:
@@ -677,14 +799,9 @@ class SweepStore:
         return bool(n)
 
     @staticmethod
-    def _summary(conn: Connection, row: Row[Any]) -> dict[str, Any]:
-        n_done, n_failed = conn.execute(
-            select(
-                func.coalesce(func.sum(sweep_blocks.c.i1 - sweep_blocks.c.i0), 0),
-                func.coalesce(func.sum(sweep_blocks.c.n_failed), 0),
-            ).where(sweep_blocks.c.sweep_id == row.id)
-        ).one()
-        n_done, n_failed = int(n_done), int(n_failed)
+    def _summary(row: Row[Any]) -> dict[str, Any]:
+        """Status of the sweep's row (its progress counters: no read of its blocks)."""
+        n_done, n_failed = int(row.points_done), int(row.points_failed)
         now = time.time()
         eta = None
         if row.status in ACTIVE and row.started_at and n_done:
@@ -715,7 +832,7 @@ class SweepStore:
         """Status, progress, ETA [s] (no axis values)."""
         with self.db.read() as conn:
             row = conn.execute(select(sweeps).where(sweeps.c.id == sweep_id)).first()
-            return None if row is None else self._summary(conn, row)
+            return None if row is None else self._summary(row)
 
     def list_sweeps(self, limit: int, offset: int) -> list[dict[str, Any]]:
         """Sweeps, newest first, with progress."""
@@ -723,7 +840,7 @@ class SweepStore:
             rows = conn.execute(
                 select(sweeps).order_by(sweeps.c.created_at.desc()).limit(limit).offset(offset)
             ).all()
-            return [self._summary(conn, r) for r in rows]
+            return [self._summary(r) for r in rows]
 
     def failures(self, sweep_id: str, limit: int = 100) -> list[tuple[int, str]]:
         """(flat index, message) of the first ``limit`` failed points."""
@@ -854,7 +971,9 @@ class SweepStore:
             )
             for sid in idle:
                 if sid not in active:
-                    out += [(str(sid), i) for i in self._dispatch(conn, str(sid), window)]
+                    out += [
+                        (str(sid), i) for i in self._dispatch(conn, str(sid), window, None, lease_s)
+                    ]
         return out
 
     @staticmethod
@@ -920,30 +1039,36 @@ class SweepStore:
                     out.append((str(r.sweep_id), int(r.idx)))
         return out
 
-    def close_finished(self, window: int = 64) -> tuple[int, list[tuple[str, int]]]:
+    def close_finished(
+        self, window: int = 64, lease_s: float | None = None
+    ) -> tuple[int, list[tuple[str, int]]]:
         """Self-repair of active sweeps: close those whose chunks are all done (under the
         sweep's row lock); for those with pending chunks but none in flight (the sender
         of the next chunks died), dispatch the next ones.  Returns (sweeps closed,
-        chunks to send)."""
+        chunks to send).  Reads the sweeps' counters and their chunks in flight (by
+        index); only a sweep with nothing in flight and chunks left by its counter is
+        recounted from its rows (:meth:`_recount`, which also repairs its counters)."""
         now = time.time()
         closed = 0
         send: list[tuple[str, int]] = []
         with self.db.write() as conn:
             if not self._lock_active(conn):
                 return closed, send
+            busy = (
+                select(func.count())
+                .select_from(chunks)
+                .where(and_(chunks.c.sweep_id == sweeps.c.id, chunks.c.status.in_(ACTIVE)))
+                .scalar_subquery()
+            )
             rows = conn.execute(
-                select(
-                    sweeps.c.id,
-                    sweeps.c.n_chunks,
-                    func.count(chunks.c.idx).filter(chunks.c.status == "done"),
-                    func.count(chunks.c.idx).filter(chunks.c.status.in_(ACTIVE)),
+                select(sweeps.c.id, sweeps.c.n_chunks, sweeps.c.chunks_done, busy).where(
+                    sweeps.c.status.in_(ACTIVE)
                 )
-                .join(chunks, chunks.c.sweep_id == sweeps.c.id)
-                .where(sweeps.c.status.in_(ACTIVE))
-                .group_by(sweeps.c.id, sweeps.c.n_chunks)
             ).all()
             for sid, n_chunks, n_done, n_busy in rows:
-                if n_done == n_chunks:
+                if n_done < n_chunks and n_busy == 0:  # stalled: trust a recount
+                    n_done = self._recount(conn, str(sid))
+                if n_done >= n_chunks:
                     closed += (
                         conn.execute(
                             update(sweeps)
@@ -953,8 +1078,36 @@ class SweepStore:
                         or 0
                     )
                 elif n_busy == 0:
-                    send += [(str(sid), i) for i in self._dispatch(conn, str(sid), window)]
+                    send += [
+                        (str(sid), i) for i in self._dispatch(conn, str(sid), window, 0, lease_s)
+                    ]
         return closed, send
+
+    @staticmethod
+    def _recount(conn: Connection, sweep_id: str) -> int:
+        """Count a sweep's done chunks, stored points and failed points from its rows and
+        write them to its counters (self-repair of a sweep whose rows were written
+        without them); returns the chunks done.  The caller holds the sweep's lock."""
+        done = int(
+            conn.execute(
+                select(func.count())
+                .select_from(chunks)
+                .where(and_(chunks.c.sweep_id == sweep_id, chunks.c.status == "done"))
+            ).scalar()
+            or 0
+        )
+        pts, failed = conn.execute(
+            select(
+                func.coalesce(func.sum(sweep_blocks.c.i1 - sweep_blocks.c.i0), 0),
+                func.coalesce(func.sum(sweep_blocks.c.n_failed), 0),
+            ).where(sweep_blocks.c.sweep_id == sweep_id)
+        ).one()
+        conn.execute(
+            update(sweeps)
+            .where(sweeps.c.id == sweep_id)
+            .values(chunks_done=done, points_done=int(pts), points_failed=int(failed))
+        )
+        return done
 
     @staticmethod
     def requeue(pairs: list[tuple[str, int]], send: Callable[[str, int], None]) -> int:

@@ -148,7 +148,9 @@ async def submit(
     sweep_id = cache_key("sweep", spec.to_json(), version)[:32]
     chunk = plan_chunks(spec, s, req.chunk_points)
     reserved = await admit_sweep(who, stores, sweep_id, spec.n_total)  # key quotas (429)
-    created = await run_in_threadpool(sweeps.create, sweep_id, spec, chunk, version, s.sweep_window)
+    created = await run_in_threadpool(
+        sweeps.create, sweep_id, spec, chunk, version, s.sweep_window, s.lease_s
+    )
     await sweep_submitted(who, stores, sweep_id, created.created or created.resumed, reserved)
     todo = created.todo
     warning = await run_in_threadpool(_enqueue, queue, sweep_id, todo) if todo else None

@@ -478,3 +478,105 @@ def test_critical_si_edge_values() -> None:
     assert got[2] == vl and got[5] == pytest.approx(vl * math.exp(-3.0), rel=1e-15)
     lp = critical_si(phys, "load-point-jump", np.array([-0.5, 0.0, math.inf]))
     np.testing.assert_array_equal(lp, [vl * 0.5, vl, math.inf])
+
+
+def _store_sweep(sid: str, eps: float) -> tuple[Any, Any]:
+    """A 24-point sweep of 4 chunks created in the store with one chunk in flight (the
+    other three pending, as when a sweep has more chunks than lanes): (store, spec)."""
+    from rsfapp.config import get_settings
+    from rsfapp.grid import expand
+    from rsfapp.requests import SweepRequest
+    from rsfapp.store import stores_for
+
+    body = {
+        "axes": [
+            {"name": "kappa_ratio", "start": 1.2, "stop": 3.0, "n": 4},
+            {"name": "ba", "start": 1.5, "stop": 6.0, "n": 6},
+        ],
+        "fixed": {"eps": eps, "vo": 1.0},
+    }
+    spec = expand(SweepRequest(**body), 10**6)
+    st = stores_for(get_settings()).sweeps
+    assert st.create(sid, spec, 6, "t", window=1).todo == [0]
+    return st, spec
+
+
+def _check_stored(st: Any, spec: Any, sid: str) -> None:
+    """Every point stored once, bit-equal to rsfcore's batch kernel on the same points."""
+    from rsfcore import batch
+
+    blocks = list(st.blocks(sid))
+    assert [(b.i0, b.i1) for b in blocks] == [(0, 6), (6, 12), (12, 18), (18, 24)]
+    got = np.concatenate([b.arrays["critical_size"] for b in blocks])
+    p = spec.params(0, 24)
+    ref = batch.critical_points(p["ba"], p["kappa"], p["eps"], p["vo"], rtol=spec.rtol)
+    assert got.tobytes() == ref.critical_size.tobytes()
+    s = st.status(sid)
+    assert s is not None and (s["status"], s["n_done"], s["n_failed"]) == ("done", 24, 0)
+
+
+def test_a_task_chains_the_sweeps_pending_chunks(
+    c: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With a chain budget, the task body computes its chunk and then the sweep's
+    pending chunks, each claimed in the completion of the one before: one call for the
+    four chunks, no message sent, every point stored once and equal to rsfcore's batch
+    kernel.  Without a budget (direct calls) it computes one chunk and sends the next
+    ones (up to the window; no worker registered here)."""
+    import worker.tasks as tasks
+
+    sent: list[tuple[str, int]] = []
+
+    class Recorder:
+        def __init__(self, *_a: Any) -> None:
+            pass
+
+        def send_chunk(self, sweep_id: str, idx: int) -> None:
+            sent.append((sweep_id, idx))
+
+    monkeypatch.setattr(tasks, "Queue", Recorder)
+    st, spec = _store_sweep("chain-a", 0.3)
+    out = tasks.run_chunk_body("chain-a", 0, chain_s=600.0)
+    assert out == {"stored": 4, "chunks": 4, "points": 24} and sent == []
+    _check_stored(st, spec, "chain-a")
+    st2, _ = _store_sweep("chain-b", 0.4)
+    assert tasks.run_chunk_body("chain-b", 0) == {"stored": 1, "chunks": 1, "points": 6}
+    assert sent == [("chain-b", 1), ("chain-b", 2), ("chain-b", 3)]  # RSF_SWEEP_WINDOW 64
+    s = st2.status("chain-b")
+    assert s is not None and (s["status"], s["n_done"]) == ("running", 6)
+
+
+def test_an_error_in_a_chained_chunk_is_retried_on_that_chunk(
+    c: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A chained chunk whose computation fails (here an OSError, an outage) is released
+    and the task retried on *that* chunk, not on its message's chunk (done already):
+    the retry then finishes the sweep, every point stored once."""
+    import worker.tasks as tasks
+
+    st, spec = _store_sweep("chain-err", 0.5)
+    orig = tasks.compute_block
+    failed: list[int] = []
+
+    def flaky(sp: Any, i0: int, i1: int) -> Any:
+        if i0 == 6 and not failed:
+            failed.append(i0)
+            raise OSError("injected: disk gone")
+        return orig(sp, i0, i1)
+
+    retries: list[dict[str, Any]] = []
+
+    def fake_retry(**kw: Any) -> Exception:
+        retries.append(kw)
+        return RuntimeError("retry")
+
+    monkeypatch.setattr(tasks, "compute_block", flaky)
+    monkeypatch.setattr(tasks.run_chunk, "retry", fake_retry)
+    with pytest.raises(RuntimeError, match="retry"):
+        tasks.run_chunk("chain-err", 0)
+    assert failed == [6] and len(retries) == 1
+    assert retries[0]["args"] == ("chain-err", 1) and retries[0]["max_retries"] is None
+    s = st.status("chain-err")
+    assert s is not None and s["n_done"] == 6  # chunk 0 stored, chunk 1 released
+    assert tasks.run_chunk_body(*retries[0]["args"], chain_s=600.0)["chunks"] == 3
+    _check_stored(st, spec, "chain-err")

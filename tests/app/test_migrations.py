@@ -77,7 +77,12 @@ def test_a_010_database_upgrades_and_keeps_its_rows(url: str) -> None:
         )
         conn.execute(
             old.sweep_blocks.insert().values(  # type: ignore[attr-defined]
-                sweep_id="s1", idx=0, i0=0, i1=4, n_failed=0, data=b"\x00npz", created_at=3.0
+                sweep_id="s1", idx=0, i0=0, i1=4, n_failed=1, data=b"\x00npz", created_at=3.0
+            )
+        )
+        conn.execute(
+            old.chunks.insert().values(  # type: ignore[attr-defined]
+                sweep_id="s1", idx=0, i0=0, i1=4, status="done", attempts=1
             )
         )
         conn.execute(
@@ -95,6 +100,10 @@ def test_a_010_database_upgrades_and_keeps_its_rows(url: str) -> None:
             '{"critical_size": 2.5}'
         )
         assert conn.execute(text("SELECT status, n_total FROM sweeps")).one() == ("done", 4)
+        # revision 0004 filled the progress counters from the rows already stored
+        assert conn.execute(
+            text("SELECT chunks_done, points_done, points_failed FROM sweeps")
+        ).one() == (1, 4, 1)
         assert conn.execute(text("SELECT data FROM sweep_blocks")).scalar() == b"\x00npz"
         assert conn.execute(text("SELECT scope FROM api_keys")).scalar() == "admin"
     with db.reader.connect() as conn:  # the upgraded tables are those of the code

@@ -18,7 +18,7 @@ import pytest
 
 from rsfapp.db.engine import Database
 from rsfapp.grid import Axis, SweepSpec
-from rsfapp.store.sweeps import SweepStore, encode_block
+from rsfapp.store.sweeps import ChunkRange, Completed, SweepStore, encode_block, owner_id
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -120,16 +120,18 @@ def test_complete_chunk_stores_finishes_and_dispatches_once(db: Database) -> Non
     assert st.complete_chunk("s", 1, (10, 20, encode_block(block(10, 1)), {}), 1).todo == [2]
     r2 = st.claim("s", 2, 30.0)
     assert r2 is not None and r2.stored
-    assert st.complete_chunk("s", 2, None, 1) == (False, [])
+    assert st.complete_chunk("s", 2, None, 1) == Completed(False, [])
     s = st.status("s")
     assert s is not None and (s["status"], s["n_done"], s["n_failed"]) == ("done", 30, 1)
     # a cancelled sweep dispatches nothing; a purged one stores nothing
     assert st.create("c", grid(3, 10, 0.8), 10, "t", window=1).todo == [0]
     assert st.claim("c", 0, 30.0) is not None
     st.cancel("c")
-    assert st.complete_chunk("c", 0, (0, 10, encode_block(block(10)), {}), 1) == (True, [])
+    assert st.complete_chunk("c", 0, (0, 10, encode_block(block(10)), {}), 1) == Completed(True, [])
     st.delete("c")
-    assert st.complete_chunk("c", 1, (10, 20, encode_block(block(10)), {}), 1) == (False, [])
+    assert st.complete_chunk("c", 1, (10, 20, encode_block(block(10)), {}), 1) == Completed(
+        False, []
+    )
 
 
 def test_constant_arrays_are_stored_once(db: Database) -> None:
@@ -174,8 +176,15 @@ def _worker(st: SweepStore, ids: list[str], stop: float, errors: list[BaseExcept
                 st.heartbeat(sid, idx)
                 n = rng_.i1 - rng_.i0
                 data = encode_block(block(n, idx))
-                if rng.random() < 0.5:  # the worker's path: one transaction
+                r = rng.random()
+                if r < 0.25:  # the worker's path: one transaction
                     st.complete_chunk(sid, idx, (rng_.i0, rng_.i1, data, {}), 4)
+                elif r < 0.5:  # a chaining task: each completion claims the next chunk
+                    done = st.complete_chunk(sid, idx, (rng_.i0, rng_.i1, data, {}), 4, True)
+                    while done.next is not None:
+                        nx = done.next
+                        data = encode_block(block(nx.i1 - nx.i0, nx.idx))
+                        done = st.complete_chunk(sid, nx.idx, (nx.i0, nx.i1, data, {}), 4, True)
                 else:
                     st.store_block(sid, idx, rng_.i0, rng_.i1, data, {})
                     st.finish_chunk(sid, idx, complete=True)
@@ -243,6 +252,7 @@ def test_racing_workers_cancels_purges_reapers(db: Database) -> None:
         assert all(a[1] <= b[0] for a, b in zip(spans, spans[1:], strict=False))
         if s["status"] == "done":
             assert sum(b - a for a, b in spans) == s["n_total"] == 40
+        assert _counters(db, sid) == _recount(db, sid)  # every path counted once
 
 
 def test_schema_1_database_is_upgraded(db: Database) -> None:
@@ -427,3 +437,163 @@ def test_claims_and_completions_keep_the_window_and_the_start_time(db: Database)
         st.complete_chunk("w", idx, (10 * idx, 10 * idx + 10, encode_block(block(10)), {}), 5)
     final = st.status("w")
     assert final is not None and final["status"] == "done" and final["n_done"] == 70
+
+
+def _recount(db: Database, sid: str) -> tuple[int, int, int]:
+    """(chunks done, points stored, failed points) of a sweep counted from its chunk and
+    block rows: the independent check of its counters."""
+    from sqlalchemy import and_, func, select
+
+    from rsfapp.db.tables import chunks, sweep_blocks
+
+    with db.reader.connect() as conn:
+        done = conn.execute(
+            select(func.count())
+            .select_from(chunks)
+            .where(and_(chunks.c.sweep_id == sid, chunks.c.status == "done"))
+        ).scalar()
+        pts, failed = conn.execute(
+            select(
+                func.coalesce(func.sum(sweep_blocks.c.i1 - sweep_blocks.c.i0), 0),
+                func.coalesce(func.sum(sweep_blocks.c.n_failed), 0),
+            ).where(sweep_blocks.c.sweep_id == sid)
+        ).one()
+    return int(done or 0), int(pts), int(failed)
+
+
+def _counters(db: Database, sid: str) -> tuple[int, int, int]:
+    """The sweep row's counters (chunks_done, points_done, points_failed); (0, 0, 0) if
+    the sweep is gone, as its recount is."""
+    from sqlalchemy import select
+
+    from rsfapp.db.tables import sweeps
+
+    with db.reader.connect() as conn:
+        r = conn.execute(
+            select(sweeps.c.chunks_done, sweeps.c.points_done, sweeps.c.points_failed).where(
+                sweeps.c.id == sid
+            )
+        ).first()
+    return (0, 0, 0) if r is None else (int(r[0]), int(r[1]), int(r[2]))
+
+
+def _chunk_row(db: Database, sid: str, idx: int) -> tuple[str, str | None, int]:
+    from sqlalchemy import and_, select
+
+    from rsfapp.db.tables import chunks
+
+    with db.reader.connect() as conn:
+        r = conn.execute(
+            select(chunks.c.status, chunks.c.owner, chunks.c.attempts).where(
+                and_(chunks.c.sweep_id == sid, chunks.c.idx == idx)
+            )
+        ).one()
+    return str(r[0]), r[1], int(r[2])
+
+
+def test_completion_chains_to_the_next_pending_chunk(db: Database) -> None:
+    """complete_chunk with ``chain`` claims the sweep's lowest *pending* chunk for this
+    process in the same transaction (running, this owner, one attempt) and sends
+    nothing; a queued chunk is left to its message; with nothing pending it falls back
+    to the dispatch; a cancelled sweep chains nothing; a chained chunk whose worker dies
+    is taken back by the reaper after its lease (no point lost), and a completion
+    delivered twice stores and counts nothing twice."""
+    st = SweepStore(db)
+    assert st.create("c", grid(5, 10), 10, "t", window=2).todo == [0, 1]
+    assert st.claim("c", 0, 30.0) is not None
+    d0 = st.complete_chunk("c", 0, (0, 10, encode_block(block(10)), {}), 2, chain=True)
+    assert d0 == Completed(True, [], ChunkRange(20, 30, False, 2))  # 1 waits for its message
+    assert _chunk_row(db, "c", 2) == ("running", owner_id(), 1)
+    assert _chunk_row(db, "c", 1)[0] == "queued"
+    d2 = st.complete_chunk("c", 2, (20, 30, encode_block(block(10, 2)), {}), 2, chain=True)
+    assert d2.next is not None and d2.next.idx == 3 and d2.todo == []
+    d3 = st.complete_chunk("c", 3, (30, 40, encode_block(block(10, 3)), {}), 2, chain=True)
+    assert d3.next is not None and d3.next.idx == 4
+    # the worker holding chunk 4 dies: its lease expires and the reaper requeues it
+    time.sleep(0.1)
+    assert st.reap_expired(0.05) == [("c", 4)]
+    assert _chunk_row(db, "c", 4)[:2] == ("queued", None)
+    r4 = st.claim("c", 4, 30.0)
+    assert r4 is not None and r4.idx == 4 and _chunk_row(db, "c", 4)[2] == 2
+    d4 = st.complete_chunk("c", 4, (40, 50, encode_block(block(10, 4)), {}), 2, chain=True)
+    assert d4 == Completed(True, [])  # nothing pending: 1 is queued (in flight)
+    again = st.complete_chunk("c", 4, (40, 50, encode_block(block(10, 9)), {}), 2, chain=True)
+    assert again == Completed(False, [])
+    assert _counters(db, "c") == _recount(db, "c") == (4, 40, 0)
+    assert st.claim("c", 1, 30.0) is not None
+    assert st.complete_chunk("c", 1, (10, 20, encode_block(block(10, 1)), {}), 2, True) == (
+        Completed(True, [])
+    )
+    s = st.status("c")
+    assert s is not None and (s["status"], s["n_done"]) == ("done", 50) and s["finished_at"]
+    assert st.claim("c", 1, 30.0) is None  # a message left behind: nothing to do
+    # a cancelled sweep: the running chunk is stored, nothing chained
+    assert st.create("k", grid(3, 10), 10, "t", window=1).todo == [0]
+    assert st.claim("k", 0, 30.0) is not None
+    st.cancel("k")
+    assert st.complete_chunk("k", 0, (0, 10, encode_block(block(10)), {}), 1, True) == (
+        Completed(True, [])
+    )
+    assert [_chunk_row(db, "k", i)[0] for i in (1, 2)] == ["cancelled", "cancelled"]
+
+
+def test_lanes_follow_the_live_worker_processes(db: Database) -> None:
+    """With the lease given, a sweep keeps at most as many chunks in flight as the live
+    workers in the registry have processes (a chaining worker keeps its lane busy
+    without messages); no worker registered, or no lease given: the window; a worker
+    silent for longer than the lease does not count."""
+    from sqlalchemy import update
+
+    from rsfapp.db.ops import workers
+    from rsfapp.health import register_worker
+
+    st = SweepStore(db)
+    assert st.create("a", grid(10, 10), 10, "t", window=4, lease_s=30.0).todo == [0, 1, 2, 3]
+    register_worker(db, "w1", "host-a", 11, 1, stale_after_s=3600)
+    register_worker(db, "w2", "host-b", 12, 2, stale_after_s=3600)
+    assert st.create("b", grid(10, 10), 10, "t", window=4, lease_s=30.0).todo == [0, 1, 2]
+    assert st.create("c", grid(10, 10), 10, "t", window=2, lease_s=30.0).todo == [0, 1]
+    assert st.create("d", grid(10, 10), 10, "t", window=4).todo == [0, 1, 2, 3]
+    with db.write() as conn:
+        conn.execute(
+            update(workers).where(workers.c.name == "w2").values(heartbeat=time.time() - 60)
+        )
+    assert st.create("e", grid(10, 10), 10, "t", window=4, lease_s=30.0).todo == [0]
+    # a completion that does not chain tops the lanes up the same way
+    assert st.claim("e", 0, 30.0) is not None
+    done = st.complete_chunk("e", 0, (0, 10, encode_block(block(10)), {}), 4, lease_s=30.0)
+    assert done.todo == [1]
+
+
+def test_progress_counters_match_a_recount(db: Database) -> None:
+    """The sweep row's counters (chunks done, points stored, failed points) equal a
+    recount of its chunk and block rows after every path that stores a block or marks a
+    chunk done (the worker's completion, a completion delivered twice, a block stored
+    alone then finished, a completion without a block), and the status reads them."""
+    st = SweepStore(db)
+    st.create("p", grid(6, 10), 10, "t", window=6)
+
+    def check(expected: tuple[int, int, int]) -> None:
+        assert _counters(db, "p") == _recount(db, "p") == expected
+        s = st.status("p")
+        assert s is not None and (s["n_done"], s["n_failed"]) == expected[1:]
+
+    check((0, 0, 0))
+    assert st.claim("p", 0, 30.0) is not None
+    st.complete_chunk("p", 0, (0, 10, encode_block(block(10)), {1: "E: a", 7: "E: b"}), 6)
+    check((1, 10, 2))
+    st.complete_chunk("p", 0, (0, 10, encode_block(block(10, 5)), {}), 6)  # delivered again
+    check((1, 10, 2))
+    assert st.store_block("p", 1, 10, 20, encode_block(block(10, 1)), {0: "E: c"})
+    check((1, 20, 3))  # stored, its chunk not yet done
+    st.finish_chunk("p", 1, complete=True)
+    st.finish_chunk("p", 1, complete=True)
+    check((2, 20, 3))
+    st.complete_chunk("p", 2, None, 6)  # no block stored: the chunk is not done
+    check((2, 20, 3))
+    for idx in range(2, 6):
+        assert st.claim("p", idx, 30.0) is not None
+        st.complete_chunk("p", idx, (10 * idx, 10 * idx + 10, encode_block(block(10)), {}), 6)
+    check((6, 60, 3))
+    s = st.status("p")
+    assert s is not None and s["status"] == "done"

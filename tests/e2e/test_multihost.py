@@ -318,19 +318,24 @@ def test_postgres_restart_mid_sweep_503_then_resumes(stack: Stack) -> None:
 
 
 def test_messages_lost_by_the_broker_are_sent_again(stack: Stack) -> None:
-    """Redis loses the waiting messages (as after a crash without its last writes): the
-    reapers see the queue empty while chunks stay queued for a lease, and send them
-    again; the sweep completes, every point once."""
+    """Redis loses the waiting messages (as after a crash without its last writes): here
+    the first chunks of a second sweep, submitted while both workers chain the first
+    sweep's chunks (each worker holds one lane of a sweep and takes its next pending
+    chunk without a message, so a sweep's messages wait in the queue only while the
+    workers are busy elsewhere).  The reapers see the queue empty while chunks stay
+    queued for a lease, and send them again; both sweeps complete, every point once."""
     import redis
 
-    sid = submit(stack, 40, 59, chunk=59)  # 2360 points, 40 chunks
-    wait_for(lambda: 0 < status(stack, sid)["n_done"] < 1000, 30, "progress")
+    first = submit(stack, 40, 59, chunk=59)  # 2360 points, 40 chunks
+    wait_for(lambda: 0 < status(stack, first)["n_done"] < 1000, 30, "progress")
+    sid = submit(stack, 40, 58, chunk=58)  # 2320 points, 40 chunks: its lanes wait
     r = redis.Redis(port=stack.redis.port)
     keys = r.keys("rsf*")
     assert keys and r.delete(*keys) >= 1
-    s = wait_done(stack, sid, 60)
-    assert s["n_done"] == 2360
-    check_exactly_once(stack, sid, 2360)
+    for s_id, n in ((first, 2360), (sid, 2320)):
+        s = wait_done(stack, s_id, 60)
+        assert s["n_done"] == n
+        check_exactly_once(stack, s_id, n)
 
 
 def test_sigkill_one_host_mid_sweep_completes_on_the_other(stack: Stack) -> None:
