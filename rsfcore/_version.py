@@ -80,4 +80,14 @@ __all__ = ["NUMERICS_VERSION"]
 #:    right-hand sides or below a local tolerance of 1e-15 (before: up to 2.4e6 each).
 #:    Critical sizes with kappa >~ 1e3 move within their claims; some tight-rtol answers
 #:    state a larger (honest) estimate with accuracy_met false instead of taking 0.2 - 0.6 s.
-NUMERICS_VERSION = "7"
+#: 8: trajectories (samples asked) of an outcome certain before integrating (kappa <
+#:    kappa_crit, a closed form) report their times where they are checked: where the
+#:    first run took at most DECIDED_OUTCOME_BUDGET steps (as classify), by check runs of
+#:    at most TRAJECTORY_CHECK_RATIO x its steps in all, else blow-up/return/peak times are
+#:    None with complete false (before, a check cut at 3,500 steps left the first run's claim
+#:    unchecked: a slow outward spiral's blow-up time 3.5 off against a claim of 0.049 at
+#:    b/a = 1 + 2.5e-8, rtol 1e-3; 11x its claim at b/a = 1 + 1e-6, rtol 1e-8; such a
+#:    check cost up to 10 ms for nothing).  A trajectory sampled in hybrid time keeps its
+#:    last sample, the end state at tau_end (lost when the compensated sum of the steps
+#:    ended an ulp past the last step: 199 of 200 samples, short of the blow-up).
+NUMERICS_VERSION = "8"

@@ -103,6 +103,12 @@ DECIDED_OUTCOME_BUDGET = 3_500
 #: left the first run's claim unchecked: a blow-up time at rtol 1e-3 was 1.7e3 x off its
 #: claim of 0.04 (b/a = 1 + 8e-12, kappa < kappa_crit, a load-point jump dv = 5.7e6).
 DECIDED_CERTIFY_BUDGET = 8_000
+#: The check runs of a trajectory whose outcome was certain before integrating take at
+#: most this many times the steps of its first run together (:func:`simulate`): DOP853
+#: takes ~1.33x the steps at a 10x tighter tolerance and ~2.4x at 1e3x, so the check and a
+#: probe fit, and a check that needs more shows a first run that did not resolve the path
+#: (a spiral at rtol 1e-3: 575 steps, 8,063 at 1e-4, its blow-up time 3.5 off).
+TRAJECTORY_CHECK_RATIO = 4
 EQ_TOL = 1e-6
 #: The ``converged_to_steady_state`` certificate needs the box |phi - ln v_o|, |L| < eq_tol
 #: to lie inside the basin of steady sliding.  The basin's narrowest extent, the load-point
@@ -173,7 +179,8 @@ class TrajectoryResult:
     ill-conditioned for any method, 1.5 off at rtol 1e-10, and the claim says so (7.6).
     ``complete`` is False when the outcome is certain but the step budget ran out before
     the return/blow-up time (then None) and the final peak (then the largest phi reached
-    so far, a lower bound).
+    so far, a lower bound), or when such an outcome's times could not be checked within
+    DECIDED_CERTIFY_BUDGET (:func:`simulate`; a trajectory's samples still run to the end).
     """
 
     outcome: Literal["stable", "unstable"]
@@ -717,7 +724,12 @@ def simulate(
     A named perturbation d > 0 or dv > 0 whose integration ends on the other side of the
     traced separatrix than its critical size says (outside that size's error band) is
     decided by the side (``separatrix_side``; certificate below/above_separatrix, times
-    None, complete False).
+    None, complete False).  Where the outcome was certain before integrating (a closed
+    form, the separatrix side, kappa < kappa_crit) the check runs share
+    DECIDED_CERTIFY_BUDGET steps with the first run; a trajectory's first run is checked
+    where it took at most DECIDED_OUTCOME_BUDGET steps, by checks of at most
+    TRAJECTORY_CHECK_RATIO x its steps in all.  Times they cannot check are None and
+    ``complete`` False (a trajectory's samples still run to its end).
     """
     # the question (and its budget) is the same for both runs; only rtol and the samples differ
     run = functools.partial(
@@ -741,21 +753,42 @@ def simulate(
         return res
     r = float(rtol)
     other = r / 10.0 if r / 10.0 >= lim.RTOL_RANGE[0] else r * 10.0
-    # Only the outcome asked and certain before integrating (a closed form, the separatrix
-    # side, kappa < kappa_crit): the times are a by-product, and all runs share
-    # DECIDED_CERTIFY_BUDGET steps.  Where a check cannot finish within what is left, the
-    # first run's times are not checked and are not reported (_unchecked); a tighter run
-    # rarely takes fewer steps than the first, so it is not started with less than that.
+    # An outcome certain before integrating (a closed form, the separatrix side, kappa <
+    # kappa_crit): the times are a by-product, and all runs share DECIDED_CERTIFY_BUDGET
+    # steps.  Where a check cannot finish within what is left, the first run's times are
+    # not checked and are not reported (_unchecked); a tighter run rarely takes fewer steps
+    # than the first, so it is not started with less than that.  A trajectory (samples
+    # asked) of such an outcome, whose first run goes on to DECIDED_BUDGET for the
+    # samples, is checked where that run took at most DECIDED_OUTCOME_BUDGET steps (what
+    # classify integrates), and its check runs together take at most
+    # TRAJECTORY_CHECK_RATIO x its steps.  Its check runs were cut at
+    # DECIDED_OUTCOME_BUDGET, and the first run's claim stood unchecked: up to 71x below the
+    # error of a blow-up time after a slow outward spiral (b/a = 1 + 2.5e-8, kappa = 0.63
+    # kappa_crit, rtol 1e-3: 3.5 against 0.049; 11x at b/a = 1 + 1e-6, rtol 1e-8), while a
+    # check it could not finish cost up to 10 ms (issue 22).
     only_outcome = not n_points and (times is None or len(times) == 0) and t_end is None
-    budgeted = only_outcome and method == "auto" and not res.integration_decided
-    left = DECIDED_CERTIFY_BUDGET - res.n_steps
-    if budgeted and other < r and left < res.n_steps:
+    decided = method == "auto" and not res.integration_decided
+    budgeted = only_outcome and decided
+    sampled = decided and not only_outcome
+    if sampled:
+        if res.n_steps > DECIDED_OUTCOME_BUDGET:
+            return _unchecked(res)
+        left = TRAJECTORY_CHECK_RATIO * res.n_steps
+    else:
+        left = DECIDED_CERTIFY_BUDGET - res.n_steps
+    limited = budgeted or sampled
+
+    def allowance() -> int | None:
+        """Step budget of the next check run (None: the caller's max_steps)."""
+        return left if limited else None
+
+    if limited and other < r and left < res.n_steps:
         return _unchecked(res)
     try:
-        check = run(rtol=other, decided_budget=left if budgeted else None)
+        check = run(rtol=other, decided_budget=allowance())
     except (UndecidedError, ParameterError):
         return res  # no second opinion to be had; the first run's estimate stands
-    if budgeted and not check.complete:
+    if limited and not check.complete:
         return _unchecked(res)
     left -= check.n_steps
     ok, acc = _certified(res, check, other / r)
@@ -767,18 +800,14 @@ def simulate(
         probe_r = max(r * tighten, lim.RTOL_RANGE[0])
         if probe_r > r / NOISE_PROBE_RATIO:
             probe_r = min(r * NOISE_PROBE_RATIO, lim.RTOL_RANGE[1])
-        if budgeted and probe_r != other and probe_r < r and left < res.n_steps:
+        if limited and probe_r != other and (left <= 0 or (probe_r < r and left < res.n_steps)):
             return _unchecked(res)
         try:
             # (at rtol 1e-12 the probe's tolerance is the check run's, 1e-13: the same run)
-            probe = (
-                check
-                if probe_r == other
-                else run(rtol=probe_r, decided_budget=left if budgeted else None)
-            )
+            probe = check if probe_r == other else run(rtol=probe_r, decided_budget=allowance())
         except (UndecidedError, ParameterError):
             probe = None
-        if budgeted and probe is not None and not probe.complete:
+        if limited and probe is not None and not probe.complete:
             return _unchecked(res)
         if probe is not None:
             ok_p, acc_p = _certified(res, probe, probe_r / r)
@@ -1396,9 +1425,18 @@ def _sample(
                         steplog, res0.n_logged, y0, p.ba, p.kappa, p.eps, p.vo, sTau, samples
                     )
                 )
+                y_last = res0.y_end
             else:
                 res, samples = run(t_end=te, stop_on_return=sor, sample_tau=sTau)
                 n_filled = res.n_filled
+                y_last = res.y_end
+            if n_filled == n_points - 1 and y_last.shape[0] == NSTATE:
+                # the last sample is at tau_end itself, the run's compensated sum of its
+                # steps, which may end an ulp past the last step's tau + x h: lost to that
+                # rounding (199 of 200 samples, the last one short of the blow-up: a spiral
+                # at b/a = 1 + 1e-6, rtol 1e-10), it is the run's end state
+                samples[n_filled] = y_last
+                n_filled += 1
     s = samples[:n_filled]
     if shift != 0.0:
         s = s.copy()
