@@ -405,16 +405,25 @@ def database(url: str) -> Database:
     return db
 
 
+#: The INSERT ... ON CONFLICT DO NOTHING RETURNING statement of each (dialect, table),
+#: built once: SQLAlchemy keeps the cache key of a statement object, so a statement
+#: reused costs no construction and no key (~0.2-0.4 ms of CPU each time otherwise).
+_INSERT_IGNORE: dict[tuple[str, Table], Any] = {}
+
+
 def insert_ignore(
     conn: Connection, table: Table, rows: Sequence[Mapping[str, Any]] | Mapping[str, Any]
 ) -> int:
     """INSERT rows, silently skipping those whose primary key exists; returns rows added."""
     if not rows:
         return 0
-    mod: Any = postgresql if conn.dialect.name == "postgresql" else sqlite
-    # RETURNING counts the inserted rows on every driver (psycopg reports rowcount -1
-    # for these statements).
-    pk = list(table.primary_key.columns)[0]
-    stmt = mod.insert(table).on_conflict_do_nothing().returning(pk)
-    res = conn.execute(stmt, list(rows) if isinstance(rows, Sequence) else [rows])
+    key = (conn.dialect.name, table)
+    stmt = _INSERT_IGNORE.get(key)
+    if stmt is None:
+        mod: Any = postgresql if conn.dialect.name == "postgresql" else sqlite
+        # RETURNING counts the inserted rows on every driver (psycopg reports rowcount -1
+        # for these statements).
+        pk = list(table.primary_key.columns)[0]
+        stmt = _INSERT_IGNORE[key] = mod.insert(table).on_conflict_do_nothing().returning(pk)
+    res = conn.execute(stmt, list(rows) if isinstance(rows, Sequence) else rows)
     return len(res.all())
