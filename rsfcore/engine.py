@@ -29,8 +29,10 @@ Norsett & Wanner, Solving ODEs I, Sec. II.10) with its 7th-order dense output.  
 tableau is this project's copy of the published coefficients (rsfcore.ode.dop853_tableau);
 stages, error norm, step-size controller, dense output, the Illinois root finder (events) and
 the Newton inversion of the time component (samples at given T) are the shared kernels of
-rsfcore.ode.rk; stiff phases take RODAS4 steps from rsfcore.ode.rodas4 (both also used by
-the separatrix integrator, rsfcore.separatrix); this module holds the right-hand side, its
+rsfcore.ode.rk; stiff phases take Rosenbrock steps: RODASP (rsfcore.ode.rodasp, the
+default since NUMERICS_VERSION 8; it keeps its order on the stiff relaxations where RODAS4
+loses it) or RODAS4 (rsfcore.ode.rodas4; :class:`StiffMethod`), both also used by the
+separatrix integrator (rsfcore.separatrix); this module holds the right-hand side, its
 Jacobian and the driver with its events.
 
 Events located on every accepted step with the dense output:
@@ -60,11 +62,12 @@ from numpy.typing import NDArray
 from .excursion import PHI_LEG
 from .excursion import fast_leg as _fast_leg
 from .laws import EXP_CLIP, G_clipped, two_prod
-from .ode import rk, rodas4
+from .ode import rk, rodas4, rodasp
 
 __all__ = [
     "Status",
     "Integrator",
+    "StiffMethod",
     "EngineOptions",
     "EngineResult",
     "run",
@@ -85,7 +88,7 @@ NSTATE = 5
 _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, NSTATE))
 #: columns of a step log row: hybrid time at the step's start, signed step, 1.0 for a
-#: RODAS4 step (0.0 DOP853), the usable fraction of the step (< 1 at a stop), then the
+#: RODAS4 step, 2.0 for a RODASP step (0.0 DOP853), the usable fraction of the step (< 1 at a stop), then the
 #: internal state (phi, L, c T[, s, s_o]) at the step's start
 LOG_TAU, LOG_H, LOG_STIFF, LOG_XLIM, LOG_Y = 0, 1, 2, 3, 4
 _EMPTY_LOG = np.empty((0, LOG_Y + NSTATE))
@@ -128,9 +131,9 @@ STATUS: dict[int, str] = {int(s): s.text for s in Status}
 _STATUS_OF: dict[int, Status] = {int(s): s for s in Status}
 
 # ints for the compiled kernel (numba freezes module-level ints as constants).
-# The kernels of rsfcore.ode.rk and rsfcore.ode.rodas4 are inlined into integrate(); numba's
-# cache does not see edits there, so touch this file (or clear NUMBA_CACHE_DIR) after
-# changing rk.py or rodas4.py.
+# The kernels of rsfcore.ode.rk, rsfcore.ode.rodas4 and rsfcore.ode.rodasp are inlined into
+# integrate(); numba's cache does not see edits there, so touch this file (or clear
+# NUMBA_CACHE_DIR) after changing rk.py, rodas4.py or rodasp.py.
 _T_END = int(Status.T_END)
 _RUNAWAY = int(Status.RUNAWAY)
 _RETURNED = int(Status.RETURNED)
@@ -141,6 +144,16 @@ _CONVERGED = int(Status.CONVERGED)
 _TIME_LIMIT = int(Status.TIME_LIMIT)
 #: c T and the hybrid time beyond which a run stops (Status.TIME_LIMIT)
 TIME_LIMIT = 1e300
+#: A stiff phase hands back to DOP853 after 20 Rosenbrock steps in a row with h |lambda|
+#: below this (lambda: the largest eigenvalue of the stiff 2 x 2 block).  RODAS4: 2 (well
+#: inside DOP853's stability interval, ~6).  RODASP: 1, because on stiff relaxations at
+#: tight rtol DOP853 then takes accuracy-limited steps of h |lambda| ~ 1 at twice the cost
+#: of a Rosenbrock step (12 right-hand sides against 6): at b/a = 4.9e4, kappa = 6.1e4,
+#: dv = 8e45, rtol 1e-13 the trajectory took 40.6 ms CPU with 2, 20.3 ms with 1 (0.5, 0.25,
+#: 0.1: 19.0 - 19.5 ms), and eight other stiff and soft queries at rtol 1e-8 .. 1e-13 moved
+#: by less than the timing noise (bench/bench_speed.py's cases).
+_EXIT_HL_RODAS4 = 2.0
+_EXIT_HL_RODASP = 1.0
 
 
 class Integrator(IntEnum):
@@ -150,8 +163,27 @@ class Integrator(IntEnum):
     EXPLICIT = 0
     #: DOP853, switching to RODAS4 in stiff phases and back (the default)
     AUTO = 1
-    #: RODAS4 throughout (for tests and comparison)
+    #: the Rosenbrock method (:class:`StiffMethod`) throughout (for tests and comparison)
     ROSENBROCK = 2
+
+
+class StiffMethod(IntEnum):
+    """Which Rosenbrock method takes the stiff steps of :func:`integrate` (the kernel takes
+    the int; rsfcore.ode.rodas4, rsfcore.ode.rodasp).
+
+    Both are 6-stage L-stable methods of order 4(3) with the same step kernel; they differ
+    in their coefficients and continuous extension.  On the engine's stiff relaxations
+    (a machine relaxing along its slow manifold after a large load-point jump) RODAS4
+    loses order (1.5e5 steps at rtol 1e-13 against 1.5e3 at 1e-8) where RODASP keeps it:
+    at b/a = 4.9e4, kappa = 6.1e4, eps = 1, dv = 8e45 (200 samples) 2,565 / 9,646 /
+    18,972 steps at rtol 1e-10 / 1e-12 / 1e-13 against 11,287 / 37,396 / 66,654
+    (NUMERICS_VERSION 8; tests/core/test_stiff.py checks both against scipy's Radau).
+    """
+
+    #: Hairer & Wanner's RODAS4 (the engine's stiff method up to NUMERICS_VERSION 7)
+    RODAS4 = 0
+    #: Steinebach's RODASP, with its own continuous extension (the default)
+    RODASP = 1
 
 
 class EngineResult(NamedTuple):
@@ -169,7 +201,7 @@ class EngineResult(NamedTuple):
         n_steps, n_rhs, n_rejected: accepted steps, right-hand-side evaluations, rejections.
         err_sum: sum over accepted steps of rtol times the normalised local error estimate.
         n_filled: number of sample rows written.
-        n_stiff_steps: accepted steps taken by RODAS4 (stiff phases); n_jacobians: Jacobians.
+        n_stiff_steps: accepted Rosenbrock steps (stiff phases); n_jacobians: Jacobians.
         n_legs: fast-slip legs taken in closed form (rsfcore.excursion; fast_leg=True).
         n_logged: rows written to ``steplog`` (one per accepted step; -1 when it was too
             short, 0 when none was given): :func:`replay_samples` reads them.
@@ -216,8 +248,10 @@ class EngineOptions(NamedTuple):
         max_steps: budget of accepted + rejected steps.
         eq_tol: with stop_on_return and v_o > 0, also stop (Status.CONVERGED) once both
             |phi - ln v_o| and |L| fall below eq_tol without a crossing (0: never).
-        integrator: an :class:`Integrator` code (0 DOP853, 1 automatic, 2 RODAS4).
+        integrator: an :class:`Integrator` code (0 DOP853, 1 automatic, 2 Rosenbrock).
         fast_leg: take fast-slip legs in closed form (rsfcore.excursion).
+        stiff_method: a :class:`StiffMethod` code (0 RODAS4, 1 RODASP, the default): the
+            Rosenbrock method of stiff phases.
     """
 
     rtol: float
@@ -231,6 +265,7 @@ class EngineOptions(NamedTuple):
     eq_tol: float = 0.0
     integrator: int = 1
     fast_leg: bool = False
+    stiff_method: int = int(StiffMethod.RODASP)
 
     def typed(self) -> EngineOptions:
         """The same options with every field coerced to its declared type."""
@@ -246,6 +281,7 @@ class EngineOptions(NamedTuple):
             float(self.eq_tol),
             int(self.integrator),
             bool(self.fast_leg),
+            int(self.stiff_method),
         )
 
 
@@ -458,9 +494,11 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
         ba, kappa, eps, vo: parameters (validated by the caller).
         opts: an :class:`EngineOptions` (fields of their declared types: see
             :meth:`EngineOptions.typed`).  Its ``integrator``: 0 = DOP853 only;
-            1 = automatic (DOP853, switching to RODAS4 when Hairer's stiffness test fires
-            15 times in a row, and back when h |lambda| < 2 for 20 steps); 2 = RODAS4
-            only.  Its ``fast_leg``: take the fast-slip leg of an excursion above
+            1 = automatic (DOP853, switching to the Rosenbrock method of ``stiff_method``,
+            RODASP by default, when Hairer's stiffness test fires 15 times in a row, and
+            back when h |lambda| < 1 (RODASP; RODAS4: 2) for 20 steps); 2 = the
+            Rosenbrock method only.
+            Its ``fast_leg``: take the fast-slip leg of an excursion above
             phi - ln c = PHI_LEG in closed form (rsfcore.excursion) instead of stepping
             through it; tau does not advance over a leg, so no hybrid-time sample falls
             inside one (samples in T do not either: a leg lasts < e^-50 of the time scale).
@@ -491,6 +529,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
     eq_tol = opts.eq_tol
     integrator = opts.integrator
     fast_leg = opts.fast_leg
+    stiff_method = opts.stiff_method
     n = y0.shape[0]  # 5, or 3 = (phi, ln theta, T) when slip and load point are not wanted
     c = vo if vo > 0.0 else 1.0
     lnc = math.log(c)
@@ -603,7 +642,8 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
     stiff = integrator == 2
     n_stiff_hits = 0  # consecutive accepted DOP853 steps with h |lambda| > STIFF_THRESHOLD
     n_nonstiff = 0
-    n_easy = 0  # consecutive accepted RODAS4 steps with h |lambda| < 2
+    n_easy = 0  # consecutive accepted Rosenbrock steps with h |lambda| < the exit threshold
+    exit_hl = _EXIT_HL_RODASP if stiff_method == 1 else _EXIT_HL_RODAS4
     n_stiff_steps = 0
     n_jac = 0
     n_legs = 0
@@ -612,10 +652,13 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
             status = _TIME_LIMIT
             break
         if stiff:
-            # ---- one RODAS4 step (stiff phase) ----------------------------------
+            # ---- one Rosenbrock step (stiff phase: RODASP, or RODAS4) -------------
             _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
             n_jac += 1
-            ok = rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
+            if stiff_method == 1:
+                ok = rodasp.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
+            else:
+                ok = rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
             n_rhs += 6
             err = math.inf
             if ok:
@@ -628,7 +671,10 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
                         sc[j] = rk.error_scale(
                             y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf
                         )
-                    err = rodas4.error_norm(R, f, fnew, h, sc, 0, 3, True)
+                    if stiff_method == 1:
+                        err = rodasp.error_norm(R, f, fnew, h, sc, 0, 3, True)
+                    else:
+                        err = rodas4.error_norm(R, f, fnew, h, sc, 0, 3, True)
             if not (err <= 1.0):
                 n_rej += 1
                 h *= rodas4.reject_factor(err)
@@ -851,7 +897,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
             if n_log < log_cap:
                 steplog[n_log, LOG_TAU] = tau
                 steplog[n_log, LOG_H] = h
-                steplog[n_log, LOG_STIFF] = 1.0 if stiff else 0.0
+                steplog[n_log, LOG_STIFF] = (1.0 + stiff_method) if stiff else 0.0
                 steplog[n_log, LOG_XLIM] = x_lim
                 for j in range(n):
                     steplog[n_log, LOG_Y + j] = y[j]
@@ -937,7 +983,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
             y[j] = ynew[j]
             f[j] = fnew[j]
         if stiff:
-            # RODAS4 controller with Gustafsson's predictive correction (rodas.f)
+            # rodas.f's controller with Gustafsson's predictive correction
             fac, err_c = rodas4.accept_factor(err, h, h_acc_prev, err_acc_prev, rejected_last)
             h_acc_prev = h
             err_acc_prev = err_c
@@ -945,7 +991,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
             h *= fac
             if integrator == 1:
                 # back to DOP853 once the step is well inside its stability region
-                n_easy = n_easy + 1 if h * rodas4.spectral_radius(J) < 2.0 else 0
+                n_easy = n_easy + 1 if h * rodas4.spectral_radius(J) < exit_hl else 0
                 if n_easy >= 20:
                     stiff = False
                     n_stiff_hits = 0
@@ -1032,7 +1078,7 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
     :func:`integrate` run from y0 (its rows [0, n_log), LOG_* columns), without a second
     run: each step that holds a sample is taken again from its logged start (the same
     state, step and method give the same stages, so the same dense output: DOP853's
-    7th-order polynomial, or RODAS4's cubic Hermite interpolant), and the samples are
+    7th-order polynomial, or the cubic Hermite interpolant of a RODASP or RODAS4 step), and the samples are
     read from it exactly as :func:`integrate` reads them.  The result is bit-identical to
     a run with ``sample_tau`` given (tests/core/test_trajectory.py).  Fills ``samples``
     (len(sample_tau), len(y0)) in the output form (phi, ln theta, T[, s, s_o]); returns
@@ -1078,7 +1124,10 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
         _rhs(y, f, ba, kappa, eps, vo, c, lnc)
         if steplog[k, LOG_STIFF] != 0.0:
             _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
-            rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
+            if steplog[k, LOG_STIFF] == 2.0:
+                rodasp.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
+            else:
+                rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
             rodas4.hermite_coeffs(y, ynew, f, fnew, h, F)
         else:
             _dop853_step(K, y, f, h, ynew, fnew, tmp, ftmp, ba, kappa, eps, vo, c, lnc)

@@ -614,9 +614,9 @@ def classify(
         size: d for a velocity jump ([-1e4, 1e4]) or dv/v_o for a load-point jump ((-1, ..]).
         start: explicit start (phi0, psi0) instead of a named perturbation.
         rtol: relative tolerance of the integrator, [1e-13, 1e-3] (rsfcore.limits.RTOL).
-        integrator: "auto" (DOP853, switching to the Rosenbrock method RODAS4 while the
+        integrator: "auto" (DOP853, switching to the Rosenbrock method RODASP while the
             problem is stiff; the default), "explicit" (DOP853 only) or "rosenbrock"
-            (RODAS4 only); see :func:`simulate`.
+            (RODASP only); see :func:`simulate`.
         log_size: the perturbation by its logarithm instead of ``size`` (d for a velocity
             jump, any finite value; ln(1 + dv) for a load-point jump, so every reported
             critical size, log_critical_size, can be checked); see :func:`start_from_log`.
@@ -680,8 +680,9 @@ def simulate(
     (rsfcore.excursion; near b/a -> 1 these climb to phi ~ 1e5 .. 1e12 and back in < e^-50
     of the time) advances neither T nor the hybrid time, so no sample lies on it: the
     samples step from its entry to its exit, at equal phi, and ``peak_phi`` gives its top.
-    Samples come from the dense output (7th order for DOP853 steps; for RODAS4 steps a
-    cubic Hermite interpolant whose error the step control bounds like the step's own),
+    Samples come from the dense output (7th order for DOP853 steps; for Rosenbrock steps a
+    cubic Hermite interpolant whose error the step control bounds like the step's own,
+    against RODASP's continuous extension),
     so they carry the integrator's accuracy.  Without
     ``t_end`` the trajectory ends at the decision (return to steady state, blow-up, or the
     passed peak for v_o = 0); with ``t_end`` it runs to that T (or to blow-up if
@@ -694,10 +695,11 @@ def simulate(
     instead of ~1e5 steps, and is exact where the steps blur L = phi + ln theta).  ``max_steps``
     (<= 1e7) bounds the work: UndecidedError(reason="budget") when it runs out first.
 
-    ``integrator``: "auto" (default) runs DOP853 and switches to RODAS4 (an L-stable
-    Rosenbrock method of order 4 with the analytic Jacobian) when Hairer's stiffness test
+    ``integrator``: "auto" (default) runs DOP853 and switches to RODASP (an L-stable
+    Rosenbrock method of order 4 that keeps its order on stiff relaxations, where RODAS4
+    loses it; analytic Jacobian; rsfcore.engine.StiffMethod) when Hairer's stiffness test
     (h |lambda| > 6.1 on 15 consecutive steps) shows that stability, not accuracy, limits
-    the step, and back once h |lambda| < 2 for 20 steps: stiff machines (kappa up to 1e6)
+    the step, and back once h |lambda| < 1 for 20 steps: stiff machines (kappa up to 1e6)
     then take ~1e3 steps instead of ~1e6.  "explicit" and "rosenbrock" force one method
     (tests/core/test_stiff.py compares them).  Events, certificates and peaks are located
     the same way with either.

@@ -68,6 +68,7 @@ __all__ = [
     "step_tableau",
     "solve",
     "error_norm",
+    "error_norm_tableau",
     "reject_factor",
     "accept_factor",
     "hermite_coeffs",
@@ -172,6 +173,26 @@ def step(rhs, args, y, f0, h, J, R, tmp, ftmp, buf, ynew, fnew):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def error_norm_tableau(D2, D3, R, f0, f1, h, sc, j0, j1, dense):
+    """:func:`error_norm` for a method of RODAS's layout whose continuous extension has
+    the weights D2, D3 (5,) over the stage increments k_1..k_5 (RODASP:
+    rsfcore.ode.rodasp.error_norm)."""
+    e_step = 0.0
+    e_dense = 0.0
+    for j in range(j0, j1):
+        e_step += (R[5, j] / sc[j]) ** 2
+        if dense:
+            d2 = 0.0
+            d3 = 0.0
+            for m in range(5):
+                d2 += D2[m] * R[m, j]
+                d3 += D3[m] * R[m, j]
+            dd = 0.125 * h * (f0[j] - f1[j]) - 0.25 * d2 - 0.125 * d3
+            e_dense += (dd / sc[j]) ** 2
+    return math.sqrt(max(e_step, e_dense) / (j1 - j0))
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def error_norm(R, f0, f1, h, sc, j0, j1, dense):
     """Normalised local error of a step (accept when <= 1), over components j0 .. j1-1.
 
@@ -182,19 +203,7 @@ def error_norm(R, f0, f1, h, sc, j0, j1, dense):
     h (f0 - f1)/8 - D2/4 - D3/8, both O(h^4): bounding it keeps located events and samples
     as accurate as the steps.  sc: the weights (atol + rtol |y|, rsfcore.ode.rk.error_scale).
     """
-    e_step = 0.0
-    e_dense = 0.0
-    for j in range(j0, j1):
-        e_step += (R[5, j] / sc[j]) ** 2
-        if dense:
-            d2 = 0.0
-            d3 = 0.0
-            for m in range(5):
-                d2 += _D2[m] * R[m, j]
-                d3 += _D3[m] * R[m, j]
-            dd = 0.125 * h * (f0[j] - f1[j]) - 0.25 * d2 - 0.125 * d3
-            e_dense += (dd / sc[j]) ** 2
-    return math.sqrt(max(e_step, e_dense) / (j1 - j0))
+    return error_norm_tableau(_D2, _D3, R, f0, f1, h, sc, j0, j1, dense)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -24,6 +24,23 @@ literals in exact rational arithmetic (:class:`fractions.Fraction`) and rounded 
 with Gamma = (gamma_ij) (diagonal gamma), a = alpha Gamma^-1 and c = diag(1/gamma) -
 Gamma^-1 (Hairer & Wanner II, Sec. IV.7).  tests/core/test_rodasp.py checks the layout
 (rows 5 and 6 of a, the weights) and the orders.
+
+The continuous extension (``D2``, ``D3``; used by rsfcore.engine to bound the error of
+its cubic Hermite dense output, as with RODAS4) is derived here too, not printed: it has
+RODAS4's form
+
+    y(t0 + s h) = y0 + s (y1 - y0) + s (1 - s) D2 + s^2 (1 - s) D3,
+    D2 = sum_j d2_j k_j,  D3 = sum_j d3_j k_j  (j = 1..5),
+
+whose weights b_j(s) = s b_j + s (1 - s) d2_j + s^2 (1 - s) d3_j must satisfy the
+Rosenbrock order conditions up to order 3 for every s (Hairer & Wanner II, Sec. VI.4):
+sum b_j(s) = s, sum b_j(s) beta'_j = s^2/2 - gamma s, sum b_j(s) alpha_j^2 = s^3/3,
+sum b_j(s) beta_jk beta'_k = s^3/6 - gamma s^2 + gamma^2 s, i.e. four linear conditions
+on each of d2 and d3 (``_dense``).  RODAS4's published d2, d3 are the solution of these
+four and the index-1 condition sum b_j(s) w_jk alpha_k^2 = s^2 (w = (beta_jk + gamma
+delta_jk)^-1), to rounding (tests/core/test_rodasp.py); for RODASP that fifth condition
+gives weights of ~1e4 (a near-singular system: rounding of the stages amplified 1e4x), so
+its extension is the solution of the four of least Euclidean norm (weights below 21).
 """
 
 from __future__ import annotations
@@ -36,11 +53,16 @@ __all__ = [
     "BETA",
     "A",
     "C",
+    "D2",
+    "D3",
     "ORDER",
+    "DENSE_ORDER",
 ]
 
 #: order of the solution; the embedded estimate is of order 3 (error exponent 1/4)
 ORDER = 4
+#: order of the continuous extension (D2, D3)
+DENSE_ORDER = 3
 
 _GAMMA_TEXT = "0.25"
 #: alpha_ij as printed (row i = stage i+1, 0-based; rows of fewer entries end in zeros)
@@ -111,3 +133,66 @@ def _transformed() -> tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ..
 #: argument plus k_5, as in RODAS4)
 #: c_ij of the transformed form, C[i] for stage i+1 (i = 1..5)
 A, C = _transformed()
+
+
+def _dense() -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(d2, d3) of the continuous extension in the transformed form (weights of the stage
+    increments R[0..4] of rsfcore.ode.rodas4.step_tableau), exactly, rounded once: the
+    least-norm solution d = M^T (M M^T)^-1 t of the four order-3 conditions M d = t over
+    the original k_1..k_5 (module docstring), mapped to the transformed stages by
+    Gamma^-1 (sum_j d_j k_j = sum_i (d^T Gamma^-1)_i u_i, u = Gamma k)."""
+    n = 6
+    g = Fraction(_GAMMA_TEXT)
+    alpha = [[Fraction(0)] * n for _ in range(n)]
+    beta = [[Fraction(0)] * n for _ in range(n)]
+    gam = [[Fraction(0)] * n for _ in range(n)]
+    for i in range(n):
+        for j, (a_txt, b_txt) in enumerate(zip(_ALPHA_TEXT[i], _BETA_TEXT[i], strict=False)):
+            alpha[i][j] = Fraction(a_txt)
+            beta[i][j] = Fraction(b_txt)
+            gam[i][j] = Fraction(b_txt) - Fraction(a_txt)
+        gam[i][i] = g
+    zero = Fraction(0)
+    al = [sum(row, zero) for row in alpha]
+    bp = [sum(row, zero) for row in beta]
+    bbp = [sum((beta[i][k] * bp[k] for k in range(n)), zero) for i in range(n)]
+    m = 5
+    rows: list[list[Fraction]] = [
+        [Fraction(1)] * m,
+        bp[:m],
+        [a * a for a in al[:m]],
+        bbp[:m],
+    ]
+    targets = {
+        "d2": [Fraction(0), Fraction(-1, 2), Fraction(-1, 3), g - Fraction(1, 6)],
+        "d3": [Fraction(0), Fraction(0), Fraction(-1, 3), Fraction(-1, 6)],
+    }
+    # M M^T (4 x 4) solved by Gauss-Jordan elimination in exact arithmetic
+    mmt = [[sum((ri[k] * rj[k] for k in range(m)), zero) for rj in rows] for ri in rows]
+    # Gamma^-1 by forward substitution (lower triangular)
+    inv = [[Fraction(0)] * n for _ in range(n)]
+    for col in range(n):
+        for i in range(n):
+            acc = Fraction(1) if i == col else Fraction(0)
+            for j in range(i):
+                acc -= gam[i][j] * inv[j][col]
+            inv[i][col] = acc / gam[i][i]
+    out: list[tuple[float, ...]] = []
+    for key in ("d2", "d3"):
+        aug: list[list[Fraction]] = [mmt[i][:] + [targets[key][i]] for i in range(4)]
+        for c in range(4):
+            p = next(i for i in range(c, 4) if aug[i][c] != 0)
+            aug[c], aug[p] = aug[p], aug[c]
+            for i in range(4):
+                if i != c and aug[i][c] != 0:
+                    f = aug[i][c] / aug[c][c]
+                    aug[i] = [x - f * y for x, y in zip(aug[i], aug[c], strict=True)]
+        lam = [aug[i][4] / aug[i][i] for i in range(4)]
+        d = [sum((lam[r] * rows[r][k] for r in range(4)), zero) for k in range(m)] + [zero]
+        out.append(tuple(float(sum((d[j] * inv[j][i] for j in range(n)), zero)) for i in range(m)))
+    return out[0], out[1]
+
+
+#: weights of the continuous extension over the transformed stage increments k_1..k_5
+#: (rsfcore.ode.rodas4's D2, D3 layout; least-norm order-3 extension, ``_dense``)
+D2, D3 = _dense()
