@@ -34,14 +34,16 @@ class Settings(BaseSettings):
             when workers run on several hosts (SQLite needs one shared local disk).
         chunk_seconds: target duration of one sweep chunk [s], (0, 600], at the cost per
             point estimated from a sample of the sweep (rsfapp.grid.plan_chunks; chunks of
-            at most 10^6 points).
+            at most 10^6 points); also how long a worker's task goes on with the sweep's
+            next pending chunks (chunk chaining, worker.tasks.run_chunk).
         sweep_max_points: largest accepted sweep (points), >= 1; default 1e8 (a sweep
             is chunked lazily: nothing per point is created before it is computed).
         sweep_max_scattered: largest number of scattered points in one request (they
             travel in the request body), >= 1.
         sweep_max_chunks: largest number of chunks of one sweep (chunks grow to fit).
-        sweep_window: chunks of one sweep sent to the queue ahead of the workers; each
-            finished chunk sends the next one (a 10^8-point sweep never floods the broker).
+        sweep_window: chunks of one sweep sent to the queue ahead of the workers, at most
+            one per live worker process; a task that stops chaining sends the next one (a
+            10^8-point sweep never floods the broker).
         queue: Celery queue used by the API and the workers.
         inline_budget_s: a single query still computing after this long [s] is answered
             202 + Location /v1/results/{key} and finishes in the background.
