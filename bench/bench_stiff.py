@@ -1,4 +1,5 @@
-"""Stiff spring-sliders: rsfcore's DOP853 -> RODAS4 switch against scipy's stiff solvers.
+"""Stiff spring-sliders: rsfcore's DOP853 -> Rosenbrock (RODASP) switch against scipy's stiff
+solvers.
 
 Cases (load-point jumps on stiff machines, where DOP853 alone is stability-limited):
 
@@ -8,8 +9,8 @@ Cases (load-point jumps on stiff machines, where DOP853 alone is stability-limit
 
 Quantity compared: the state (phi, ln theta) at T = 1 (dimensionless time), from the same
 hybrid-time system the engine integrates (rsfcore.engine module docstring).  Reference:
-rsfcore with RODAS4 alone at rtol 1e-13, cross-checked against DOP853 alone at rtol 1e-13
-(printed).  Delivered error = max(|d phi|, |d ln theta|) against the reference.
+rsfcore with its Rosenbrock method (RODASP) alone at rtol 1e-13, cross-checked against
+DOP853 alone at rtol 1e-13 (printed).  Delivered error = max(|d phi|, |d ln theta|) against the reference.
 
 For rsfcore (automatic switch, rtol 1e-6 .. 1e-12), DOP853 alone (rtol 1e-10) and scipy's
 Radau, BDF and LSODA (analytic Jacobian supplied; rtol 1e-4 .. 1e-12, atol = rtol; the
@@ -130,7 +131,7 @@ def main() -> None:
             t_ex = time.perf_counter()
             ex, n_ex = _rsfcore_state(p, dv, 1e-13, "explicit")
             t_ex = time.perf_counter() - t_ex
-            print(f"  reference RODAS4 rtol 1e-13 vs DOP853 rtol 1e-13 ({n_ex} steps, "
+            print(f"  reference RODASP rtol 1e-13 vs DOP853 rtol 1e-13 ({n_ex} steps, "
                   f"{t_ex:.2f} s): max difference {np.abs(ex - ref).max():.1e}")  # fmt: skip
         print(f"  {'solver':<22}{'rtol':>8}{'steps':>10}{'time [ms]':>12}{'error':>10}")
         target = math.nan

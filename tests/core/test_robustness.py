@@ -115,7 +115,8 @@ def test_matrix_load_point_jumps() -> None:
     """Every (eps, b/a, kappa/kappa_crit, dv), with a step budget (not a time limit): a
     case that needed more would raise BudgetExceeded.  The stiff corner kappa = 1e6 (b/a =
     100, kappa/kappa_crit = 1e4) took DOP853 alone up to 2.1e6 steps (3-27 s per case, the
-    test once hit pytest-timeout); with the switch to RODAS4 it takes <= 1.1e3 steps."""
+    test once hit pytest-timeout); with the switch to a Rosenbrock method (RODAS4, RODASP
+    since NUMERICS_VERSION 8) it takes <= 1.1e3 steps."""
     for eps, ba, kr, dv in itertools.product(EPS, BA, KAPPA_RATIO, [1e-12, 1.0, 700.0]):
         p = Params.from_ratio(ba, kr, eps, 1.0)
         r = classify(p, "load-point-jump", dv, max_steps=MATRIX_BUDGET)

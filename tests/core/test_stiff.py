@@ -103,7 +103,8 @@ def test_jacobian_matches_mpmath_derivatives(eps: float, vo: float) -> None:
 
 @pytest.mark.parametrize("p, pert, d", SMOOTH_CASES)
 def test_rosenbrock_alone_meets_the_explicit_reference(p: Params, pert: str, d: float) -> None:
-    """RODAS4 forced on every step, against DOP853 at rtol 1e-13: same certificate, and
+    """The Rosenbrock method (RODASP) forced on every step, against DOP853 at rtol 1e-13:
+    same certificate, and
     times and peaks within the two reported accuracies (the same bound the explicit method
     is held to in test_trajectory.py)."""
     ref = classify(p, pert, d, rtol=1e-13, integrator="explicit")
@@ -129,7 +130,7 @@ def test_auto_switch_agrees_with_explicit_where_both_run(p: Params, pert: str, d
     here: after ~1e4-1e5 stability-limited steps its accumulated error makes phi, which
     approaches ln v_o from above within 1e-9, dip below it, and it reports a spurious
     return time (4.39 at rtol 1e-8, 6.69 at 1e-10, none at 1e-12 and 1e-13 for the second
-    case); RODAS4 and the automatic switch report none at every rtol."""
+    case); the Rosenbrock method and the automatic switch report none at every rtol."""
     ex = classify(p, pert, d, rtol=1e-13, integrator="explicit")
     ex10 = classify(p, pert, d, rtol=1e-10, integrator="explicit")
     au = classify(p, pert, d, rtol=1e-10)
@@ -148,7 +149,8 @@ def test_auto_switch_agrees_with_explicit_where_both_run(p: Params, pert: str, d
 
 
 def test_engine_reports_stiff_steps() -> None:
-    """The switch happens (RODAS4 steps counted) on a stiff machine and never on a soft one."""
+    """The switch happens (Rosenbrock steps counted) on a stiff machine and never on a soft
+    one."""
     e = np.empty(0)
     opts = engine.EngineOptions(
         rtol=1e-10, atol=1e-10, stop_on_return=True, max_steps=1_000_000, eq_tol=1e-6
@@ -166,7 +168,7 @@ def test_engine_reports_stiff_steps() -> None:
 def test_stiff_corner_target_case_is_cheap_and_right() -> None:
     """kappa = 1e6, b/a = 1 + 1e-6, load-point jump 10 at rtol 1e-10: DOP853 alone needs
     1.33e6 steps (2.5-17 s); with the switch it takes ~440.  The trajectory approaches the
-    new steady state from above without crossing it (checked against RODAS4 at rtol 1e-13
+    new steady state from above without crossing it (checked against RODASP at rtol 1e-13
     below): certificate converged_to_steady_state, peak phi = ln 11 + 2.4e-6."""
     p = Params(1 + 1e-6, 1e6, 0.0, 1.0)
     r = classify(p, "load-point-jump", 10.0, rtol=1e-10)
@@ -185,8 +187,9 @@ def test_stiff_corner_target_case_is_cheap_and_right() -> None:
 
 @pytest.mark.slow
 def test_stiff_corner_samples_against_explicit_reference() -> None:
-    """Samples of the stiff-corner trajectory (RODAS4 dense output) against DOP853 at rtol
-    1e-13 (2.1e6 steps, ~4 s): measured agreement 2e-12 in phi (RODAS4 at 1e-10: 3e-11);
+    """Samples of the stiff-corner trajectory (Rosenbrock dense output) against DOP853 at
+    rtol 1e-13 (2.1e6 steps, ~4 s): measured agreement 2e-12 in phi with RODAS4 at 1e-10
+    (3e-11 in psi), 3.4e-12 in phi with RODASP (NUMERICS_VERSION 8; 4.6e-11 in psi);
     the bound 1e-9 is the sum of both runs' reported accuracies times phi (~2.4)."""
     p = Params(1 + 1e-6, 1e6, 0.0, 1.0)
     times = [1e-6, 1e-4, 0.01, 0.3, 0.7, 1.0]

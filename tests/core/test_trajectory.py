@@ -299,7 +299,7 @@ def test_state_frozen_at_underflowed_velocity_stops_at_the_time_limit() -> None:
     [
         (Params(2, 2, 0.25, 1), "velocity-jump", 2.7, 1e-8),  # DOP853, returns
         (Params(2, 2, 0.25, 1), "load-point-jump", 14.0, 1e-10),  # runaway
-        (Params(49434.88, 61036.76, 1.0, 3.2e20), "load-point-jump", 8e45, 1e-8),  # RODAS4
+        (Params(49434.88, 61036.76, 1.0, 3.2e20), "load-point-jump", 8e45, 1e-8),  # RODASP
         (
             Params(1.0000000247933079, 1.5676244919750778e-08, 1.0, 4.1e-7),
             "velocity-jump",
