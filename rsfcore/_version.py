@@ -101,4 +101,11 @@ __all__ = ["NUMERICS_VERSION"]
 #:    (kappa >~ 1e3: classify, trajectories, fits, protocols) moves at the level of its
 #:    tolerance; outcomes and certificates unchanged on the test suite and
 #:    bench/bench_certificates.py (seeds 2701, 5813: 0 violations).
+#:    Separatrix (critical sizes; classify's separatrix side): where the rate is large
+#:    (|d(rhs)/dy| > 1e3) DOP853 hands over to RODASP from h |d(rhs)/dy| > 0.2 on (was 2:
+#:    at rtol 1e-12 .. 1e-13 DOP853's error control held stiff steps at h |J| ~ 0.4 - 2,
+#:    so load-point phase (B) at b/a >= 1e4, kappa ~ kappa_crit ran 5e5 right-hand sides in
+#:    DOP853, 30 - 40 ms); a first run far off rtol is repeated with relaxation caps 1e4,
+#:    1e2, 1 (was: unrelaxed at once); the legs of a run share its budget; retries stop once
+#:    one gains less than 2x.  Critical sizes with kappa >~ 1e3 move within their claims.
 NUMERICS_VERSION = "8"

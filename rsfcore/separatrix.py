@@ -132,6 +132,17 @@ _NOISE_ULPS = 4.0
 #: axis ends near -6, so such steps are limited by stability, not accuracy; where kappa is
 #: large the separatrix attracts at a rate ~kappa and explicit steps shrink like 1/kappa)
 STIFF_HJ = 2.0
+#: where the rate itself is large (|d(rhs)/dy| > STIFF_J_FAST, the stiff corner) a step
+#: counts as stiff from h |d(rhs)/dy| > STIFF_HJ_FAST on: at tight tolerances DOP853's
+#: error estimate holds such steps below STIFF_HJ although stability limits them
+#: (measured, load-point phase (B): b/a = 1e6, kappa = 999999.999999, eps = 0.9, rtol
+#: 1e-12: h |J| 1.5 - 2.1 with |J| ~ 9e4 for 4.2e4 steps, 5e5 right-hand sides in
+#: DOP853; b/a = 1e5, kappa = 99999.00001, rtol 1e-13: h |J| ~ 0.8, 3.5e5; b/a = 1e4,
+#: kappa = 9999.000001, rtol 1e-13: h |J| ~ 0.36, 8.4e4), so the switch never came.
+#: RODASP hands back there below EASY_HJ_FAST instead of EASY_HJ (hysteresis)
+STIFF_HJ_FAST = 0.2
+STIFF_J_FAST = 1.0e3
+EASY_HJ_FAST = 0.05
 STIFF_RUN = 10
 #: and back: RODASP hands over to DOP853 after EASY_RUN accepted steps in a row with
 #: h |d(rhs)/dy| < EASY_HJ (accuracy, not stability, limits them; DOP853's 8th order
@@ -183,6 +194,22 @@ _RETRY_NR_BUDGET = 60_000
 #: a first run whose estimate misses rtol by more than this factor is repeated unrelaxed
 #: first
 _FAR_OFF = 1.0e3
+#: relaxation caps of the repeats of a first run that far off, in order, until one
+#: meets rtol (within _RETRY_NR_BUDGET): the error of a relaxed run grows like
+#: ~cap^1.5 where the contraction it counted on does not come (b/a = 6.0e5,
+#: kappa = 1e6, eps = 0.051, load-point, rtol 1e-12: caps 1e6 / 1e4 / 1e2 / 1 gave
+#: 1.1e-7 / 1.1e-10 / 4.3e-13 / 3.4e-11 in 3.7e3 / 8.0e3 / 4.2e4 / 1.6e5 right-hand
+#: sides; at rtol 1e-13 cap 1e4 gave 7.9e-14 in 1.7e4, cap 1 7.4e-14 in 2.5e5)
+_FAR_OFF_CAPS = (1.0e4, 1.0e2, 1.0)
+#: right-hand sides of those repeats together (then the retries get what is left of
+#: _RETRY_NR_BUDGET, if anything): b/a = 9.06e5, kappa = 1e6, eps = 0, load-point, rtol
+#: 1e-10 took 6.1e3 + 1.5e4 (1.06e-10) + 5.5e4 (2.0e-11, met)
+_FAR_OFF_NR_BUDGET = 100_000
+#: the retries stop once one brings the error bound down by less than this factor
+#: (measured: velocity jump at b/a = kappa = 1e6, rtol 1e-12: 4.6e-12 first, then
+#: 1.6e-12, 1.2e-12, 1.2e-12 for 1.5e4, 1.8e4, 2.6e4 right-hand sides more; values
+#: agree to 1e-15, the bound is the per-step rounding of the right-hand side)
+_RETRY_MIN_GAIN = 0.5
 #: no retry with fewer than this many right-hand sides left
 _RETRY_NR_MIN = 5_000
 #: no retry whose internal local tolerance (rtol x _TOL_FACTOR_V/_L) is below this: the
@@ -537,7 +564,7 @@ def _scalar_run(
             if switch:
                 # steps no longer limited by stability (h |J| < EASY_HJ, EASY_RUN in a
                 # row): accuracy limits them, and DOP853 (order 8) takes longer ones
-                if h * abs(J) < EASY_HJ:
+                if h * abs(J) < (EASY_HJ_FAST if abs(J) > STIFF_J_FAST else EASY_HJ):
                     n_easy += 1
                     if n_easy >= EASY_RUN:
                         return S_STIFF, x, y, err_sum, n_rhs, h
@@ -549,7 +576,9 @@ def _scalar_run(
             if switch:
                 # Hairer's counting (dop853.f): STIFF_RUN stiff steps, reset after 6 in a
                 # row that are not
-                if h * abs(J) > STIFF_HJ:
+                if h * abs(J) > STIFF_HJ or (
+                    abs(J) > STIFF_J_FAST and h * abs(J) > STIFF_HJ_FAST
+                ):
                     n_stiff += 1
                     n_easy = 0
                     if n_stiff >= STIFF_RUN:
@@ -661,7 +690,10 @@ def _integrate(
     relax_cap and switch slope stiff_slope) and back (up to _MAX_SWITCHES times; each leg
     at most max_steps steps) once its steps are
     limited by stability (never with stiff_ok False: DOP853 alone, the reference the
-    tests compare with).  rec/rec_n: the contraction profile is recorded there;
+    tests compare with).  The legs share one budget: the first at most max_steps steps,
+    each later one what is left of max_steps x rodas4.N_STAGES right-hand sides (S_BUDGET
+    once spent; before, every leg had max_steps steps of its own, and retries meant to
+    stay within _RETRY_NR_BUDGET took 2 - 3x it).  rec/rec_n: the contraction profile is recorded there;
     use/use_n/tail: a profile recorded by an earlier run relaxes the tolerance
     (:func:`_relax_profile`).  Returns (status, x, y, err_prop, n_rhs, h, used RODASP)."""
     st, x, y, es, nr, h = _scalar_run(
@@ -671,24 +703,30 @@ def _integrate(
     used = False
     method = _EXPLICIT
     n_sw = 0
+    nr_budget = max_steps * rodas4.N_STAGES
     while st == S_STIFF:
         n_sw += 1
+        left = nr_budget - nr
         if method == _EXPLICIT or n_sw > _MAX_SWITCHES:
             # stiff: RODASP (the last leg without switching back)
             method = _ROSENBROCK
             used = True
+            if left < rodas4.N_STAGES:
+                return S_BUDGET, x, y, es, nr, h, used
             st, x, y, es, nr2, h = _scalar_run(
                 _ROSENBROCK, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, stiff_slope,
                 h, K, h_max, es, relax_cap, math.nan, n_sw < _MAX_SWITCHES, rec, rec_n, use,
-                use_n, tail, max_steps,
+                use_n, tail, left // rodas4.N_STAGES,
             )  # fmt: skip
         else:
             # no longer stiff (little damping left, or steps not limited by stability)
             method = _EXPLICIT
+            if left < rk.N_STAGES:
+                return S_BUDGET, x, y, es, nr, h, used
             st, x, y, es, nr2, h = _scalar_run(
                 _EXPLICIT, mode, x, y, x_end, kappa, kc, eps, rtol, atol, ycap, switch_slope, h,
                 K, h_max, es, relax_cap, math.nan, True, rec, rec_n, use, use_n, tail,
-                max_steps,
+                left // rk.N_STAGES,
             )  # fmt: skip
         nr += nr2
     return st, x, y, es, nr, h, used
@@ -756,17 +794,23 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
         # come), and tighter relaxed retries cost more than one unrelaxed run at rtol
         # (b/a = 6.0e5, kappa = 1e6, eps = 0.051, load-point, rtol 1e-10: relaxed 2.7e-7,
         # unrelaxed 1.5e-11 in 4.1e4 right-hand sides, relaxed retries 2.8e5)
-        st2, val2, err2, nr2, _ = _separatrix_run(
-            kappa, kc, eps, pert, rr, K, 1.0, True, tiny, tiny_n, tiny, 0, 0,
-            _RETRY_NR_BUDGET // rodas4.N_STAGES,
-        )  # fmt: skip
-        nr += nr2
-        if st2 == S_OK:
-            fl2 = _rounding_floor(st2, val2, pert, nr2)
-            if err2 + fl2 < err + fl:
-                st, val, err, nr_run, fl = st2, val2, err2, nr2, fl2
-            if err + fl <= rtol * abs(val):
-                return st, val, err + fl, nr
+        for cap in _FAR_OFF_CAPS:
+            left = _FAR_OFF_NR_BUDGET - (nr - nr_first)
+            if left < _RETRY_NR_MIN:
+                break
+            st2, val2, err2, nr2, _ = _separatrix_run(
+                kappa, kc, eps, pert, rr, K, cap, True, tiny, tiny_n, tiny, 0, 0,
+                left // rodas4.N_STAGES,
+            )  # fmt: skip
+            nr += nr2
+            if st2 == S_OK:
+                fl2 = _rounding_floor(st2, val2, pert, nr2)
+                if err2 + fl2 < err + fl:
+                    st, val, err, nr_run, fl = st2, val2, err2, nr2, fl2
+                if err + fl <= rtol * abs(val):
+                    return st, val, err + fl, nr
+            elif st2 == S_BUDGET:
+                break  # a smaller cap costs more
     for i in range(len(_RETRIES)):
         r_i = rr * _RETRIES[i][0]
         left = _RETRY_NR_BUDGET - (nr - nr_first)
@@ -788,10 +832,16 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
             break
         if st2 == S_OK:
             fl2 = _rounding_floor(st2, val2, pert, nr2)
-            if err2 + fl2 < err + _rounding_floor(st, val, pert, nr_run):
+            best = err + _rounding_floor(st, val, pert, nr_run)
+            if err2 + fl2 < best:
                 # the run with the smaller error bound is kept (both are bounds)
                 st, val, err, nr_run = st2, val2, err2, nr2
             if err2 + fl2 <= rtol * abs(val2):
+                break
+            if err2 + fl2 > _RETRY_MIN_GAIN * best:
+                # the estimate has reached its floor (the right-hand side's rounding
+                # counted per step, which a tighter run does not reduce): the best run
+                # stands
                 break
         na = max(pn[cur, 0], 0)
         nb_ = max(pn[cur, 1], 0)
@@ -909,9 +959,14 @@ def _separatrix_run(
     # at L* = 1e4, 24 ms) of a frozen s_theta.
     u_f = t - _PHI_FROZEN
     u_stop = u_f if 0.0 < u_f < u else 0.0
+    # (phase B gets what phase A left of the budget: max_steps x rodas4.N_STAGES
+    # right-hand sides in all)
+    left_b = max_steps - nr // rodas4.N_STAGES
+    if left_b <= 0:
+        return S_BUDGET, math.nan, math.nan, nr, stiff
     st2, u2, t2, es2, nr2, h2, stiff2 = _integrate(
         1, u, t, u_stop, kappa, kc, eps, rt, atol_b, 1.0, 0.0, 0.1 * u, K, _H_MAX_B, es_t,
-        relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0, max_steps,
+        relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0, left_b,
     )  # fmt: skip
     nr += nr2
     stiff = stiff or stiff2
@@ -924,10 +979,12 @@ def _separatrix_run(
         if ph < -0.5 * _PHI_FROZEN:
             es2 += abs(G(u2, eps)) / kappa * math.exp(ph) / -math.expm1(ph)
         else:  # (not seen: s_theta fell on the way) the rest is integrated after all
+            left_b = max_steps - nr // rodas4.N_STAGES
+            if left_b <= 0:
+                return S_BUDGET, math.nan, math.nan, nr, stiff
             st2, u2, t2, es2, nr3, h2, stiff3 = _integrate(
                 1, u2, t2, 0.0, kappa, kc, eps, rt, atol_b, 1.0, 0.0, h2, K, _H_MAX_B, es2,
-                relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0,
-                max_steps,
+                relax_cap, 0.0, stiff_ok, rec[1], rec_n[1:2], use[1], nb_, 0.0, left_b,
             )  # fmt: skip
             nr += nr3
             stiff = stiff or stiff3
