@@ -576,9 +576,7 @@ def _scalar_run(
             if switch:
                 # Hairer's counting (dop853.f): STIFF_RUN stiff steps, reset after 6 in a
                 # row that are not
-                if h * abs(J) > STIFF_HJ or (
-                    abs(J) > STIFF_J_FAST and h * abs(J) > STIFF_HJ_FAST
-                ):
+                if h * abs(J) > STIFF_HJ or (abs(J) > STIFF_J_FAST and h * abs(J) > STIFF_HJ_FAST):
                     n_stiff += 1
                     n_easy = 0
                     if n_stiff >= STIFF_RUN:
