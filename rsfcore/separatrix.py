@@ -210,6 +210,11 @@ _FAR_OFF_NR_BUDGET = 100_000
 #: 1.6e-12, 1.2e-12, 1.2e-12 for 1.5e4, 1.8e4, 2.6e4 right-hand sides more; values
 #: agree to 1e-15, the bound is the per-step rounding of the right-hand side)
 _RETRY_MIN_GAIN = 0.5
+#: ... where the retry's local tolerance is at most this (within 100x of _RT_FLOOR, where
+#: the rounding of the right-hand side can set the bound); above it a small gain means
+#: the relaxation, which the later retries tighten (b/a = 9.3e5, kappa = 1e6, load-point,
+#: rtol 1e-10: 5.7e-8 after a 1.2x gain, met by the third retry)
+_GAIN_RT = 1.0e-13
 #: no retry with fewer than this many right-hand sides left
 _RETRY_NR_MIN = 5_000
 #: no retry whose internal local tolerance (rtol x _TOL_FACTOR_V/_L) is below this: the
@@ -836,7 +841,7 @@ def separatrix_critical(kappa, kc, eps, pert, rtol, K):
                 st, val, err, nr_run = st2, val2, err2, nr2
             if err2 + fl2 <= rtol * abs(val2):
                 break
-            if err2 + fl2 > _RETRY_MIN_GAIN * best:
+            if err2 + fl2 > _RETRY_MIN_GAIN * best and r_i * tol_factor <= _GAIN_RT:
                 # the estimate has reached its floor (the right-hand side's rounding
                 # counted per step, which a tighter run does not reduce): the best run
                 # stands
