@@ -257,8 +257,8 @@ PROFILE_CATEGORIES: tuple[tuple[str, str, str | None], ...] = (
 
 
 def start_profiles(workers: dict[str, Any]) -> dict[str, tuple[Any, Path]]:
-    """Start ``py-spy record`` (raw collapsed stacks, 250 samples/s, on-CPU only) on each
-    worker; returns {node: (process, output file)}."""
+    """Start ``py-spy record`` (raw collapsed stacks, 250 samples/s, idle threads left
+    out) on each worker; returns {node: (process, output file)}."""
     import shutil
     import subprocess
 
@@ -274,8 +274,10 @@ def start_profiles(workers: dict[str, Any]) -> dict[str, tuple[Any, Path]]:
 
 
 def stop_profiles(spies: dict[str, tuple[Any, Path]]) -> dict[str, dict[str, float]]:
-    """Stop the samplers and return, per worker, the share [%] of its on-CPU samples in
-    each category of :data:`PROFILE_CATEGORIES` (the rest: "other")."""
+    """Stop the samplers and return, per worker, the share [%] of its busy samples in
+    each category of :data:`PROFILE_CATEGORIES` (the rest: "other").  py-spy's idle test
+    counts a thread blocked on a socket (the database, the broker) as busy, so the
+    store's and the broker's shares include their round trips."""
     import signal
 
     shares: dict[str, dict[str, float]] = {}
@@ -309,7 +311,7 @@ def stop_profiles(spies: dict[str, tuple[Any, Path]]) -> dict[str, dict[str, flo
                 for k, v in sorted(counts.items(), key=lambda kv: -kv[1])
             },
         }
-        print(f"profile of {node} (% of on-CPU samples): {shares[node]}")
+        print(f"profile of {node} (% of busy samples): {shares[node]}")
     return shares
 
 
@@ -332,9 +334,10 @@ def main() -> None:
     ap.add_argument(
         "--profile",
         action="store_true",
-        help="sample each worker with py-spy during the sweep (on-CPU samples only) and "
-        "print where its time goes (the kernel, parameters, block encoding, the store's "
-        "transactions, Celery and the broker); the stacks are written to bench/out/",
+        help="sample each worker with py-spy during the sweep and print where its busy "
+        "samples go (the kernel, parameters, block encoding, the store's transactions, "
+        "Celery and the broker); py-spy counts a thread waiting for the database as busy, "
+        "so these are shares of wall time, not of CPU; the stacks go to bench/out/",
     )
     ap.add_argument(
         "--max-download-s",
