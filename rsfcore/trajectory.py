@@ -1121,10 +1121,12 @@ def _simulate(
         )
     frame_shift = 0.0  # ln v_o of the run when it is integrated in the v_o = 1 frame
     steplog = _EMPTY_LOG
-    if not only_outcome:
+    if decided_budget is not None:
+        cap = int(decided_budget)  # a check run's share (simulate; with t_end or times too)
+    elif not only_outcome:
         cap = DECIDED_BUDGET
     else:
-        cap = DECIDED_OUTCOME_BUDGET if decided_budget is None else int(decided_budget)
+        cap = DECIDED_OUTCOME_BUDGET
     if (
         beyond
         or plan.certificate in ("at_equilibrium", "below_separatrix", "above_separatrix")
