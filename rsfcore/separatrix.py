@@ -27,8 +27,10 @@ DOP853's steps are limited by stability and the old driver ran out of its 2e5 st
 
 * DOP853 hands over to RODASP (:func:`_scalar_run` with RODASP steps: L-stable, the
   scalar ODE as the pair (x, y) with x' = 1 and the analytic Jacobian) once its steps are
-  stability-limited (Hairer's test with the analytic d(rhs)/dy), and back where steps
-  are no longer limited by stability (EASY_HJ) or little damping is left before the end;
+  stability-limited (Hairer's test with the analytic d(rhs)/dy; where |d(rhs)/dy| > 1e3
+  from h |d(rhs)/dy| > 0.2 on, as tight tolerances hold DOP853's stiff steps below 2),
+  and back where steps are no longer limited by stability (EASY_HJ) or little damping is
+  left before the end;
 * RODASP keeps its order on this stiff problem (NUMERICS_VERSION 7; RODAS4, used before,
   falls to order ~1 there, like on the Prothero-Robinson problem: 10x the steps per
   decade of tolerance);
@@ -46,8 +48,13 @@ DOP853's steps are limited by stability and the old driver ran out of its 2e5 st
   ~1e-16);
 * runs whose propagated estimate misses rtol are repeated with tighter settings
   (``_RETRIES``), within a budget of right-hand sides (``_RETRY_NR_BUDGET``) and never
-  below the rounding floor (``_RT_FLOOR``); the answer then states the best run's
-  estimate (accuracy_met false) instead of costing 0.3 - 0.5 s per retry.
+  below the rounding floor (``_RT_FLOOR``), and stop near it once a retry gains less
+  than 2x (``_RETRY_MIN_GAIN``); a first run far off is repeated with relaxation caps
+  ``_FAR_OFF_CAPS`` first; the answer then states the best run's estimate (accuracy_met
+  false) instead of costing 0.3 - 0.5 s per retry.  The legs and phases of a run share
+  one budget of right-hand sides.  At rtol 1e-12 .. 1e-13 every critical size of
+  bench/bench_speed.py takes at most 1.1e5 right-hand sides (<= 9.3 ms CPU;
+  NUMERICS_VERSION 8).
 
 Measured (docs/accuracy.md, "The stiff corner"): b/a = kappa = 1e5 and 1e6, both
 perturbations, in 2e4 - 2e5 right-hand sides (0.5 - 7 ms) with rel_accuracy 1e-10 met.
@@ -416,11 +423,13 @@ def _scalar_run(
       linear model of :func:`_relax` (relax_cap itself when x_end is infinite); relax_cap
       is capped so that the relaxed tolerance stays <= _RELAX_TOL_MAX;
     * switch: DOP853 returns S_STIFF at the end of an accepted step once STIFF_RUN
-      consecutive steps had h |J| > STIFF_HJ (not interrupted by 6 in a row below it:
+      consecutive steps had h |J| > STIFF_HJ, or > STIFF_HJ_FAST where |J| > STIFF_J_FAST
+      (not interrupted by 6 in a row below it:
       Hairer's counting in dop853.f); RODASP returns S_STIFF before a step once
       _RELAX_RATE |J| rem < 1 (little damping left before x_end: DOP853, whose 8th order
       needs few steps for the tight tolerance such undamped errors need, finishes), or
-      after EASY_RUN accepted steps in a row with h |J| < EASY_HJ;
+      after EASY_RUN accepted steps in a row with h |J| < EASY_HJ (EASY_HJ_FAST where
+      |J| > STIFF_J_FAST);
     * the error weight adds h x the right-hand side's rounding (:func:`_rhs_noise`;
       divided by 1 + h |J| for RODASP, whose linear solve damps it);
     * at most max_steps attempted steps (S_BUDGET).
