@@ -111,4 +111,13 @@ __all__ = ["NUMERICS_VERSION"]
 #:    sizes with kappa >~ 1e3 move within their claims; none of 2,310 (bench points, rtol
 #:    1e-3 .. 1e-13) loses accuracy_met, five gain it, and all differ from before by less
 #:    than the sum of both claims.
+#:    classify: where the tolerance was tightened (rtol and rtol/10 differed by more than
+#:    1e-2), the run reported is probed like a first run (a third run 1e3x tighter where
+#:    errors need not scale with rtol): a peak phi = 1.25e9 (b/a = 1 + 2.7e-6, load-point
+#:    jump, rtol 9.2e-4) was 1.12e-3 off against a claim of 9.2e-4 from the pair alone,
+#:    now 5.4e-3 (scipy referee; claims rise, values and outcomes unchanged).  An outcome
+#:    certain before integrating does not start check runs whose steps, predicted from the
+#:    first run's (n (rtol/rtol')^(1/8)), would not fit what is left of
+#:    DECIDED_CERTIFY_BUDGET: such answers report complete false without them (11.8 -> 4 ms
+#:    CPU); a few near that edge whose checks would just have fit lose their times.
 NUMERICS_VERSION = "8"
