@@ -209,6 +209,9 @@ class SweepSpec:
     _n: int = field(default=0, repr=False)
     _names: tuple[str, ...] = field(default=(), repr=False)
     physical: dict[str, float] | None = None
+    #: per (parameter, rows): the read-only layout of a parameter that is the same on
+    #: every row (:meth:`_row_params`), kept for the spec's next ranges
+    _rows_cache: dict[tuple[str, int], F64] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.mode == "grid":
@@ -248,17 +251,78 @@ class SweepSpec:
 
     def params(self, i0: int, i1: int) -> dict[str, F64 | None]:
         """Parameter arrays of flat indices [i0, i1): ba, kappa (not the ratio), eps, vo
-        and size (None when the sweep computes critical sizes)."""
-        return self._derive(self.swept_values(i0, i1), i1 - i0)
+        and size (None when the sweep computes critical sizes): contiguous arrays, not to
+        be written to (some are read-only views of a layout kept for the next ranges).
+
+        A grid range spanning at least two rows of its last axis is computed row-wise
+        (:meth:`_row_params`: the other axes' values once per row, broadcast), the same
+        numbers as point by point."""
+        rows = self._row_params(i0, i1)
+        if rows is not None:
+            return rows
+        return self._derive(self.swept_values(i0, i1), (i1 - i0,))
 
     def params_at(self, flat: NDArray[np.int64]) -> dict[str, F64 | None]:
         """As :meth:`params`, at the flat indices ``flat`` (any order)."""
-        return self._derive(self.swept_at(flat), int(flat.size))
+        return self._derive(self.swept_at(flat), (int(flat.size),))
 
-    def _derive(self, vals: dict[str, F64], n: int) -> dict[str, F64 | None]:
+    def _row_params(self, i0: int, i1: int) -> dict[str, F64 | None] | None:
+        """:meth:`params` of [i0, i1) for a grid whose last axis ("a row", L values) is
+        at most half the range long; else None.
+
+        The rows the range touches are laid out as a (rows, L) block: the last axis's
+        values as one row (1, L), each other axis's value once per row (rows, 1), fixed
+        values as (1, 1); the derived kappa (kappa_ratio (ba - 1)) is one broadcast
+        operation.  A parameter that varies within a row only (the last axis, a fixed
+        value) is the same for every range of as many rows: laid out once per spec and
+        returned as a read-only view (rsfcore's batch call takes read-only arrays); one
+        that varies per row is written once.  The range is a contiguous view of the
+        block (at most two partial rows computed and not used).  Every element is the
+        same IEEE operation on the same values as :meth:`_derive` point by point, so the
+        same bits (tests/app/test_sweep_spec.py).  Sweeps with an SI size take the
+        point-by-point path."""
+        n = i1 - i0
+        if self.mode != "grid" or self.si_size is not None or n <= 0:
+            return None
+        last = self.axes[-1]
+        width = last.n
+        if 2 * width > n:
+            return None
+        r0, r1 = i0 // width, (i1 - 1) // width + 1
+        vals: dict[str, F64] = {last.name: last.cached_all()[None, :]}
+        stride = 1  # in rows
+        for ax in reversed(self.axes[:-1]):
+            k = (np.arange(r0, r1, dtype=np.int64) // stride) % ax.n
+            vals[ax.name] = ax.cached_all()[k][:, None]
+            stride *= ax.n
+        shape = (r1 - r0, width)
+        off = i0 - r0 * width
+        out: dict[str, F64 | None] = {}
+        for name, v in self._derive(vals, (1, 1)).items():
+            if v is None:
+                out[name] = None
+                continue
+            if v.shape[0] == 1:  # the same on every row
+                key = (name, shape[0])
+                if key not in self._rows_cache:
+                    if len(self._rows_cache) >= 16:  # ranges of many lengths: keep few
+                        self._rows_cache.clear()
+                    t = np.broadcast_to(v, shape).copy()
+                    t.flags.writeable = False
+                    self._rows_cache[key] = t
+                v = self._rows_cache[key]
+            elif v.shape != shape:  # one value per row
+                v = np.repeat(v.reshape(-1), width).reshape(shape)
+            out[name] = v.reshape(-1)[off : off + n]
+        return out
+
+    def _derive(self, vals: dict[str, F64], shape: tuple[int, ...]) -> dict[str, F64 | None]:
+        """ba, kappa, eps, vo and size from the swept values ``vals`` (arrays that
+        broadcast to ``shape``): fixed values filled in, kappa from kappa_ratio, an SI
+        size converted."""
         for name, v in self.fixed.items():
             if name not in vals and v is not None:
-                vals[name] = np.full(n, float(v))
+                vals[name] = np.full(shape, float(v))
         if self.kappa_param == "kappa_ratio":
             vals["kappa"] = vals["kappa_ratio"] * (vals["ba"] - 1.0)
         si = self.si_size

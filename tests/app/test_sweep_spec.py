@@ -195,6 +195,60 @@ def test_swept_values_equal_the_outer_product_at_any_range(shape: tuple[int, ...
             assert got[ax.name].tobytes() == want.tobytes(), (shape, i0, i1, ax.name)
 
 
+@pytest.mark.parametrize(
+    "body",
+    [
+        # kappa_ratio and eps per row, ba the row (the benchmark's layout)
+        {
+            "axes": [
+                {"name": "kappa_ratio", "start": 0.3, "stop": 0.95, "n": 7},
+                {"name": "eps", "start": 0.0, "stop": 0.6, "n": 5},
+                {"name": "ba", "start": 1.2, "stop": 20.0, "n": 40},
+            ],
+            "fixed": {"vo": 1.0},
+        },
+        # ba per row, kappa_ratio the row (log), outcomes of a fixed size
+        {
+            "axes": [
+                {"name": "ba", "start": 1.5, "stop": 9.0, "n": 6},
+                {"name": "kappa_ratio", "start": 0.1, "stop": 3.0, "n": 30, "log": True},
+            ],
+            "fixed": {"eps": 0.2, "vo": 0.5, "size": 1.5},
+        },
+        # kappa (not the ratio) swept, vo the row with explicit values, a swept size
+        {
+            "axes": [
+                {"name": "kappa", "start": 0.5, "stop": 4.0, "n": 3},
+                {"name": "size", "start": -0.5, "stop": 2.0, "n": 4},
+                {"name": "vo", "values": [0.0, 0.25, 1.0, 3.0, 7.5, 11.0, 20.0, 100.0]},
+            ],
+            "fixed": {"ba": 2.5, "eps": 0.3},
+        },
+        # one axis only (a single row)
+        {"axes": [{"name": "eps", "start": 0.0, "stop": 1.0, "n": 50}], "fixed": {"ba": 3.0}},
+    ],
+)
+def test_params_of_a_range_equal_point_by_point(body: dict) -> None:
+    """params(i0, i1) (row-wise for ranges of two rows or more) against params_at (the
+    point-by-point definition: unravel_index + Axis.at, then the same derivation), bit
+    for bit, at 300 random ranges and every short one at the start."""
+    sp = spec_of(body)
+    n = sp.n_total
+    rng = np.random.default_rng(5)
+    ranges = [(0, k) for k in range(1, min(n, 90))]
+    ranges += [tuple(sorted(int(x) for x in rng.integers(0, n + 1, 2))) for _ in range(300)]
+    for i0, i1 in ranges:
+        got = sp.params(i0, i1)
+        want = sp.params_at(np.arange(i0, i1, dtype=np.int64))
+        for name, w in want.items():
+            g = got[name]
+            if w is None:
+                assert g is None, name
+                continue
+            assert g is not None and g.flags.c_contiguous, name
+            assert g.dtype == np.float64 and g.tobytes() == w.tobytes(), (i0, i1, name)
+
+
 def test_compute_chunk_isolates_a_point_that_breaks_the_batch(monkeypatch) -> None:
     sp = spec_of(
         {
