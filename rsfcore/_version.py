@@ -120,4 +120,8 @@ __all__ = ["NUMERICS_VERSION"]
 #:    first run's (n (rtol/rtol')^(1/8)), would not fit what is left of
 #:    DECIDED_CERTIFY_BUDGET: such answers report complete false without them (11.8 -> 4 ms
 #:    CPU); a few near that edge whose checks would just have fit lose their times.
+#:    A time that a checking run does not have (a return by crossing ln v_o where the
+#:    check converged inside the steady-state box) is None with complete false: it was
+#:    reported unchecked (b/a = 2.6e5, kappa = 1e6, d = 4.8e-3, rtol 2.6e-10: a return
+#:    time 2.8e-5 off against a claim of 1e-8; bench_certificates seed 6007).
 NUMERICS_VERSION = "8"

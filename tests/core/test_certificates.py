@@ -505,3 +505,51 @@ def test_decided_outcome_skips_checks_that_cannot_fit(monkeypatch: pytest.Monkey
     res = classify(p, VJ, d, rtol=1e-12)
     assert res.complete and res.return_time is not None
     assert runs == [1e-12, 1e-13] and sum(steps) <= DECIDED_CERTIFY_BUDGET
+
+
+def test_a_time_its_check_run_lacks_is_not_reported() -> None:
+    # issue 22 stress run (bench_certificates seed 6007): a stable outcome certain before
+    # integrating (x > 1, no runaway possible) whose run at rtol 2.6e-10 ends by crossing
+    # ln v_o while its check at rtol/10 converges inside the steady-state box (no return
+    # time): the return time went unchecked, 2.8e-5 off the rtol 1e-13 run (explicit
+    # DOP853, 1e-12 and 3e-13 agree with it to 3e-8) against a claim of 1e-8 (322x)
+    from scipy.integrate import solve_ivp
+
+    p = Params(259066.11580480772, 1e6, 0.6630211777282118, 1.5738353492485184e30)
+    lg = 0.00482651351183789
+    ref = classify(p, VJ, log_size=lg, rtol=1e-13)
+    assert ref.return_time is not None and ref.complete
+    # referee: scipy Radau (stiff: kappa = 1e6) at rtol 1e-12 on `eq:psi_T` / `eq:phi_T` in
+    # T, frame v_o = 1, state (phi, L): d phi/dT = kappa (1 - e^phi) - (b/a) G(L) e^phi,
+    # dL/dT = kappa (1 - e^phi) - kappa_crit G(L) e^phi, from (d, d); the return is phi
+    # crossing 0 downward.  Radau at 1e-11 .. 1e-13 agree to 5e-10, LSODA and BDF to 1e-8.
+    ba, kappa, eps, kc = p.ba, p.kappa, p.eps, p.ba - 1.0
+
+    def rhs(_: float, y: list[float]) -> list[float]:
+        e, g = math.exp(y[0]), math.expm1(-eps * y[1]) / eps
+        return [kappa * (1.0 - e) - ba * g * e, kappa * (1.0 - e) - kc * g * e]
+
+    def jac(_: float, y: list[float]) -> list[list[float]]:
+        e, g, gp = math.exp(y[0]), math.expm1(-eps * y[1]) / eps, -math.exp(-eps * y[1])
+        return [[-kappa * e - ba * g * e, -ba * gp * e], [-kappa * e - kc * g * e, -kc * gp * e]]
+
+    def ret(_: float, y: list[float]) -> float:
+        return y[0]
+
+    ret.direction = -1  # type: ignore[attr-defined]
+    ret.terminal = True  # type: ignore[attr-defined]
+    sol = solve_ivp(rhs, (0.0, 1.0), [lg, lg], method="Radau", rtol=1e-12, atol=1e-16,
+                    jac=jac, events=ret)  # fmt: skip
+    t_ret = float(sol.t_events[0][0]) / p.vo
+    assert abs(ref.return_time - t_ret) <= ref.rel_accuracy * t_ret
+    for rtol in (2.617977815568068e-10, 1e-10, 1e-8, 1e-6):
+        r = classify(p, VJ, log_size=lg, rtol=rtol)
+        assert r.outcome == "stable"
+        if r.return_time is not None:
+            assert r.complete
+            assert (
+                abs(r.return_time - ref.return_time)
+                <= (r.rel_accuracy + ref.rel_accuracy) * ref.return_time
+            ), rtol
+        else:
+            assert not r.complete, rtol  # (not checked: not reported as final)
