@@ -41,6 +41,7 @@ __all__ = [
     "plan_chunks",
     "si_to_size",
     "PARAM_NAMES",
+    "ROWS_CACHE_BYTES",
     "SI_SIZE_FIELDS",
     "SPEC_VERSION",
 ]
@@ -50,6 +51,11 @@ PARAM_NAMES: tuple[str, ...] = ("ba", "kappa", "kappa_ratio", "eps", "vo", "size
 #: Layout version of the stored spec (part of the sweep id).
 SPEC_VERSION = 2
 _KAPPA_MAX = 1e6
+#: Bytes of row layouts a spec keeps for its next ranges (:meth:`SweepSpec._row_params`;
+#: a worker's 2^16-point parts of a grid with 10^4-point rows: 0.64 MB per fixed or
+#: last-axis parameter).  Specs are cached per process (up to 65, see
+#: rsfapp.store.sweeps), so this bounds their layouts to ~130 MB.
+ROWS_CACHE_BYTES = 2 << 20
 F64 = NDArray[np.float64]
 
 
@@ -209,9 +215,9 @@ class SweepSpec:
     _n: int = field(default=0, repr=False)
     _names: tuple[str, ...] = field(default=(), repr=False)
     physical: dict[str, float] | None = None
-    #: per (parameter, rows): the read-only layout of a parameter that is the same on
-    #: every row (:meth:`_row_params`), kept for the spec's next ranges
-    _rows_cache: dict[tuple[str, int], F64] = field(default_factory=dict, repr=False, compare=False)
+    #: per parameter that is the same on every row: its read-only layout over the most
+    #: rows a range has needed (:meth:`_row_params`), kept for the spec's next ranges
+    _rows_cache: dict[str, F64] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.mode == "grid":
@@ -303,14 +309,16 @@ class SweepSpec:
                 out[name] = None
                 continue
             if v.shape[0] == 1:  # the same on every row
-                key = (name, shape[0])
-                if key not in self._rows_cache:
-                    if len(self._rows_cache) >= 16:  # ranges of many lengths: keep few
-                        self._rows_cache.clear()
+                t = self._rows_cache.get(name)
+                if t is None or t.shape[0] < shape[0] or t.shape[1] != width:
                     t = np.broadcast_to(v, shape).copy()
                     t.flags.writeable = False
-                    self._rows_cache[key] = t
-                v = self._rows_cache[key]
+                    kept = sum(a.nbytes for k, a in self._rows_cache.items() if k != name)
+                    if kept + t.nbytes > ROWS_CACHE_BYTES:  # specs are kept per process
+                        self._rows_cache.clear()
+                    if t.nbytes <= ROWS_CACHE_BYTES:
+                        self._rows_cache[name] = t
+                v = t[: shape[0]]
             elif v.shape != shape:  # one value per row
                 v = np.repeat(v.reshape(-1), width).reshape(shape)
             out[name] = v.reshape(-1)[off : off + n]
