@@ -102,18 +102,24 @@ ALPHA = tuple(tuple(float(Fraction(v)) for v in row) for row in _ALPHA_TEXT)
 BETA = tuple(tuple(float(Fraction(v)) for v in row) for row in _BETA_TEXT)
 
 
-def _transformed() -> tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]]:
-    """(a, c) of the transformed form from the printed literals, exactly, rounded once."""
+_Matrix = list[list[Fraction]]
+
+
+def _exact() -> tuple[_Matrix, _Matrix, _Matrix, _Matrix]:
+    """(alpha, beta, Gamma, Gamma^-1) of the original form from the printed literals, as
+    exact fractions (Gamma = beta - alpha below the diagonal, gamma on it; its inverse by
+    forward substitution, column by column, as Gamma is lower triangular)."""
     n = 6
     g = Fraction(_GAMMA_TEXT)
     alpha = [[Fraction(0)] * n for _ in range(n)]
+    beta = [[Fraction(0)] * n for _ in range(n)]
     gam = [[Fraction(0)] * n for _ in range(n)]
     for i in range(n):
         for j, (a_txt, b_txt) in enumerate(zip(_ALPHA_TEXT[i], _BETA_TEXT[i], strict=False)):
             alpha[i][j] = Fraction(a_txt)
+            beta[i][j] = Fraction(b_txt)
             gam[i][j] = Fraction(b_txt) - Fraction(a_txt)
         gam[i][i] = g
-    # Gamma^-1 of the lower-triangular Gamma by forward substitution, column by column
     inv = [[Fraction(0)] * n for _ in range(n)]
     for col in range(n):
         for i in range(n):
@@ -121,6 +127,13 @@ def _transformed() -> tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ..
             for j in range(i):
                 acc -= gam[i][j] * inv[j][col]
             inv[i][col] = acc / gam[i][i]
+    return alpha, beta, gam, inv
+
+
+def _transformed() -> tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]]:
+    """(a, c) of the transformed form from the printed literals, exactly, rounded once."""
+    n = 6
+    alpha, _, _, inv = _exact()
     a = tuple(
         tuple(float(sum(alpha[i][m] * inv[m][j] for m in range(n))) for j in range(i))
         for i in range(n - 1)
@@ -143,15 +156,7 @@ def _dense() -> tuple[tuple[float, ...], tuple[float, ...]]:
     Gamma^-1 (sum_j d_j k_j = sum_i (d^T Gamma^-1)_i u_i, u = Gamma k)."""
     n = 6
     g = Fraction(_GAMMA_TEXT)
-    alpha = [[Fraction(0)] * n for _ in range(n)]
-    beta = [[Fraction(0)] * n for _ in range(n)]
-    gam = [[Fraction(0)] * n for _ in range(n)]
-    for i in range(n):
-        for j, (a_txt, b_txt) in enumerate(zip(_ALPHA_TEXT[i], _BETA_TEXT[i], strict=False)):
-            alpha[i][j] = Fraction(a_txt)
-            beta[i][j] = Fraction(b_txt)
-            gam[i][j] = Fraction(b_txt) - Fraction(a_txt)
-        gam[i][i] = g
+    alpha, beta, _, inv = _exact()
     zero = Fraction(0)
     al = [sum(row, zero) for row in alpha]
     bp = [sum(row, zero) for row in beta]
@@ -169,14 +174,6 @@ def _dense() -> tuple[tuple[float, ...], tuple[float, ...]]:
     }
     # M M^T (4 x 4) solved by Gauss-Jordan elimination in exact arithmetic
     mmt = [[sum((ri[k] * rj[k] for k in range(m)), zero) for rj in rows] for ri in rows]
-    # Gamma^-1 by forward substitution (lower triangular)
-    inv = [[Fraction(0)] * n for _ in range(n)]
-    for col in range(n):
-        for i in range(n):
-            acc = Fraction(1) if i == col else Fraction(0)
-            for j in range(i):
-                acc -= gam[i][j] * inv[j][col]
-            inv[i][col] = acc / gam[i][i]
     out: list[tuple[float, ...]] = []
     for key in ("d2", "d3"):
         aug: list[list[Fraction]] = [mmt[i][:] + [targets[key][i]] for i in range(4)]
