@@ -484,6 +484,28 @@ def test_tightened_pair_is_probed_like_the_first() -> None:
         assert abs(r.return_time - ret_t) <= r.rel_accuracy * ret_t, rtol
 
 
+def test_a_pair_of_few_steps_is_probed() -> None:
+    # issue 22 certificate run (bench_certificates seed 3011, point 765): a load-point jump
+    # 1 % below the critical size at b/a = 1.23, kappa = kappa_crit (1 + 3e-9), eps = 0
+    # (slow dynamics near the fixed point, 25 steps): DOP853 is not yet in its asymptotic
+    # regime, the peak phi is 1.2 - 2.4e-4 off at every rtol from 1e-5 to 3e-7, and the pair
+    # (rtol, rtol/10) agreed to 1.1e-5 by chance: a claim of 2.4e-5 against an error of
+    # 4.8e-5 (2.0x)
+    p = Params(1.2301202451458053, 0.2301202458403963, 0.0, 9.644090694118373e-09)
+    lg = 1.6681027222820453
+    peak, peak_t, ret_t = _load_jump_peak_referee(p, lg)
+    # (the referee, 2.5550965927, and classify at rtol 1e-13 agree to 1e-11, far below
+    # every claim asserted here, >= 1e-10)
+    assert 2.5550965926 < peak < 2.5550965928
+    for rtol in (1.7607180168398589e-06, 1e-5, 1e-6, 3e-7, 1e-7, 1e-9, 1e-12):
+        r = classify(p, LJ, log_size=lg, rtol=rtol)
+        assert (r.outcome, r.complete) == ("stable", True), rtol
+        assert r.return_time is not None and r.peak_time is not None
+        assert abs(r.peak_phi - peak) <= r.rel_accuracy * peak, rtol
+        assert abs(r.peak_time - peak_t) <= r.rel_accuracy * peak_t, rtol
+        assert abs(r.return_time - ret_t) <= r.rel_accuracy * ret_t, rtol
+
+
 def test_decided_outcome_skips_checks_that_cannot_fit(monkeypatch: pytest.MonkeyPatch) -> None:
     """An outcome certain before integrating (x = eps kappa/kappa_crit = 300 > 1: no runaway
     possible) whose first run at rtol 1e-13 takes 3,253 steps: its check (1e-12, 2,443
