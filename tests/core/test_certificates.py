@@ -464,6 +464,25 @@ def _load_jump_peak_referee(p: Params, lg: float) -> tuple[float, float, float]:
     return float(ye[0] + lnv), float(ye[2] / math.exp(lnv)), float(yr[2] / math.exp(lnv))
 
 
+def _assert_within_claims(
+    p: Params,
+    lg: float,
+    rtols: tuple[float, ...],
+    peak: float,
+    peak_t: float,
+    ret_t: float,
+) -> None:
+    """classify of the load-point jump lg at each rtol is a complete return whose peak phi,
+    peak time and return time lie within their claim of the referee's values."""
+    for rtol in rtols:
+        r = classify(p, LJ, log_size=lg, rtol=rtol)
+        assert (r.outcome, r.complete) == ("stable", True), rtol
+        assert r.return_time is not None and r.peak_time is not None
+        assert abs(r.peak_phi - peak) <= r.rel_accuracy * peak, rtol
+        assert abs(r.peak_time - peak_t) <= r.rel_accuracy * peak_t, rtol
+        assert abs(r.return_time - ret_t) <= r.rel_accuracy * ret_t, rtol
+
+
 def test_tightened_pair_is_probed_like_the_first() -> None:
     # issue 22 stress run (bench_certificates seed 911, point 122): at rtol 9.2e-4 the runs
     # at rtol and rtol/10 differ by 1 % in the peak (phi = 1.25e9, above the fast-slip
@@ -474,14 +493,10 @@ def test_tightened_pair_is_probed_like_the_first() -> None:
     lg = 22.69303905555732
     peak, peak_t, ret_t = _load_jump_peak_referee(p, lg)
     assert 1.2549141e9 < peak < 1.2549142e9
-    for rtol in (1e-3, 0.0009198821830448836, 1e-4, 1e-6, 1e-9, 1e-13):
-        r = classify(p, LJ, log_size=lg, rtol=rtol)
-        assert (r.outcome, r.complete) == ("stable", True), rtol
-        assert r.return_time is not None and r.peak_time is not None
-        # the referee's error (<= 2e-10 relative) is far below every claim (>= 3e-10)
-        assert abs(r.peak_phi - peak) <= r.rel_accuracy * peak, rtol
-        assert abs(r.peak_time - peak_t) <= r.rel_accuracy * peak_t, rtol
-        assert abs(r.return_time - ret_t) <= r.rel_accuracy * ret_t, rtol
+    # the referee's error (<= 2e-10 relative) is far below every claim (>= 3e-10)
+    _assert_within_claims(
+        p, lg, (1e-3, 0.0009198821830448836, 1e-4, 1e-6, 1e-9, 1e-13), peak, peak_t, ret_t
+    )
 
 
 def test_a_pair_of_few_steps_is_probed() -> None:
@@ -497,13 +512,9 @@ def test_a_pair_of_few_steps_is_probed() -> None:
     # (the referee, 2.5550965927, and classify at rtol 1e-13 agree to 1e-11, far below
     # every claim asserted here, >= 1e-10)
     assert 2.5550965926 < peak < 2.5550965928
-    for rtol in (1.7607180168398589e-06, 1e-5, 1e-6, 3e-7, 1e-7, 1e-9, 1e-12):
-        r = classify(p, LJ, log_size=lg, rtol=rtol)
-        assert (r.outcome, r.complete) == ("stable", True), rtol
-        assert r.return_time is not None and r.peak_time is not None
-        assert abs(r.peak_phi - peak) <= r.rel_accuracy * peak, rtol
-        assert abs(r.peak_time - peak_t) <= r.rel_accuracy * peak_t, rtol
-        assert abs(r.return_time - ret_t) <= r.rel_accuracy * ret_t, rtol
+    _assert_within_claims(
+        p, lg, (1.7607180168398589e-06, 1e-5, 1e-6, 3e-7, 1e-7, 1e-9, 1e-12), peak, peak_t, ret_t
+    )
 
 
 def test_decided_outcome_skips_checks_that_cannot_fit(monkeypatch: pytest.MonkeyPatch) -> None:
