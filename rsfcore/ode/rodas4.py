@@ -57,6 +57,7 @@ import math
 
 import numba as nb
 import numpy as np
+from numpy.typing import NDArray
 
 from . import rodas4_tableau as _ro
 
@@ -74,6 +75,7 @@ __all__ = [
     "hermite_coeffs",
     "spectral_radius",
     "SCALAR_WORK",
+    "tableau_arrays",
     "scalar_step",
     "scalar_step_tableau",
     "scalar_error",
@@ -86,16 +88,23 @@ N_STAGES = 6
 MIN_FACTOR = 0.2
 MAX_FACTOR = 6.0
 
-# a_ij (stage arguments, rows 0..4) and c_ij (rows 0..5) as arrays, row i = stage i+1
-# (numba freezes module-level arrays as constants)
-_A = np.zeros((5, 5))
-for _i, _row in enumerate(_ro.A):
-    for _j, _a in enumerate(_row):
-        _A[_i, _j] = _a
-_C = np.zeros((6, 5))
-for _i, _row in enumerate(_ro.C):
-    for _j, _cc in enumerate(_row):
-        _C[_i, _j] = _cc
+
+def tableau_arrays(
+    a: tuple[tuple[float, ...], ...], c: tuple[tuple[float, ...], ...]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The lower-triangular a_ij (stage arguments, 5 x 5) and c_ij (6 x 5) of a
+    transformed 6-stage Rosenbrock tableau as arrays, row i = stage i+1, zeros above
+    (numba freezes module-level arrays as constants)."""
+    a_arr = np.zeros((5, 5))
+    for i, row in enumerate(a):
+        a_arr[i, : len(row)] = row
+    c_arr = np.zeros((6, 5))
+    for i, row in enumerate(c):
+        c_arr[i, : len(row)] = row
+    return a_arr, c_arr
+
+
+_A, _C = tableau_arrays(_ro.A, _ro.C)
 _D2 = np.array(_ro.D2)
 _D3 = np.array(_ro.D3)
 _GAMMA = _ro.GAMMA

@@ -57,14 +57,7 @@ N_STAGES = rodas4.N_STAGES
 
 # transformed a_ij (rows 0..4) and c_ij (rows 0..5), row i = stage i+1, as arrays (numba
 # freezes module-level arrays as constants)
-_A = np.zeros((5, 5))
-for _i, _row in enumerate(_rp.A):
-    for _j, _a in enumerate(_row):
-        _A[_i, _j] = _a
-_C = np.zeros((6, 5))
-for _i, _row in enumerate(_rp.C):
-    for _j, _cc in enumerate(_row):
-        _C[_i, _j] = _cc
+_A, _C = rodas4.tableau_arrays(_rp.A, _rp.C)
 _GAMMA = _rp.GAMMA
 _D2 = np.array(_rp.D2)
 _D3 = np.array(_rp.D3)
