@@ -15,7 +15,9 @@ starts them.  Steps:
 2. The sweep: critical sizes over a 3-D grid (kappa_ratio, eps, ba; default "cheap"
    points: kappa_ratio < 1, decided in closed form), submitted and timed to ``done`` (the server's created_at -> finished_at);
    points/s against step 1, bytes stored per point (result blobs; PostgreSQL table size),
-   peak RSS of the API and of each worker (psutil, sampled every 0.1 s, process trees).
+   peak RSS of the API and of each worker (psutil, sampled every 0.1 s, process trees),
+   CPU seconds of each process tree during the sweep and, per worker, of its main thread
+   (the task) against its other threads (lease renewal, reaper, Celery's timers).
 3. Reads, one at a time, each with the API's peak RSS over its idle RSS (measured just
    before it) and over the idle RSS before the sweep, time to first byte and total time:
    the whole sweep as NetCDF, CSV and JSON; a 1 % slice (NetCDF); the /diagram PNG of one
@@ -184,6 +186,15 @@ def compare(
         "service_over_rsfcore_cpu": per[best]["stack_over_cpu"],
         "workers_over_rsfcore_cpu": per[best]["workers_over_cpu"],
     }
+
+
+def thread_cpu(pid: int) -> dict[int, float]:
+    """CPU seconds (user + system) of each thread of a process, by thread id (the main
+    thread's id is the process id)."""
+    try:
+        return {t.id: t.user_time + t.system_time for t in psutil.Process(pid).threads()}
+    except psutil.NoSuchProcess:
+        return {}
 
 
 def tree_cpu(pid: int) -> float:
@@ -468,6 +479,7 @@ def main() -> None:
         pg_pid = int((pg.data / "postmaster.pid").read_text().split()[0])
         cpu_pids = {**pids, "postgres": pg_pid, "redis": red.pid}
         cpu0 = {k: tree_cpu(v) for k, v in cpu_pids.items()}
+        thr0 = {k: thread_cpu(w.pid) for k, w in workers.items()}
         idle_mb: dict[str, float] = {}
         base = settled_rss(api.pid)
         idle_mb["before_sweep"] = round(base / 2**20, 1)
@@ -491,6 +503,18 @@ def main() -> None:
         out["sweep_wall_s"] = round(wall, 2)
         cpu = {k: round(tree_cpu(v) - cpu0[k], 2) for k, v in cpu_pids.items()}
         out["sweep_cpu_s"] = cpu
+        # per worker: CPU of its main thread (the task) and of its other threads (lease
+        # renewal, reaper, Celery's timers)
+        thr: dict[str, dict[str, float]] = {}
+        for k, w in workers.items():
+            t1 = thread_cpu(w.pid)
+            d = {t: c - thr0[k].get(t, 0.0) for t, c in t1.items()}
+            thr[k] = {
+                "main": round(d.get(w.pid, 0.0), 3),
+                "other_threads": round(sum(c for t, c in d.items() if t != w.pid), 3),
+            }
+        out["worker_thread_cpu_s"] = thr
+        print(f"worker threads, CPU seconds: {thr}")
         out["sweep_s"] = round(dt, 3)
         out["n_chunks"] = st["n_chunks"]
         out["service_points_per_s"] = round(n / dt)

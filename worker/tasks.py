@@ -5,9 +5,9 @@ A chunk is a range [i0, i1) of flat point indices of the sweep's spec
 by compiled batch calls on cache-sized parts (:func:`rsfapp.sweepdata.compute_block` ->
 :func:`rsfcore.batch.critical_points`), and its results stored as one compressed block,
 written once (a chunk delivered twice, or recomputed after its worker was killed, is
-stored once).  A task goes on with the sweep's next pending chunks, each claimed in the
-transaction that completes the one before (chunk chaining,
-:meth:`rsfapp.store.SweepStore.complete_chunk`), for about ``RSF_CHUNK_SECONDS``; then
+stored once).  A task goes on with the sweep's next pending chunks, claimed in work units
+(:func:`unit_chunks`) in the transaction that completes the unit before (chunk chaining,
+:meth:`rsfapp.store.SweepStore.complete_run`), for about ``RSF_CHUNK_SECONDS``; then
 it sends the sweep's next pending chunk to the queue (lazy dispatch), where it waits its
 turn behind other sweeps' chunks.  Task names are stable strings
 (:data:`rsfapp.queue.RUN_CHUNK`, ...).
@@ -16,9 +16,10 @@ turn behind other sweeps' chunks.  Task names are stable strings
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
 
@@ -32,12 +33,17 @@ from rsfapp.db.engine import diagnose
 from rsfapp.queue import COMPUTE_SINGLE, FIT_RECORD, RUN_CHUNK, Queue
 from rsfapp.reaper import Lease
 from rsfapp.store import stores_for
+from rsfapp.store.sweeps import BlockData
 from rsfapp.sweepdata import compute_block
 
 from .celery_app import app
 
 __all__ = [
     "ChainPosition",
+    "UNIT_MAX_BYTES",
+    "UNIT_MAX_CHUNKS",
+    "UNIT_SECONDS",
+    "unit_chunks",
     "run_chunk",
     "run_chunk_body",
     "compute_single",
@@ -47,28 +53,63 @@ __all__ = [
 log = logging.getLogger("rsf.worker")
 
 
+#: A task computes the chunks it chains in work units: runs of the sweep's next pending
+#: chunks claimed together, computed one after the other and completed in one
+#: transaction (:meth:`rsfapp.store.SweepStore.complete_run`), so a chunk of cheap points
+#: (10^6 points, ~35 ms of kernel) does not pay a transaction of its own (~1.5-2 ms of the
+#: worker's CPU and ~1 ms of PostgreSQL's).  The stored block (a Zarr chunk) keeps its
+#: size; only the work between two transactions grows.  A unit holds about this many
+#: seconds of work [s] (measured on the unit before; a task's first chunk is a unit of
+#: one), which bounds what a cancel waits for and what a killed worker loses ...
+UNIT_SECONDS = 0.25
+#: ... at most this many chunks ...
+UNIT_MAX_CHUNKS = 16
+#: ... and at most this many bytes of encoded blocks held until the transaction [B].
+UNIT_MAX_BYTES = 32 << 20
+
+
+def unit_chunks(seconds_per_chunk: float, bytes_per_chunk: float, left_s: float) -> int:
+    """Chunks of a task's next work unit from the last unit's wall time and block bytes
+    per chunk: about :data:`UNIT_SECONDS` of work and no more than the ``left_s``
+    seconds the task still chains (rounded up), at most :data:`UNIT_MAX_CHUNKS` and
+    :data:`UNIT_MAX_BYTES`; 0 when ``left_s`` <= 0 (the chain stops), else at least 1."""
+    if left_s <= 0:
+        return 0
+    per = max(seconds_per_chunk, 1e-9)
+    k = min(
+        UNIT_MAX_CHUNKS,
+        int(UNIT_SECONDS / per),
+        math.ceil(left_s / per),
+        int(UNIT_MAX_BYTES / max(bytes_per_chunk, 1.0)),
+    )
+    return max(1, k)
+
+
 @dataclass
 class ChainPosition:
-    """The chunk a task is on: its message's chunk, then each chunk it chains to (an
-    error is retried on this chunk, :func:`run_chunk`)."""
+    """The chunk a task is on (its message's chunk, then each chunk it chains to: an
+    error is retried on this chunk, :func:`run_chunk`) and the chunks of its work unit
+    not completed yet (given back on an error)."""
 
     idx: int
+    held: list[int] = field(default_factory=list)
 
 
 def run_chunk_body(
     sweep_id: str, idx: int, chain_s: float = 0.0, at: ChainPosition | None = None
 ) -> dict[str, Any]:
     """Compute and store chunk ``idx``, then, while the task has run less than
-    ``chain_s`` seconds, the sweep's next pending chunks; returns a small summary (also
-    for direct calls, which compute one chunk by default).
+    ``chain_s`` seconds, the sweep's next pending chunks in work units
+    (:func:`unit_chunks`); returns a small summary (also for direct calls, which compute
+    one chunk by default).
 
     A chunk of a cancelled sweep is skipped; a chunk already running elsewhere is left to
     its worker; a chunk whose block is already stored is only marked done.  Cancellation
-    therefore takes effect within one chunk per worker process.  One transaction to
-    claim the message's chunk, then one per chunk (:meth:`rsfapp.store.SweepStore.complete_chunk`:
-    its block, done mark, counters, the sweep closed when complete, and either the next
-    pending chunk claimed for this task or, when the chain stops, the next chunks marked
-    queued and sent to the broker).  ``at`` follows the chunk being computed.
+    therefore takes effect within one work unit per worker process.  One transaction to
+    claim the message's chunk, then one per unit (:meth:`rsfapp.store.SweepStore.complete_run`:
+    its blocks, done marks, counters, the sweep closed when complete, and either the next
+    unit claimed for this task or, when the chain stops, the next chunks marked queued
+    and sent to the broker).  ``at`` follows the chunk being computed and the unit held.
     """
     s = get_settings()
     sweeps = stores_for(s).sweeps
@@ -79,37 +120,50 @@ def run_chunk_body(
         metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
         return {"skipped": True}
     n_chunks = n_points = n_stored = 0
-    while rng is not None:
-        at.idx = idx = rng.idx
-        i0, i1 = rng.i0, rng.i1
-        block = None
-        result = metrics.ChunkResult.stored
-        if not rng.stored:
-            spec = sweeps.get_spec(sweep_id)
-            if spec is None:  # deleted meanwhile, or stored in the pre-array layout
-                sweeps.finish_chunk(sweep_id, idx, complete=False)
-                metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
-                return {"skipped": True, "chunks": n_chunks, "points": n_points}
-            # the lease is renewed while the chunk computes (rsfapp.reaper)
-            t0 = time.perf_counter()
-            with Lease(partial(sweeps.heartbeat, sweep_id, idx), s.heartbeat_s):
-                data, errors = compute_block(spec, i0, i1)
-            metrics.CHUNK_SECONDS.observe(time.perf_counter() - t0)
-            metrics.POINTS.labels("ok").inc(i1 - i0 - len(errors))
-            metrics.POINTS.labels("failed").inc(len(errors))
-            result = metrics.ChunkResult.computed
-            block = (i0, i1, data, errors)
-        chain = time.monotonic() - t_start < chain_s
-        done = sweeps.complete_chunk(sweep_id, idx, block, s.sweep_window, chain, s.lease_s)
-        metrics.CHUNKS.labels(result).inc()
-        n_chunks += 1
-        n_points += i1 - i0
+    unit = [rng]
+    while unit:
+        at.held = [r.idx for r in unit]
+        t_unit = time.monotonic()
+        run: list[tuple[int, BlockData | None]] = []
+        results: list[metrics.ChunkResult] = []
+        n_bytes = 0
+        # the unit's leases are renewed while it computes (rsfapp.reaper)
+        with Lease(partial(sweeps.heartbeat, sweep_id, *at.held), s.heartbeat_s):
+            for r in unit:
+                at.idx = r.idx
+                if r.stored:
+                    run.append((r.idx, None))
+                    results.append(metrics.ChunkResult.stored)
+                    continue
+                spec = sweeps.get_spec(sweep_id)
+                if spec is None:  # deleted meanwhile, or stored in the pre-array layout
+                    for i in at.held:
+                        sweeps.finish_chunk(sweep_id, i, complete=False)
+                    at.held = []
+                    metrics.CHUNKS.labels(metrics.ChunkResult.skipped).inc()
+                    return {"skipped": True, "chunks": n_chunks, "points": n_points}
+                t0 = time.perf_counter()
+                data, errors = compute_block(spec, r.i0, r.i1)
+                metrics.CHUNK_SECONDS.observe(time.perf_counter() - t0)
+                metrics.POINTS.labels("ok").inc(r.i1 - r.i0 - len(errors))
+                metrics.POINTS.labels("failed").inc(len(errors))
+                run.append((r.idx, (r.i0, r.i1, data, errors)))
+                results.append(metrics.ChunkResult.computed)
+                n_bytes += len(data)
+        now = time.monotonic()
+        k = unit_chunks((now - t_unit) / len(unit), n_bytes / len(unit), chain_s - (now - t_start))
+        done = sweeps.complete_run(sweep_id, run, s.sweep_window, k, s.lease_s)
+        for res in results:
+            metrics.CHUNKS.labels(res).inc()
+        n_chunks += len(unit)
+        n_points += sum(r.i1 - r.i0 for r in unit)
         n_stored += done.stored
         if done.todo:
             q = Queue(s, app)
             for c in done.todo:
                 q.send_chunk(sweep_id, c)
-        rng = done.next
+        unit = done.next
+    at.held = []
     return {"stored": n_stored, "chunks": n_chunks, "points": n_points}
 
 
@@ -141,7 +195,7 @@ def run_chunk(self: Task, sweep_id: str, idx: int) -> dict[str, Any]:
         else:
             log.exception("chunk %s/%d failed; retrying in %.0f s", sweep_id, at.idx, delay)
         try:
-            stores_for(get_settings()).sweeps.release_chunk(sweep_id, at.idx)
+            stores_for(get_settings()).sweeps.release_chunk(sweep_id, at.idx, at.held)
         except Exception as exc2:  # noqa: BLE001 - the reaper takes it back after the lease
             log.warning(
                 "could not release chunk %s/%d: %s",

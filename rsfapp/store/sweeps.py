@@ -32,16 +32,19 @@ Guarantees:
   many as the live worker processes in the registry, when ``lease_s`` is given: the
   sweep's lanes) are sent to the queue (``queued``), so a sweep of 10^8 points costs a
   few thousand small rows and never floods the broker;
-* chunk chaining: a worker that finishes a chunk may claim the sweep's next pending chunk
-  in the same transaction (:meth:`SweepStore.complete_chunk` with ``chain``) and compute
-  it without a broker message; a lane that stops chaining sends the next pending chunk
-  to the queue instead.  A chained chunk is claimed like any other (running, owner,
-  lease): a worker that dies holding it loses it to the reaper after its lease;
+* chunk chaining: a worker that finishes a chunk may claim the sweep's next pending
+  chunks (a work unit) in the same transaction (:meth:`SweepStore.complete_run` with
+  ``claim``), compute them without a broker message and complete the whole unit in one
+  transaction (its blocks, one per chunk, each written once); a lane that stops chaining
+  sends the next pending chunk to the queue instead.  A chained chunk is claimed like
+  any other (running, owner, lease; :meth:`SweepStore.heartbeat` renews a unit's
+  leases in one statement): a worker that dies holding a unit loses it to the reaper
+  after its lease;
 * progress is counted in the sweep's row (``chunks_done``, ``points_done``,
   ``points_failed``) in the transaction that stores a block or marks a chunk done, so a
   completion, the sweep's closing and its status cost the same at any number of chunks;
-* cancel marks the sweep and its pending/queued chunks; a running chunk (one compiled
-  call) finishes and is stored, so work stops within one chunk per worker process;
+* cancel marks the sweep and its pending/queued chunks; a running chunk or work unit
+  finishes and is stored, so work stops within one unit per worker process;
 * failures are flagged per point in the block, with their messages; the sweep goes on.
 
 Chunk states: pending -> queued -> running -> done, or cancelled (resumed to pending).
@@ -55,7 +58,7 @@ import os
 import socket
 import time
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from datetime import UTC, datetime
 from typing import Any, NamedTuple
 
@@ -74,17 +77,19 @@ from sqlalchemy import (
     update,
 )
 
-from ..db.engine import Database, insert_ignore
+from ..db.engine import Database, insert_ignore, inserted_keys
 from ..db.ops import workers
 from ..db.tables import chunks, points, sweep_blocks, sweep_inputs, sweeps
 from ..grid import SPEC_VERSION, SweepSpec
 
 __all__ = [
     "Block",
+    "BlockData",
     "BlockWriter",
     "ChunkRange",
     "Completed",
     "Created",
+    "RunCompleted",
     "SweepStore",
     "decode_block",
     "encode_block",
@@ -268,6 +273,22 @@ class Completed(NamedTuple):
     next: ChunkRange | None = None
 
 
+class RunCompleted(NamedTuple):
+    """Outcome of :meth:`SweepStore.complete_run`: how many of the run's blocks were new
+    (the others were stored before, or the sweep was purged), which chunks to send to
+    the queue now, and the sweep's next chunks claimed for this process in the same
+    transaction (in index order; empty unless asked for and pending chunks were left)."""
+
+    stored: int
+    todo: list[int]
+    next: list[ChunkRange]
+
+
+#: A computed chunk handed to :meth:`SweepStore.complete_run`: (i0, i1, encoded block,
+#: {offset: message} of its failed points), or None when its block was stored before.
+BlockData = tuple[int, int, bytes, dict[int, str]]
+
+
 class Created(NamedTuple):
     """Outcome of :meth:`SweepStore.create`: was the sweep new, was it resumed (it had been
     cancelled), which chunks to send to the queue now."""
@@ -295,18 +316,19 @@ def _chunk(sweep_id: str, idx: int) -> Any:
 # form, so executing one costs its parameters and the round trip only (built anew,
 # each cost ~0.3-0.5 ms of a worker's CPU: ~3 ms of a completion's 3.3).
 _SID: BindParameter[str] = bindparam("sid")
-_IDX: BindParameter[int] = bindparam("b_idx")
+_IDXS: BindParameter[list[int]] = bindparam("idxs", expanding=True)
 _NOW: BindParameter[float] = bindparam("now")
 _LOCK = select(sweeps.c.status).where(sweeps.c.id == _SID).with_for_update(key_share=True)
+#: chunks ``idxs`` done, each only if its block is stored (a correlated EXISTS)
 _MARK_DONE = (
     update(chunks)
     .where(
         and_(
             chunks.c.sweep_id == _SID,
-            chunks.c.idx == _IDX,
+            chunks.c.idx.in_(_IDXS),
             chunks.c.status != "done",
             select(sweep_blocks.c.idx)
-            .where(and_(sweep_blocks.c.sweep_id == _SID, sweep_blocks.c.idx == _IDX))
+            .where(and_(sweep_blocks.c.sweep_id == _SID, sweep_blocks.c.idx == chunks.c.idx))
             .exists(),
         )
     )
@@ -328,17 +350,18 @@ _COUNT = (
     .returning(sweeps.c.status)
 )
 _NEXT = chunks.alias("next_pending")
+#: the sweep's ``k`` lowest pending chunks claimed for ``owner``
 _CLAIM_NEXT = (
     update(chunks)
     .where(
         and_(
             chunks.c.sweep_id == _SID,
-            chunks.c.idx
-            == select(_NEXT.c.idx)
-            .where(and_(_NEXT.c.sweep_id == _SID, _NEXT.c.status == "pending"))
-            .order_by(_NEXT.c.idx)
-            .limit(1)
-            .scalar_subquery(),
+            chunks.c.idx.in_(
+                select(_NEXT.c.idx)
+                .where(and_(_NEXT.c.sweep_id == _SID, _NEXT.c.status == "pending"))
+                .order_by(_NEXT.c.idx)
+                .limit(bindparam("k"))
+            ),
             chunks.c.status == "pending",
         )
     )
@@ -596,25 +619,30 @@ class SweepStore:
                 )
             return ChunkRange(int(c.i0), int(c.i1), bool(c.stored), idx)
 
-    def heartbeat(self, sweep_id: str, idx: int) -> bool:
-        """Refresh the lease of a running chunk held by this process; False if it is no
-        longer held (the reaper took it back after its lease expired)."""
+    def heartbeat(self, sweep_id: str, idx: int, *more: int) -> bool:
+        """Refresh the lease of running chunks held by this process (``idx`` and
+        ``more``: a task's work unit, one UPDATE); False if one of them is no longer
+        held (the reaper took it back after its lease expired)."""
+        idxs = [idx, *more]
         with self.db.write() as conn:
             n = conn.execute(
                 update(chunks)
                 .where(
                     and_(
-                        _chunk(sweep_id, idx),
+                        chunks.c.sweep_id == sweep_id,
+                        chunks.c.idx.in_(idxs),
                         chunks.c.owner == owner_id(),
                         chunks.c.status == "running",
                     )
                 )
                 .values(heartbeat=time.time())
             ).rowcount
-        return bool(n)
+        return n == len(idxs)
 
-    def release_chunk(self, sweep_id: str, idx: int) -> None:
-        """Put a running chunk back in the queue (its worker hit an infrastructure error)."""
+    def release_chunk(self, sweep_id: str, idx: int, others: Sequence[int] = ()) -> None:
+        """Put a running chunk back in the queue (its worker hit an infrastructure error
+        and retries it); ``others``, the rest of the worker's work unit, go back to
+        pending (no message: a lane or the retry claims them)."""
         with self.db.write() as conn:
             self._lock_sweep(conn, sweep_id)
             conn.execute(
@@ -622,6 +650,20 @@ class SweepStore:
                 .where(and_(_chunk(sweep_id, idx), chunks.c.status == "running"))
                 .values(status="queued", owner=None)
             )
+            rest = [i for i in others if i != idx]
+            if rest:
+                conn.execute(
+                    update(chunks)
+                    .where(
+                        and_(
+                            chunks.c.sweep_id == sweep_id,
+                            chunks.c.idx.in_(rest),
+                            chunks.c.status == "running",
+                            chunks.c.owner == owner_id(),
+                        )
+                    )
+                    .values(status="pending", owner=None)
+                )
 
     def has_block(self, sweep_id: str, idx: int) -> bool:
         """True if chunk ``idx``'s results are stored (an earlier attempt finished)."""
@@ -721,7 +763,7 @@ class SweepStore:
             if s is None:
                 return
             if complete:
-                self._mark_done(conn, sweep_id, idx, now)
+                self._mark_done(conn, sweep_id, [idx], now)
                 return
             conn.execute(
                 update(chunks)
@@ -735,69 +777,104 @@ class SweepStore:
 
     @classmethod
     def _mark_done(
-        cls, conn: Connection, sweep_id: str, idx: int, now: float, points: int = 0, failed: int = 0
+        cls,
+        conn: Connection,
+        sweep_id: str,
+        idxs: list[int],
+        now: float,
+        points: int = 0,
+        failed: int = 0,
     ) -> bool:
-        """Mark chunk ``idx`` done if its block is stored, count it in the sweep's row and
-        close the sweep when every chunk is done; returns True if the sweep is done.
+        """Mark chunks ``idxs`` done, each if its block is stored, count them in the
+        sweep's row and close the sweep when every chunk is done; returns True if the
+        sweep is done.
         Done only with the block: a worker that finishes a chunk of a sweep purged and
         re-submitted meanwhile (the same id) must not mark the new sweep's chunk done
         without its block.  A chunk already done is counted once (the update's
-        condition).  ``points`` and ``failed`` (a block just stored) are counted with it.
+        condition).  ``points`` and ``failed`` (blocks just stored) are counted with them.
         Two statements (the mark, the counters); the caller holds the sweep's row lock."""
-        n = conn.execute(_MARK_DONE, {"sid": sweep_id, "b_idx": idx, "now": now}).rowcount
+        n = conn.execute(_MARK_DONE, {"sid": sweep_id, "idxs": idxs, "now": now}).rowcount
         if not n and not points:
             return False
-        return cls._count(conn, sweep_id, now, int(bool(n)), points, failed) == "done"
+        return cls._count(conn, sweep_id, now, n, points, failed) == "done"
 
     @staticmethod
-    def _claim_next(conn: Connection, sweep_id: str, now: float) -> ChunkRange | None:
-        """Claim the sweep's lowest pending chunk for this process (running, owner, lease
-        from now; one UPDATE RETURNING it); None if none is pending.  The caller holds the
-        sweep's row lock.  Its block is taken as not stored: a pending chunk has none
-        unless a block was stored without completing its chunk (:meth:`store_block`
-        alone), and then the block computed again is not stored twice."""
-        r = conn.execute(_CLAIM_NEXT, {"sid": sweep_id, "now": now, "owner": owner_id()}).first()
-        return None if r is None else ChunkRange(int(r.i0), int(r.i1), False, int(r.idx))
+    def _claim_next(conn: Connection, sweep_id: str, now: float, k: int) -> list[ChunkRange]:
+        """Claim the sweep's ``k`` lowest pending chunks for this process (running,
+        owner, lease from now; one UPDATE RETURNING them), in index order; empty if none
+        is pending.  The caller holds the sweep's row lock.  Their blocks are taken as
+        not stored: a pending chunk has none unless a block was stored without completing
+        its chunk (:meth:`store_block` alone), and then the block computed again is not
+        stored twice."""
+        rows = conn.execute(
+            _CLAIM_NEXT, {"sid": sweep_id, "now": now, "owner": owner_id(), "k": k}
+        ).all()
+        return sorted(ChunkRange(int(r.i0), int(r.i1), False, int(r.idx)) for r in rows)
 
     def complete_chunk(
         self,
         sweep_id: str,
         idx: int,
-        block: tuple[int, int, bytes, dict[int, str]] | None,
+        block: BlockData | None,
         window: int,
         chain: bool = False,
         lease_s: float | None = None,
     ) -> Completed:
-        """Everything after a chunk was computed, in one transaction: store its block
-        ``(i0, i1, data, errors)`` once (none: it was stored before), mark the chunk
-        done, count both in the sweep's row and close the sweep when every chunk is
-        done; then, for an active sweep, with ``chain`` claim its next pending chunk
-        for this process (:attr:`Completed.next`: the caller computes it without a
-        broker message), else (or if none is pending) mark the next pending chunks
-        queued to keep the sweep's lanes in flight (``window``, capped by the live
-        worker processes with ``lease_s``; the caller sends them).  The same as
-        :meth:`store_block`, :meth:`finish_chunk`, :meth:`next_chunks` and
-        :meth:`claim` in a row with one lock of the sweep's row and one commit.
-        Statements: the lock, the block, the done mark, the counters, then the next
-        chunk claimed (one) or the dispatch (the lanes with ``lease_s``, the count of
+        """:meth:`complete_run` of one chunk ``idx`` (its ``block``, none if it was
+        stored before) that, with ``chain``, claims one next chunk."""
+        r = self.complete_run(sweep_id, [(idx, block)], window, int(chain), lease_s)
+        return Completed(r.stored > 0, r.todo, r.next[0] if r.next else None)
+
+    def complete_run(
+        self,
+        sweep_id: str,
+        run: Sequence[tuple[int, BlockData | None]],
+        window: int,
+        claim: int = 0,
+        lease_s: float | None = None,
+    ) -> RunCompleted:
+        """Everything after a worker computed a run of chunks (its work unit), in one
+        transaction: store each block ``(i0, i1, data, errors)`` of ``run`` (pairs
+        (chunk, block); a block None was stored before) once, mark the chunks done,
+        count them in the sweep's row and close the sweep when every chunk is done;
+        then, for an active sweep, claim up to ``claim`` of its next pending chunks for
+        this process (:attr:`RunCompleted.next`: the caller computes them without a
+        broker message; chunk chaining), else (``claim`` 0, or none pending) mark the
+        next pending chunks queued to keep the sweep's lanes in flight (``window``,
+        capped by the live worker processes with ``lease_s``; the caller sends them).
+        The same as :meth:`store_block`, :meth:`finish_chunk`, :meth:`next_chunks` and
+        :meth:`claim` in a row with one lock of the sweep's row and one commit,
+        whatever the run's length.  Statements: the lock, the blocks (one INSERT of
+        every row), the done marks (one UPDATE), the counters, then the next chunks
+        claimed (one UPDATE) or the dispatch (the lanes with ``lease_s``, the count of
         chunks in flight, the pick); every one reads the sweep's row or the chunks by
         index, none all of the sweep's chunks."""
         now = time.time()
         with self.db.write() as conn:
             s = self._lock_sweep(conn, sweep_id)
             if s is None:  # purged meanwhile
-                return Completed(False, [])
-            stored = block is not None and self._insert_block(
-                conn, sweep_id, idx, block, now, count=False
+                return RunCompleted(0, [], [])
+            blocks = {idx: b for idx, b in run if b is not None}
+            new = (
+                inserted_keys(
+                    conn,
+                    sweep_blocks,
+                    [self._block_row(sweep_id, i, *b) for i, b in blocks.items()],
+                    "idx",
+                )
+                if blocks
+                else []
             )
-            points, failed = (block[1] - block[0], len(block[3])) if stored and block else (0, 0)
-            if self._mark_done(conn, sweep_id, idx, now, points, failed) or s not in ACTIVE:
-                return Completed(stored, [])  # done, or cancelled: nothing more to send
-            if chain:
-                nxt = self._claim_next(conn, sweep_id, now)
-                if nxt is not None:
-                    return Completed(stored, [], nxt)
-            return Completed(stored, self._dispatch(conn, sweep_id, window, None, lease_s))
+            points = sum(blocks[i][1] - blocks[i][0] for i in new)
+            failed = sum(len(blocks[i][3]) for i in new)
+            idxs = [idx for idx, _ in run]
+            if self._mark_done(conn, sweep_id, idxs, now, points, failed) or s not in ACTIVE:
+                return RunCompleted(len(new), [], [])  # done, or cancelled: nothing to send
+            if claim > 0:
+                nxt = self._claim_next(conn, sweep_id, now, claim)
+                if nxt:
+                    return RunCompleted(len(new), [], nxt)
+            return RunCompleted(len(new), self._dispatch(conn, sweep_id, window, None, lease_s), [])
 
     # -- API -------------------------------------------------------------------------------
     def cancel(self, sweep_id: str) -> tuple[str, bool] | None:

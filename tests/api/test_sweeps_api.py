@@ -578,5 +578,70 @@ def test_an_error_in_a_chained_chunk_is_retried_on_that_chunk(
     assert retries[0]["args"] == ("chain-err", 1) and retries[0]["max_retries"] is None
     s = st.status("chain-err")
     assert s is not None and s["n_done"] == 6  # chunk 0 stored, chunk 1 released
+    # chunks 1-3 were one work unit: 1 waits for its retry, 2 and 3 are given back
+    assert [_status_of(st, "chain-err", i) for i in (1, 2, 3)] == ["queued", "pending", "pending"]
     assert tasks.run_chunk_body(*retries[0]["args"], chain_s=600.0)["chunks"] == 3
     _check_stored(st, spec, "chain-err")
+
+
+def _status_of(st: Any, sid: str, idx: int) -> str:
+    from sqlalchemy import and_, select
+
+    from rsfapp.db.tables import chunks
+
+    with st.db.read() as conn:
+        return str(
+            conn.execute(
+                select(chunks.c.status).where(and_(chunks.c.sweep_id == sid, chunks.c.idx == idx))
+            ).scalar()
+        )
+
+
+def test_chained_chunks_complete_in_work_units(
+    c: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A chaining task claims the sweep's next pending chunks as a work unit and
+    completes the unit in one transaction: the message's chunk alone, then the other
+    three together (each chunk takes far less than UNIT_SECONDS, set to 600 s); with units capped
+    at two chunks, [0], [1, 2], [3].  Each chunk is still its own block, every point
+    stored once and bit-equal to rsfcore's batch kernel."""
+    import worker.tasks as tasks
+    from rsfapp.store.sweeps import SweepStore
+
+    runs: list[list[int]] = []
+    orig = SweepStore.complete_run
+
+    def spy(self: SweepStore, sid: str, run: Any, *a: Any, **kw: Any) -> Any:
+        runs.append([i for i, _ in run])
+        return orig(self, sid, run, *a, **kw)
+
+    monkeypatch.setattr(SweepStore, "complete_run", spy)
+    monkeypatch.setattr(tasks, "UNIT_SECONDS", 600.0)  # whatever the machine's load
+    st, spec = _store_sweep("unit-a", 0.3)
+    assert tasks.run_chunk_body("unit-a", 0, chain_s=600.0) == {
+        "stored": 4,
+        "chunks": 4,
+        "points": 24,
+    }
+    assert runs == [[0], [1, 2, 3]]
+    _check_stored(st, spec, "unit-a")
+    runs.clear()
+    monkeypatch.setattr(tasks, "UNIT_MAX_CHUNKS", 2)
+    st, spec = _store_sweep("unit-b", 0.35)
+    assert tasks.run_chunk_body("unit-b", 0, chain_s=600.0)["chunks"] == 4
+    assert runs == [[0], [1, 2], [3]]
+    _check_stored(st, spec, "unit-b")
+
+
+def test_work_unit_size() -> None:
+    """unit_chunks: about UNIT_SECONDS of work at the last unit's pace, no more than the
+    chain time left (rounded up), capped by UNIT_MAX_CHUNKS and UNIT_MAX_BYTES, at least
+    one chunk while the chain goes on, none after."""
+    from worker.tasks import UNIT_MAX_BYTES, UNIT_MAX_CHUNKS, UNIT_SECONDS, unit_chunks
+
+    assert unit_chunks(UNIT_SECONDS / 5, 1e3, 60.0) == 5
+    assert unit_chunks(UNIT_SECONDS / 5, 1e3, UNIT_SECONDS / 5 * 1.5) == 2  # time left
+    assert unit_chunks(UNIT_SECONDS * 3, 1e3, 60.0) == 1  # a slow chunk: a unit of one
+    assert unit_chunks(1e-6, 1e3, 60.0) == UNIT_MAX_CHUNKS
+    assert unit_chunks(1e-6, UNIT_MAX_BYTES / 3, 60.0) == 3  # big blocks
+    assert unit_chunks(1e-6, 1e3, 0.0) == unit_chunks(1e-6, 1e3, -1.0) == 0

@@ -231,12 +231,16 @@ def test_swept_values_equal_the_outer_product_at_any_range(shape: tuple[int, ...
 def test_params_of_a_range_equal_point_by_point(body: dict) -> None:
     """params(i0, i1) (row-wise for ranges of two rows or more) against params_at (the
     point-by-point definition: unravel_index + Axis.at, then the same derivation), bit
-    for bit, at 300 random ranges and every short one at the start."""
+    for bit, at 300 random ranges, every short one at the start and consecutive parts
+    of 2.5 rows over the whole sweep as a worker takes them (an outer axis the same on
+    every row of most parts: its layouts are kept and replaced when it changes)."""
     sp = spec_of(body)
     n = sp.n_total
     rng = np.random.default_rng(5)
     ranges = [(0, k) for k in range(1, min(n, 90))]
     ranges += [tuple(sorted(int(x) for x in rng.integers(0, n + 1, 2))) for _ in range(300)]
+    part = max(1, 5 * sp.shape[-1] // 2)
+    ranges += [(a, min(n, a + part)) for a in range(0, n, part)]
     for i0, i1 in ranges:
         got = sp.params(i0, i1)
         want = sp.params_at(np.arange(i0, i1, dtype=np.int64))

@@ -18,7 +18,15 @@ import pytest
 
 from rsfapp.db.engine import Database
 from rsfapp.grid import Axis, SweepSpec
-from rsfapp.store.sweeps import ChunkRange, Completed, SweepStore, encode_block, owner_id
+from rsfapp.store.sweeps import (
+    ChunkRange,
+    Completed,
+    RunCompleted,
+    SweepStore,
+    decode_block,
+    encode_block,
+    owner_id,
+)
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -177,9 +185,21 @@ def _worker(st: SweepStore, ids: list[str], stop: float, errors: list[BaseExcept
                 n = rng_.i1 - rng_.i0
                 data = encode_block(block(n, idx))
                 r = rng.random()
-                if r < 0.25:  # the worker's path: one transaction
+                if r < 0.2:  # the worker's path: one transaction
                     st.complete_chunk(sid, idx, (rng_.i0, rng_.i1, data, {}), 4)
-                elif r < 0.5:  # a chaining task: each completion claims the next chunk
+                elif r < 0.4:  # a task chaining work units of up to 3 chunks
+                    unit = [rng_]
+                    while unit:
+                        st.heartbeat(sid, *[u.idx for u in unit])
+                        if rng.random() < 0.1:  # an error: the unit is given back
+                            st.release_chunk(sid, unit[0].idx, [u.idx for u in unit])
+                            break
+                        run = [
+                            (u.idx, (u.i0, u.i1, encode_block(block(u.i1 - u.i0, u.idx)), {}))
+                            for u in unit
+                        ]
+                        unit = st.complete_run(sid, run, 4, rng.randrange(4)).next
+                elif r < 0.55:  # a chaining task: each completion claims the next chunk
                     done = st.complete_chunk(sid, idx, (rng_.i0, rng_.i1, data, {}), 4, True)
                     while done.next is not None:
                         nx = done.next
@@ -535,6 +555,70 @@ def test_completion_chains_to_the_next_pending_chunk(db: Database) -> None:
         Completed(True, [])
     )
     assert [_chunk_row(db, "k", i)[0] for i in (1, 2)] == ["cancelled", "cancelled"]
+
+
+def test_work_units_complete_in_one_transaction(db: Database) -> None:
+    """complete_run stores a work unit's blocks (one INSERT), marks them done and counts
+    them in one transaction and claims the next unit of up to ``claim`` pending chunks
+    (lowest first, running, this owner); a block stored before (by another worker) is
+    not stored or counted twice, a unit delivered twice changes nothing; heartbeat
+    renews a whole unit and tells when one of its chunks was taken back; release_chunk
+    gives back the chunk being retried (queued: its retry message) and the rest of the
+    unit (pending); the blocks read back bit for bit."""
+    st = SweepStore(db)
+    assert st.create("u", grid(10, 10), 10, "t", window=1).todo == [0]
+    assert st.claim("u", 0, 30.0) is not None
+    blocks = {i: block(10, i) for i in range(10)}
+
+    def data(
+        i: int, errors: dict[int, str] | None = None
+    ) -> tuple[int, int, bytes, dict[int, str]]:
+        return (10 * i, 10 * i + 10, encode_block(blocks[i]), errors or {})
+
+    d0 = st.complete_run("u", [(0, data(0))], 1, claim=3)
+    assert d0 == RunCompleted(1, [], [ChunkRange(10 * i, 10 * i + 10, False, i) for i in (1, 2, 3)])
+    assert [_chunk_row(db, "u", i) for i in (1, 2, 3)] == [("running", owner_id(), 1)] * 3
+    assert st.heartbeat("u", 1, 2, 3)
+    # another worker stored chunk 2's block meanwhile (a chunk delivered twice)
+    assert st.store_block("u", 2, 20, 30, encode_block(blocks[2]), {})
+    d1 = st.complete_run("u", [(1, data(1, {3: "E: x"})), (2, data(2)), (3, data(3))], 1, 16)
+    assert d1.stored == 2 and [r.idx for r in d1.next] == [4, 5, 6, 7, 8, 9]
+    assert _counters(db, "u") == _recount(db, "u") == (4, 40, 1)
+    again = st.complete_run("u", [(1, data(1)), (2, data(2)), (3, data(3))], 1, 2)
+    assert again == RunCompleted(0, [], [])  # nothing pending: 4-9 are held
+    assert _counters(db, "u") == _recount(db, "u") == (4, 40, 1)
+    # a unit's chunk taken back by the reaper: the unit's heartbeat says so
+    time.sleep(0.1)
+    assert sorted(st.reap_expired(0.05)) == [("u", i) for i in range(4, 10)]
+    assert not st.heartbeat("u", 4, 5)
+    for i in (4, 5, 6):
+        assert st.claim("u", i, 30.0) is not None
+    assert st.heartbeat("u", 4, 5, 6)
+    st.release_chunk("u", 5, [4, 5, 6])  # an error while computing chunk 5
+    assert [_chunk_row(db, "u", i)[:2] for i in (4, 5, 6)] == [
+        ("pending", None),
+        ("queued", None),
+        ("pending", None),
+    ]
+    for i in (5, 4, 6, 7, 8, 9):
+        assert st.claim("u", i, 30.0) is not None
+    d2 = st.complete_run("u", [(i, data(i)) for i in (4, 5, 6, 7, 8, 9)], 1, 4)
+    assert d2 == RunCompleted(6, [], [])
+    s = st.status("u")
+    assert s is not None and (s["status"], s["n_done"]) == ("done", 100)
+    assert _counters(db, "u") == _recount(db, "u") == (10, 100, 1)
+    got = {b.i0 // 10: b for b in st.blocks("u")}
+    assert sorted(got) == list(range(10)) and got[1].errors == {3: "E: x"}
+    for i, b in got.items():
+        for name, a in blocks[i].items():
+            assert b.arrays[name].tobytes() == a.tobytes(), (i, name)
+    assert decode_block(data(0)[2])["kind"].tobytes() == blocks[0]["kind"].tobytes()
+    # a purged sweep: a unit finishing afterwards stores nothing
+    assert st.create("p", grid(2, 10), 10, "t", window=1).todo == [0]
+    assert st.claim("p", 0, 30.0) is not None
+    assert st.delete("p")
+    assert st.complete_run("p", [(0, data(0))], 1, 4) == RunCompleted(0, [], [])
+    assert st.read_block("p", 0) is None
 
 
 def test_lanes_follow_the_live_worker_processes(db: Database) -> None:
