@@ -18,6 +18,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 import httpx
 import pytest
@@ -258,6 +259,13 @@ def postgres_bindir() -> Path | None:
     return found[-1].parent if found else None
 
 
+class PgDatabase(NamedTuple):
+    """One database of a :class:`Postgres` cluster: its name and SQLAlchemy URL."""
+
+    name: str
+    url: str
+
+
 class Postgres:
     """A throw-away PostgreSQL cluster: initdb in a private temporary directory, run by
     an unprivileged user (PostgreSQL refuses root: when we are root it runs as the
@@ -265,7 +273,10 @@ class Postgres:
     authentication for the local user ``rsf``, fsync off (test data only).
 
     :meth:`stop` / :meth:`start` / :meth:`restart` act on the same cluster and port;
-    :meth:`destroy` removes it."""
+    :meth:`destroy` removes it.  :attr:`url` is its ``postgres`` database;
+    :meth:`create_database` makes more."""
+
+    _n_databases = 0
 
     def __init__(self, bindir: Path) -> None:
         import pwd
@@ -284,7 +295,7 @@ class Postgres:
             os.chown(self.dir, pw.pw_uid, pw.pw_gid)
         self.data = self.dir / "data"
         self.port = free_port()
-        self.url = f"postgresql+psycopg://rsf@127.0.0.1:{self.port}/postgres"
+        self.url = self.database_url("postgres")
         self._run(
             [
                 str(bindir / "initdb"),
@@ -354,6 +365,29 @@ class Postgres:
         time.sleep(down_s)
         self.start()
 
+    def database_url(self, name: str) -> str:
+        """SQLAlchemy URL of database ``name`` on this cluster (user ``rsf``)."""
+        return f"postgresql+psycopg://rsf@127.0.0.1:{self.port}/{name}"
+
+    def _admin(self, sql: str) -> None:
+        import psycopg
+
+        with psycopg.connect(
+            host="127.0.0.1", port=self.port, user="rsf", dbname="postgres", autocommit=True
+        ) as conn:
+            conn.execute(sql)  # type: ignore[arg-type]  # fixed statements of ours, not input
+
+    def create_database(self) -> PgDatabase:
+        """A new empty database (from ``template0``) with a name unique in this cluster."""
+        Postgres._n_databases += 1
+        name = f"rsf_t{Postgres._n_databases}"
+        self._admin(f"CREATE DATABASE \"{name}\" TEMPLATE template0 ENCODING 'UTF8'")
+        return PgDatabase(name, self.database_url(name))
+
+    def drop_database(self, db: PgDatabase) -> None:
+        """Drop ``db``, closing the connections still open to it."""
+        self._admin(f'DROP DATABASE IF EXISTS "{db.name}" WITH (FORCE)')
+
     def destroy(self) -> None:
         """Stop (immediate) and delete the cluster."""
         self.stop("immediate")
@@ -401,14 +435,30 @@ def postgres_bin() -> Path:
     return d
 
 
-@pytest.fixture
-def postgres(postgres_bin: Path) -> Iterator[Postgres]:
-    """A fresh PostgreSQL cluster for one test (about 1 s to create)."""
+@pytest.fixture(scope="session")
+def postgres_cluster(postgres_bin: Path) -> Iterator[Postgres]:
+    """One throw-away PostgreSQL cluster for the session: ``initdb`` and a server start
+    cost 1-3 s (more on a loaded machine), so they are done once; each test gets its own
+    database in it (:func:`postgres`).  Tests that stop or restart PostgreSQL start their
+    own :class:`Postgres` instead (tests/e2e/test_multihost.py)."""
     pg = Postgres(postgres_bin)
     try:
         yield pg
     finally:
         pg.destroy()
+
+
+@pytest.fixture
+def postgres(postgres_cluster: Postgres) -> Iterator[PgDatabase]:
+    """A fresh, empty database for one test on the session's cluster (CREATE DATABASE
+    from ``template0``: tens of milliseconds), dropped at teardown with every connection
+    the test left open (DROP DATABASE ... WITH (FORCE)).  Nothing a test writes (tables,
+    rows, sequences, advisory locks: all per database) is seen by another."""
+    db = postgres_cluster.create_database()
+    try:
+        yield db
+    finally:
+        postgres_cluster.drop_database(db)
 
 
 @pytest.fixture(scope="module")

@@ -11,12 +11,12 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from rsfapp.db.engine import Database
 from rsfapp.store.keys import KeyStore, Scope, WouldBlock
-from tests.conftest import Postgres
+from tests.conftest import PgDatabase
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
 
 
-def test_lean_verify_on_postgres(postgres: Postgres, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_lean_verify_on_postgres(postgres: PgDatabase, monkeypatch: pytest.MonkeyPatch) -> None:
     api, admin = KeyStore(Database(postgres.url)), KeyStore(Database(postgres.url))
     try:
         assert api.verify("rsf_" + "A" * 43) is None  # the lean query creates nothing:

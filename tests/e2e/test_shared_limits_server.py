@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterator
-from pathlib import Path
 
 import httpx
 import pytest
@@ -15,17 +14,26 @@ import pytest
 from rsfapp.db.engine import Database
 from rsfapp.store.inflight import InflightStore
 from rsfapp.store.keys import hash_key
-from tests.conftest import Postgres
+from tests.conftest import PgDatabase, Postgres
 from tests.e2e.test_auth_server import AuthServer, h, problem
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(300)]
 
 
-@pytest.fixture(params=["sqlite", "postgres"])
-def pair(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[AuthServer, AuthServer]]:
+@pytest.fixture(scope="module", params=["sqlite", "postgres"])
+def pair(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[tuple[AuthServer, AuthServer]]:
+    """Two API processes on one database, shared by this module's tests on that database
+    (each test makes its own key and asks its own questions, so neither sees the
+    other's tokens, leases or cached answers)."""
+    tmp_path = tmp_path_factory.mktemp(f"shared-{request.param}")
     extra = {"RSF_QUOTA_FRESH_PER_S": "1000", "RSF_QUOTA_CONCURRENT_REQUESTS": "100"}
+    cluster: Postgres | None = None
+    pg: PgDatabase | None = None
     if request.param == "postgres":
-        pg: Postgres = request.getfixturevalue("postgres")
+        cluster = request.getfixturevalue("postgres_cluster")
+        pg = cluster.create_database()
         extra["RSF_CACHE_URL"] = pg.url
     else:
         extra["RSF_CACHE_URL"] = f"sqlite:///{tmp_path / 'shared.sqlite3'}"
@@ -39,6 +47,8 @@ def pair(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[AuthS
     finally:
         for s in servers:
             s.stop()
+        if cluster is not None and pg is not None:
+            cluster.drop_database(pg)
 
 
 def test_two_api_processes_share_one_bucket(pair: tuple[AuthServer, AuthServer]) -> None:
@@ -98,7 +108,7 @@ def test_two_api_processes_share_the_concurrency_quota(
         db.dispose()
 
 
-def test_concurrent_acquires_never_exceed_the_quota_on_postgres(postgres: Postgres) -> None:
+def test_concurrent_acquires_never_exceed_the_quota_on_postgres(postgres: PgDatabase) -> None:
     """Eight threads (own pooled connections, READ COMMITTED) race for the 3 leases of
     one key, five times (five keys): exactly 3 are granted each time (the per-key
     advisory lock serialises them; without it, 5 were granted in 1 of 5 such races)."""
