@@ -29,11 +29,18 @@ Norsett & Wanner, Solving ODEs I, Sec. II.10) with its 7th-order dense output.  
 tableau is this project's copy of the published coefficients (rsfcore.ode.dop853_tableau);
 stages, error norm, step-size controller, dense output, the Illinois root finder (events) and
 the Newton inversion of the time component (samples at given T) are the shared kernels of
-rsfcore.ode.rk; stiff phases take Rosenbrock steps: RODASP (rsfcore.ode.rodasp, the
-default since NUMERICS_VERSION 8; it keeps its order on the stiff relaxations where RODAS4
-loses it) or RODAS4 (rsfcore.ode.rodas4; :class:`StiffMethod`), both also used by the
-separatrix integrator (rsfcore.separatrix); this module holds the right-hand side, its
-Jacobian and the driver with its events.
+rsfcore.ode.rk; stiff phases take implicit steps: Radau IIA of order 5 (rsfcore.ode.radau5,
+the default since NUMERICS_VERSION 9, with its collocation polynomial as dense output),
+or the Rosenbrock methods RODASP (NUMERICS_VERSION 8) and RODAS4 (rsfcore.ode.rodasp,
+rsfcore.ode.rodas4, also used by the separatrix integrator; :class:`StiffMethod`); this
+module holds the right-hand side, its Jacobian and the driver with its events.
+
+The right-hand side's numerators are differences of terms up to ~kappa that nearly
+cancel on the slow manifold of a stiff machine; they are formed so that their rounding
+is relative to what is left (:func:`_terms`), because the steps' error estimates see that
+rounding times h, and where it was ~u kappa it, not the truncation error, set the steps
+at tight rtol (issue 22: 43,137 DOP853 steps at rtol 1e-13 for a load-point jump at
+b/a = kappa = 1e6, 956 now).
 
 Events located on every accepted step with the dense output:
   * runaway certificate: L = phi + ln theta > L* (absorbing; see laws.py);
@@ -62,7 +69,7 @@ from numpy.typing import NDArray
 from .excursion import PHI_LEG
 from .excursion import fast_leg as _fast_leg
 from .laws import EXP_CLIP, G_clipped, two_prod
-from .ode import rk, rodas4, rodasp
+from .ode import radau5, rk, rodas4, rodasp
 
 __all__ = [
     "Status",
@@ -77,6 +84,7 @@ __all__ = [
     "LOG_H",
     "LOG_STIFF",
     "LOG_XLIM",
+    "LOG_NEWTON",
     "LOG_Y",
     "blowup_tail",
     "STATUS",
@@ -87,10 +95,12 @@ __all__ = [
 NSTATE = 5
 _EMPTY = np.empty(0)
 _EMPTY2 = np.empty((0, NSTATE))
-#: columns of a step log row: hybrid time at the step's start, signed step, 1.0 for a
-#: RODAS4 step, 2.0 for a RODASP step (0.0 DOP853), the usable fraction of the step (< 1 at a stop), then the
-#: internal state (phi, L, c T[, s, s_o]) at the step's start
-LOG_TAU, LOG_H, LOG_STIFF, LOG_XLIM, LOG_Y = 0, 1, 2, 3, 4
+#: columns of a step log row: hybrid time at the step's start, signed step, the method
+#: (0.0 DOP853, 1.0 RODAS4, 2.0 RODASP, 3.0 Radau IIA: 1 + StiffMethod), the usable
+#: fraction of the step (< 1 at a stop), the Newton iterations of a Radau IIA step (0
+#: otherwise: replay_samples takes the same number), then the internal state (phi, L,
+#: c T[, s, s_o]) at the step's start
+LOG_TAU, LOG_H, LOG_STIFF, LOG_XLIM, LOG_NEWTON, LOG_Y = 0, 1, 2, 3, 4, 5
 _EMPTY_LOG = np.empty((0, LOG_Y + NSTATE))
 _I_PHI, _I_LTH, _I_T, _I_S, _I_SO = 0, 1, 2, 3, 4
 _NS = rk.N_STAGES  # stages of the step proper
@@ -131,9 +141,10 @@ STATUS: dict[int, str] = {int(s): s.text for s in Status}
 _STATUS_OF: dict[int, Status] = {int(s): s for s in Status}
 
 # ints for the compiled kernel (numba freezes module-level ints as constants).
-# The kernels of rsfcore.ode.rk, rsfcore.ode.rodas4 and rsfcore.ode.rodasp are inlined into
-# integrate(); numba's cache does not see edits there, so touch this file (or clear
-# NUMBA_CACHE_DIR) after changing rk.py, rodas4.py or rodasp.py.
+# The kernels of rsfcore.ode.rk, rsfcore.ode.rodas4, rsfcore.ode.rodasp and
+# rsfcore.ode.radau5 are inlined into integrate(); numba's cache does not see edits there,
+# so touch this file (or clear NUMBA_CACHE_DIR) after changing rk.py, rodas4.py,
+# rodasp.py or radau5.py.
 _T_END = int(Status.T_END)
 _RUNAWAY = int(Status.RUNAWAY)
 _RETURNED = int(Status.RETURNED)
@@ -152,8 +163,10 @@ TIME_LIMIT = 1e300
 #: dv = 8e45, rtol 1e-13 the trajectory took 40.6 ms CPU with 2, 20.3 ms with 1 (0.5, 0.25,
 #: 0.1: 19.0 - 19.5 ms), and eight other stiff and soft queries at rtol 1e-8 .. 1e-13 moved
 #: by less than the timing noise (bench/bench_speed.py's cases).
+#: Radau IIA: 1, as RODASP (measured the same way, 0.5 and 2 were not faster).
 _EXIT_HL_RODAS4 = 2.0
 _EXIT_HL_RODASP = 1.0
+_EXIT_HL_RADAU5 = 1.0
 
 
 class Integrator(IntEnum):
@@ -161,29 +174,37 @@ class Integrator(IntEnum):
 
     #: DOP853 throughout (the reference for the explicit method)
     EXPLICIT = 0
-    #: DOP853, switching to RODAS4 in stiff phases and back (the default)
+    #: DOP853, switching to the stiff method (:class:`StiffMethod`) in stiff phases and
+    #: back (the default)
     AUTO = 1
-    #: the Rosenbrock method (:class:`StiffMethod`) throughout (for tests and comparison)
+    #: the stiff method (:class:`StiffMethod`, Radau IIA by default) throughout (for tests
+    #: and comparison; the name is historical: up to NUMERICS_VERSION 8 it was a
+    #: Rosenbrock method)
     ROSENBROCK = 2
 
 
 class StiffMethod(IntEnum):
-    """Which Rosenbrock method takes the stiff steps of :func:`integrate` (the kernel takes
-    the int; rsfcore.ode.rodas4, rsfcore.ode.rodasp).
+    """Which implicit method takes the stiff steps of :func:`integrate` (the kernel takes
+    the int; rsfcore.ode.rodas4, rsfcore.ode.rodasp, rsfcore.ode.radau5).
 
-    Both are 6-stage L-stable methods of order 4(3) with the same step kernel; they differ
-    in their coefficients and continuous extension.  On the engine's stiff relaxations
-    (a machine relaxing along its slow manifold after a large load-point jump) RODAS4
-    loses order (1.5e5 steps at rtol 1e-13 against 1.5e3 at 1e-8) where RODASP keeps it:
-    at b/a = 4.9e4, kappa = 6.1e4, eps = 1, dv = 8e45 (200 samples) 2,565 / 9,646 /
-    18,972 steps at rtol 1e-10 / 1e-12 / 1e-13 against 11,287 / 37,396 / 66,654
-    (NUMERICS_VERSION 8; tests/core/test_stiff.py checks both against scipy's Radau).
+    RODAS4 and RODASP are 6-stage L-stable Rosenbrock methods of order 4(3) with the same
+    step kernel; on the engine's stiff relaxations (a machine relaxing along its slow
+    manifold after a large load-point jump) RODAS4 loses order (1.5e5 steps at rtol 1e-13
+    against 1.5e3 at 1e-8) where RODASP keeps it.  Radau IIA (order 5, 3 stages,
+    simplified Newton; the default since NUMERICS_VERSION 9) keeps order 5 there and
+    takes 3-6x fewer steps at tight tolerances for ~8 right-hand sides per step against
+    6: at b/a = 4.9e4, kappa = 6.1e4, eps = 1, dv = 9.2e65 (the stiff phase alone, same
+    controller) 517 / 1,634 / 2,933 steps at rtol 1e-10 / 1e-12 / 1e-13 against RODASP's
+    2,217 / 8,854 / 17,364 (2.7 against 11.0 ms CPU at 1e-13).  tests/core/test_stiff.py
+    checks each against scipy's Radau.
     """
 
     #: Hairer & Wanner's RODAS4 (the engine's stiff method up to NUMERICS_VERSION 7)
     RODAS4 = 0
-    #: Steinebach's RODASP, with its own continuous extension (the default)
+    #: Steinebach's RODASP, with its own continuous extension (NUMERICS_VERSION 8)
     RODASP = 1
+    #: Radau IIA of order 5 with its collocation polynomial as dense output (the default)
+    RADAU5 = 2
 
 
 class EngineResult(NamedTuple):
@@ -250,8 +271,8 @@ class EngineOptions(NamedTuple):
             |phi - ln v_o| and |L| fall below eq_tol without a crossing (0: never).
         integrator: an :class:`Integrator` code (0 DOP853, 1 automatic, 2 Rosenbrock).
         fast_leg: take fast-slip legs in closed form (rsfcore.excursion).
-        stiff_method: a :class:`StiffMethod` code (0 RODAS4, 1 RODASP, the default): the
-            Rosenbrock method of stiff phases.
+        stiff_method: a :class:`StiffMethod` code (0 RODAS4, 1 RODASP, 2 Radau IIA, the
+            default): the implicit method of stiff phases.
     """
 
     rtol: float
@@ -265,7 +286,7 @@ class EngineOptions(NamedTuple):
     eq_tol: float = 0.0
     integrator: int = 1
     fast_leg: bool = False
-    stiff_method: int = int(StiffMethod.RODASP)
+    stiff_method: int = int(StiffMethod.RADAU5)
 
     def typed(self) -> EngineOptions:
         """The same options with every field coerced to its declared type."""
@@ -293,49 +314,106 @@ def _kahan(s, comp, x):
     return t, (t - s) - yk
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
-    """Hybrid-time right-hand side (module docstring) of the internal state
-    y = (phi, L, c T[, s, s_o]). Writes into ``out``."""
+#: eps L above which kappa + k G(L) is formed as ((eps kappa - k) + k e^(-eps L))/eps
+#: where that is the more accurate form (:func:`_terms`): below, G(L) is not yet near its
+#: limit -1/eps and the direct sum is as accurate
+_SATURATED_EPS_L = 0.25
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _terms(y, ba, kappa, eps, vo, c, lnc):
+    """The pieces of the right-hand side shared by :func:`_rhs` and :func:`_jacobian`:
+    (ap, om, apom, load, g, z, inv_d, n0, n1) with a_phi = ap, 1 - a_phi = om, a_phi
+    (1 - a_phi) = apom, load = v_o om/c, g = G(L), z = (b/a) g a_phi, inv_d = 1/D and the
+    numerators n0 = kappa (load - ap) - z of d phi/dtau and n1 = kappa (load - ap) -
+    (b/a - 1) g ap of dL/dtau.
+
+    Each numerator is a difference of terms up to ~kappa that nearly cancel on the slow
+    manifold of a stiff machine; it is formed so that its rounding is relative to what is
+    left, because that rounding is noise that the steps' error estimates see (h times it;
+    at rtol 1e-13 it, not the truncation error, set the step: issue 22):
+
+    * load - ap, which is om - a_phi = -tanh((phi - ln c)/2) when v_o > 0, from expm1
+      (full relative accuracy near phi = ln c; formed from om and ap it is off by ~1 ulp
+      of 1/2, which kappa = 1e6 makes ~1e-10 in d phi/dtau);
+    * where eps L > _SATURATED_EPS_L, G(L) = (e^(-eps L) - 1)/eps nears -1/eps and
+      kappa + k G(L) (k = b/a, b/a - 1) cancels down to its L-dependent part: formed as
+      ((eps kappa - k) + k e^(-eps L))/eps with eps kappa - k exact (two_prod), it keeps
+      relative accuracy (b/a = kappa = 1e6, eps = 1, L = 476: 1e6 e^-476 ~ 1e-201, against
+      0 +- 1e-10 directly), and n = kappa load - ap (kappa + k G(L)) is taken where its
+      rounding bound is the smaller one.  This covers the former special cases near L*
+      with x = eps kappa/(b/a - 1) -> 1, where kappa + (b/a - 1) G is a difference of
+      terms 1/(1 - x) times larger (x = 1 - 1e-11: rounded to u kappa it moved L by
+      1e-12 on the way to a fast-slip leg whose peak depends on it 6.7e5x), and the long
+      slip at phi - ln c ~ 20 with x -> 1 (tests/core/test_slip_balance.py).
+    """
     zz = y[0] - lnc
-    e = math.exp(-abs(zz))
+    a = abs(zz)
+    if a < 1.0:
+        em = math.expm1(-a)
+        e = 1.0 + em
+    else:
+        e = math.exp(-a)
+        em = e - 1.0
     inv = 1.0 / (1.0 + e)
-    # a_phi = sigmoid(zz) and om = 1 - a_phi, each to full relative precision
+    # a_phi = sigmoid(zz) and om = 1 - a_phi, each to full relative precision; their
+    # difference om - ap = -tanh(zz/2) = sign(zz) expm1(-|zz|)/(1 + e) too
     if zz >= 0.0:
         ap = inv
         om = e * inv
+        d = em * inv
     else:
         ap = e * inv
         om = inv
-    g = G_clipped(y[1], eps)
+        d = -em * inv
+    apom = e * inv * inv  # a_phi (1 - a_phi) = d a_phi / d phi, without cancellation
+    if vo == c:
+        load = om
+        lmap = d
+    else:
+        load = vo * om / c
+        lmap = load - ap
+    L = y[1]
+    xl = eps * L
+    saturated = eps > 0.0 and xl > _SATURATED_EPS_L
+    if saturated:
+        t = math.exp(-xl)
+        g = (t - 1.0) / eps  # (t - 1 in (-1, -0.22): a few ulp, as expm1)
+    else:
+        t = 0.0
+        g = G_clipped(L, eps)
     z = ba * g * ap
     az = abs(z)
     # D = hypot(1, z) without hypot's cost; |z| alone where z*z would overflow
     inv_d = 1.0 / math.sqrt(1.0 + z * z) if az < 1e150 else 1.0 / az
-    load = vo * om / c
-    kl = kappa * (load - ap)
-    out[0] = (kl - z) * inv_d
-    # dL/dtau = d phi/dtau + d ln theta/dtau, written without the cancellation of the
-    # two (kc = b/a - 1 is exact in doubles for b/a in (1, 2], Sterbenz)
+    kl = kappa * lmap
     kc = ba - 1.0
-    w = kappa + kc * g  # = kc (r + G(L)), zero at L = L*
-    if eps > 0.0 and abs(w) < 0.5 * kappa and eps * kappa >= 0.5 * kc:
-        # near L* with x = eps kappa/kc -> 1, kappa + kc G is a difference of terms
-        # 1/(1 - x) times larger, rounded to u kappa: formed as kc (e^(-eps L) - (1 - x))/eps
-        # with 1 - x exact (eps kappa = p + e), it keeps relative accuracy (x = 1 - 1e-11:
-        # the rounding moved L by 1e-12 on the way to a fast-slip leg whose peak depends on
-        # it 6.7e5x, 8.5e-13 of the peak against a claim of 3e-13 at rtol 1e-13)
+    zc = kc * g * ap
+    n0 = kl - z
+    n1 = kl - zc
+    if saturated:
+        kload = kappa * load
         p, e2 = two_prod(eps, kappa)
-        w = kc * (math.exp(-eps * y[1]) - ((kc - p) - e2) / kc) / eps
-        out[1] = (kappa * load - ap * w) * inv_d
-        # d phi/dtau likewise: kappa + (b/a) G = w + G, whose terms are O(kappa/kc) where
-        # kappa (load - a_phi) and (b/a) G a_phi are O(kappa): on a long slip at phi - ln c
-        # ~ 20 with x -> 1 (b/a = kappa = 1e6, eps = 1, after a load-point jump dv = 1e289)
-        # their difference is ~kappa e^-20, and its rounding (u kappa) was 5e-8 of it:
-        # DOP853 needed 4.3e4 steps against the noise at rtol 1e-13 (9e2 without it)
-        out[0] = (kappa * load - ap * (w + g)) * inv_d
-    else:
-        out[1] = (kl - kc * g * ap) * inv_d
+        # kappa + k G = (a_k + k t)/eps with a_k = eps kappa - k; rounding bound of
+        # kload - ap (a_k + k t)/eps against that of kl - k g ap
+        a0 = (p - ba) + e2
+        if eps * kload + ap * (abs(a0) + ba * t) < eps * (abs(kl) + az):
+            n0 = kload - ap * ((a0 + ba * t) / eps)
+        a1 = (p - kc) + e2
+        if eps * kload + ap * (abs(a1) + kc * t) < eps * (abs(kl) + abs(zc)):
+            n1 = kload - ap * ((a1 + kc * t) / eps)
+    return ap, om, apom, load, g, z, inv_d, n0, n1
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
+    """Hybrid-time right-hand side (module docstring) of the internal state
+    y = (phi, L, c T[, s, s_o]), its numerators formed without avoidable cancellation
+    (:func:`_terms`). Writes into ``out``."""
+    ap, om, apom, load, g, z, inv_d, n0, n1 = _terms(y, ba, kappa, eps, vo, c, lnc)
+    out[0] = n0 * inv_d
+    # dL/dtau = d phi/dtau + d ln theta/dtau, written without the cancellation of the two
+    out[1] = n1 * inv_d
     out[2] = om * inv_d  # d(c T)/dtau: the engine carries c T, which is O(tau) for any v_o
     if out.shape[0] > 3:  # slip and load point only when the full state is carried
         out[3] = ap * inv_d
@@ -395,10 +473,13 @@ def _root(F, y0, idx, target, x0, x1, g0, g1, tmp, ftmp, ba, kappa, eps, vo, c, 
     idx >= 0: g(x) = y_idx(x) - target (an event on a state component);
     idx = -1: g(x) = d phi/dtau at y(x) (a local maximum of phi);
     idx = -2: g(x) = d psi/dtau at y(x) (a local maximum of psi = phi + (b/a) ln theta).
-    With poly_h > 0 (a RODAS4 step of length poly_h, cubic Hermite dense output) the slopes
-    are those of the interpolant, divided by poly_h: evaluating f at interpolated states
-    would multiply the interpolation error by the stiffness |lambda|.  They equal f at the
-    step ends, so the bracket g0, g1 is the same.
+    With poly_h > 0 (a stiff step of length poly_h, with a cubic dense output: the Hermite
+    interpolant of a Rosenbrock step, the collocation polynomial of a Radau IIA step) the
+    slopes are those of the polynomial, divided by poly_h: evaluating f at interpolated
+    states would multiply the interpolation error by the stiffness |lambda|.  The Hermite
+    interpolant's equal f at the step ends, so the bracket g0, g1 is the same; the
+    collocation polynomial's are f(Y_3) = f(y1) at the end and within its O(h^4) of f(y0)
+    at the start (a bracket whose sign there differs ends the search at that end).
     At most 80 trial points; stops when g = 0 or the bracket is below 1e-15.
     """
     if g0 == 0.0:
@@ -442,43 +523,26 @@ def _jacobian(y, J, ba, kappa, eps, vo, c, lnc):
     (sigmoid, clipped G, the time change D = hypot(1, z) or |z|); checked against finite
     differences in tests/core/test_stiff.py.  J has shape (n, 2), n = len(y).
     """
-    zz = y[0] - lnc
-    e = math.exp(-abs(zz))
-    inv = 1.0 / (1.0 + e)
-    if zz >= 0.0:
-        ap = inv
-        om = e * inv
-    else:
-        ap = e * inv
-        om = inv
-    apom = e * inv * inv  # a_phi (1 - a_phi) = d a_phi / d phi, without cancellation
+    ap, om, apom, load, g, z, inv_d, n0, n1 = _terms(y, ba, kappa, eps, vo, c, lnc)
     L = y[1]
-    g = G_clipped(L, eps)
     gL = 0.0 if eps * L < -EXP_CLIP else -math.exp(-eps * L)  # G'(L)
     kc = ba - 1.0
-    z = ba * g * ap
     az = abs(z)
     z_p = ba * g * apom
     z_l = ba * gL * ap
     # d inv_d = -(z/(1 + z^2)) inv_d dz, or -(dz/z) inv_d on the |z| branch; grouped so
     # that nothing underflows for |z| up to the double range
     if az < 1e150:
-        inv_d = 1.0 / math.sqrt(1.0 + z * z)
         q = z * inv_d * inv_d
         id_p = -q * (inv_d * z_p)  # d inv_d / d phi
         id_l = -q * (inv_d * z_l)  # d inv_d / d L
     else:
-        inv_d = 1.0 / az
         id_p = -(z_p / z) * inv_d
         id_l = -(z_l / z) * inv_d
-    load = vo * om / c
     load_p = -vo * apom / c
-    kl = kappa * (load - ap)
     kl_p = kappa * (load_p - apom)
-    n0 = kl - z
     J[0, 0] = (kl_p - z_p) * inv_d + n0 * id_p
     J[0, 1] = -z_l * inv_d + n0 * id_l
-    n1 = kl - kc * g * ap
     J[1, 0] = (kl_p - kc * g * apom) * inv_d + n1 * id_p
     J[1, 1] = -kc * gL * ap * inv_d + n1 * id_l
     J[2, 0] = -apom * inv_d + om * id_p
@@ -500,10 +564,10 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
         ba, kappa, eps, vo: parameters (validated by the caller).
         opts: an :class:`EngineOptions` (fields of their declared types: see
             :meth:`EngineOptions.typed`).  Its ``integrator``: 0 = DOP853 only;
-            1 = automatic (DOP853, switching to the Rosenbrock method of ``stiff_method``,
-            RODASP by default, when Hairer's stiffness test fires 15 times in a row, and
-            back when h |lambda| < 1 (RODASP; RODAS4: 2) for 20 steps); 2 = the
-            Rosenbrock method only.
+            1 = automatic (DOP853, switching to the implicit method of ``stiff_method``,
+            Radau IIA by default, when Hairer's stiffness test fires 15 times in a row, and
+            back when h |lambda| < 1 (RODAS4: 2) for 20 steps); 2 = the implicit method
+            only.
             Its ``fast_leg``: take the fast-slip leg of an excursion above
             phi - ln c = PHI_LEG in closed form (rsfcore.excursion) instead of stepping
             through it; tau does not advance over a leg, so no hybrid-time sample falls
@@ -569,6 +633,9 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
     R = np.empty((rodas4.N_STAGES, n))  # RODAS4 stage increments
     J = np.empty((n, 2))  # Jacobian columns d f/d phi, d f/d L
     rbuf = np.empty(n)
+    Z = np.empty((radau5.N_STAGES, n))  # Radau IIA stage increments and slopes
+    FZ = np.empty((radau5.N_STAGES, n))
+    n_newton = 0  # Newton iterations of the last Radau IIA step
     args = (ba, kappa, eps, vo, c, lnc)  # of _rhs after (state, out), for rodas4.step
 
     _rhs(y, f, ba, kappa, eps, vo, c, lnc)
@@ -649,7 +716,12 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
     n_stiff_hits = 0  # consecutive accepted DOP853 steps with h |lambda| > STIFF_THRESHOLD
     n_nonstiff = 0
     n_easy = 0  # consecutive accepted Rosenbrock steps with h |lambda| < the exit threshold
-    exit_hl = _EXIT_HL_RODASP if stiff_method == 1 else _EXIT_HL_RODAS4
+    if stiff_method == 2:
+        exit_hl = _EXIT_HL_RADAU5
+    elif stiff_method == 1:
+        exit_hl = _EXIT_HL_RODASP
+    else:
+        exit_hl = _EXIT_HL_RODAS4
     n_stiff_steps = 0
     n_jac = 0
     n_legs = 0
@@ -657,7 +729,43 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
         if tau > TIME_LIMIT or y[2] > TIME_LIMIT:
             status = _TIME_LIMIT
             break
-        if stiff:
+        if stiff and stiff_method == 2:
+            # ---- one Radau IIA step (stiff phase) --------------------------------------
+            _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+            n_jac += 1
+            for j in range(2):  # Newton's weights
+                sc[j] = atol + rtol * abs(y[j])
+            st, n_r, n_newton = radau5.step(
+                _rhs, args, y, f, h, J, sc, Z, FZ, tmp, ftmp, ynew, fnew, 0
+            )
+            n_rhs += n_r
+            err = math.inf
+            if st == 0:
+                finite = True
+                for j in range(n):
+                    if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
+                        finite = False
+                if finite:
+                    for j in range(3):
+                        sc[j] = rk.error_scale(
+                            y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf
+                        )
+                    err, n_r = radau5.error_norm(
+                        _rhs, args, y, f, h, J, Z, sc, 3, rejected_last, tmp, ftmp, rbuf
+                    )
+                    n_rhs += n_r
+            if not (err <= 1.0):
+                n_rej += 1
+                # (Newton failed: half the step, as RADAU5)
+                h *= rodas4.reject_factor(err) if st == 0 else 0.5
+                rejected_last = True
+                if not (h > 1e-300):
+                    status = _STEP_UNDERFLOW
+                    break
+                continue
+            radau5.dense_coeffs(Z, F)
+            n_stiff_steps += 1
+        elif stiff:
             # ---- one Rosenbrock step (stiff phase: RODASP, or RODAS4) -------------
             _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
             n_jac += 1
@@ -733,7 +841,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
         # ---- accepted: events on [tau, tau + x_end h] ----------------------------
         n_steps += 1
         err_sum += err * rtol
-        dense_ready = stiff  # a RODAS4 step has its (Hermite) dense output already
+        dense_ready = stiff  # a stiff step has its dense output already
         stop_x = 2.0  # fraction of the step where integration stops (2 = none)
         stop_status = -1
 
@@ -905,6 +1013,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
                 steplog[n_log, LOG_H] = h
                 steplog[n_log, LOG_STIFF] = (1.0 + stiff_method) if stiff else 0.0
                 steplog[n_log, LOG_XLIM] = x_lim
+                steplog[n_log, LOG_NEWTON] = n_newton if stiff and stiff_method == 2 else 0
                 for j in range(n):
                     steplog[n_log, LOG_Y + j] = y[j]
                 n_log += 1
@@ -1084,8 +1193,10 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
     :func:`integrate` run from y0 (its rows [0, n_log), LOG_* columns), without a second
     run: each step that holds a sample is taken again from its logged start (the same
     state, step and method give the same stages, so the same dense output: DOP853's
-    7th-order polynomial, or the cubic Hermite interpolant of a RODASP or RODAS4 step), and the samples are
-    read from it exactly as :func:`integrate` reads them.  The result is bit-identical to
+    7th-order polynomial, the collocation polynomial of a Radau IIA step (taken with the
+    logged number of Newton iterations), or the cubic Hermite interpolant of a RODASP or
+    RODAS4 step), and the samples are read from it exactly as :func:`integrate` reads
+    them.  The result is bit-identical to
     a run with ``sample_tau`` given (tests/core/test_trajectory.py).  Fills ``samples``
     (len(sample_tau), len(y0)) in the output form (phi, ln theta, T[, s, s_o]); returns
     the number of rows filled.
@@ -1105,6 +1216,9 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
     tmp = np.empty(n)
     ftmp = np.empty(n)
     rbuf = np.empty(n)
+    Z = np.empty((radau5.N_STAGES, n))
+    FZ = np.empty((radau5.N_STAGES, n))
+    sc = np.ones(2)  # (Newton's weights: unused with a fixed number of iterations)
     n_tau = sample_tau.shape[0]
     i_tau = 0
     n_filled = 0
@@ -1128,7 +1242,15 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
         for j in range(n):
             y[j] = steplog[k, LOG_Y + j]
         _rhs(y, f, ba, kappa, eps, vo, c, lnc)
-        if steplog[k, LOG_STIFF] != 0.0:
+        if steplog[k, LOG_STIFF] == 3.0:
+            # Radau IIA: the same Newton iterations from the same start give the same stages
+            _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+            radau5.step(
+                _rhs, args, y, f, h, J, sc, Z, FZ, tmp, ftmp, ynew, fnew,
+                int(steplog[k, LOG_NEWTON]),
+            )  # fmt: skip
+            radau5.dense_coeffs(Z, F)
+        elif steplog[k, LOG_STIFF] != 0.0:
             _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
             if steplog[k, LOG_STIFF] == 2.0:
                 rodasp.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)

@@ -1,4 +1,5 @@
-"""Shared ODE machinery of rsfcore: one implementation per method (DOP853, RODAS4).
+"""Shared ODE machinery of rsfcore: one implementation per method (DOP853, RODAS4, RODASP,
+Radau IIA).
 
 * :mod:`rsfcore.ode.dop853_tableau`: the published Dormand-Prince 8(5,3) coefficients.
 * :mod:`rsfcore.ode.rk`: stage, solution, error norm, step-size controller, starting
@@ -15,10 +16,22 @@
 * :mod:`rsfcore.ode.rodasp`: RODASP's step (RODAS4's kernel with RODASP's coefficients),
   which keeps its order on stiff problems where RODAS4 loses it; used by the separatrix
   integrator's stiff corner.
+* :mod:`rsfcore.ode.radau5`: Radau IIA of order 5 (3 stages, simplified Newton in the
+  real/complex split of A^-1, Hairer's embedded error estimate, the collocation
+  polynomial as dense output), its coefficients derived from the method's definition;
+  the engine's stiff phases (the default since NUMERICS_VERSION 9).
 """
 
 from __future__ import annotations
 
-from . import dop853_tableau, rk, rodas4, rodas4_tableau, rodasp, rodasp_tableau
+from . import dop853_tableau, radau5, rk, rodas4, rodas4_tableau, rodasp, rodasp_tableau
 
-__all__ = ["dop853_tableau", "rk", "rodas4", "rodas4_tableau", "rodasp", "rodasp_tableau"]
+__all__ = [
+    "dop853_tableau",
+    "radau5",
+    "rk",
+    "rodas4",
+    "rodas4_tableau",
+    "rodasp",
+    "rodasp_tableau",
+]

@@ -101,6 +101,77 @@ def test_jacobian_matches_mpmath_derivatives(eps: float, vo: float) -> None:
         assert np.array_equal(J3, J[:3])
 
 
+# States on the slow manifold of stiff machines where the right-hand side is a difference
+# of terms up to ~kappa (issue 22, rtol 1e-13): (phi, L, b/a, kappa, eps, v_o); measured
+# error of the former formula / now, relative to the bound below: 4e6 / 0.02 (a
+# load-point jump 2.8e289 at b/a = kappa = 1e6, where kappa + (b/a) G(L) = 1e6 e^-476),
+# 1e5 / 0.1 (b/a = 1 + 1e-6, kappa = 1e6: om - a_phi from om and a_phi), and a spread of
+# random states
+CANCELLING_STATES = [
+    (19.1595202, 476.293434, 1e6, 1e6, 1.0, 1.0),
+    (2.000004e-06, 209.630606, 1.000001, 1e6, 0.5, 1.0),
+    (1.20344335, 1.9956656, 49434.880702190705, 61036.76220993383, 1.0, 1.0),
+    (0.34876541, 294.02321003, 1.000000000001, 1000.0, 0.0, 1.0),
+    (-3.0, 40.0, 1.0 + 1e-9, 2.0, 0.999, 1.0),
+]
+
+
+@pytest.mark.parametrize("state", CANCELLING_STATES)
+def test_rhs_is_as_accurate_as_its_state(state: tuple[float, ...]) -> None:
+    """d phi/dtau and dL/dtau against 50-digit mpmath at the same (double) state: the
+    error is at most 64 ulp of |f| + |J00 phi| + |J01 L| (the change of f that the
+    rounding of the state itself makes, the least any formula can promise).  The steps'
+    error estimates see this rounding times h: where it was ~u kappa, it set the step
+    at rtol 1e-13 (43,137 DOP853 steps against 956, and 23,077 RODASP steps against 3,184,
+    for the first two states' trajectories)."""
+    mpmath.mp.dps = 50
+    phi, L, ba, kappa, eps, vo = state
+    c = vo if vo > 0.0 else 1.0
+    lnc = math.log(c)
+    y = np.array([phi, L, 0.0, 0.0, 0.0])
+    f = np.empty(5)
+    engine._rhs(y, f, ba, kappa, eps, vo, c, lnc)
+    J = np.empty((5, 2))
+    engine._jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+    ref = _rhs_mp(mpmath.mpf(phi), mpmath.mpf(L), ba, kappa, eps, vo)
+    u = 2.0**-53
+    for i in range(2):
+        cond = abs(float(ref[i])) + abs(J[i, 0] * phi) + abs(J[i, 1] * L)
+        err = abs(f[i] - float(ref[i]))
+        assert err <= 64 * u * cond, (i, f[i], float(ref[i]), err / (u * cond))
+
+
+def test_rhs_random_states_against_mpmath() -> None:
+    """The same bound over random states, parameters across the valid range (b/a - 1 in
+    [1e-12, 1e6], kappa in [1e-6, 1e6], eps in {0, random, 1}, phi - ln v_o in [-30, 30],
+    eps L up to 700)."""
+    mpmath.mp.dps = 50
+    rng = np.random.default_rng(22)
+    u = 2.0**-53
+    worst = 0.0
+    for _ in range(300):
+        ba = min(1.0 + 10.0 ** rng.uniform(-12, 6), 1e6)
+        kappa = 10.0 ** rng.uniform(-6, 6)
+        eps = float(rng.choice([0.0, rng.uniform(0, 1), 1.0]))
+        vo = float(rng.choice([0.0, 1.0, 10.0 ** rng.uniform(-12, 12)]))
+        c = vo if vo > 0.0 else 1.0
+        lnc = math.log(c)
+        phi = lnc + rng.uniform(-30, 30)
+        L = rng.uniform(-5, 700 / max(eps, 1.0)) if rng.random() < 0.7 else rng.uniform(-5, 5)
+        y = np.array([phi, L, 0.0, 0.0, 0.0])
+        f = np.empty(5)
+        engine._rhs(y, f, ba, kappa, eps, vo, c, lnc)
+        J = np.empty((5, 2))
+        engine._jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+        ref = _rhs_mp(mpmath.mpf(phi), mpmath.mpf(L), ba, kappa, eps, vo)
+        for i in range(5):
+            cond = abs(float(ref[i])) + abs(J[i, 0] * phi) + abs(J[i, 1] * L)
+            ratio = abs(f[i] - float(ref[i])) / (u * cond) if cond > 0 else 0.0
+            worst = max(worst, ratio)
+            assert ratio <= 64, (i, ba, kappa, eps, vo, phi, L, f[i], float(ref[i]))
+    assert worst > 0.0  # the comparison ran
+
+
 @pytest.mark.parametrize("p, pert, d", SMOOTH_CASES)
 def test_rosenbrock_alone_meets_the_explicit_reference(p: Params, pert: str, d: float) -> None:
     """The Rosenbrock method (RODASP) forced on every step, against DOP853 at rtol 1e-13:
@@ -282,12 +353,13 @@ def test_stiff_relaxation_samples_against_scipy_radau(
     method: engine.StiffMethod, ba: float, kappa: float, eps: float, dv: float
 ) -> None:
     """A stiff machine (kappa/kappa_crit = 1e3 .. 1e4) relaxing after a load-point jump,
-    sampled at given T by the engine at rtol 1e-10 with either Rosenbrock method (RODASP,
-    the default, and RODAS4) against scipy's Radau IIA at rtol 1e-13 with the analytic
+    sampled at given T by the engine at rtol 1e-10 with each stiff method (Radau IIA, the
+    default, RODASP and RODAS4) against scipy's Radau IIA at rtol 1e-13 with the analytic
     Jacobian of the plain equations.  Measured: phi within 1.9e-9, psi (up to ~700)
-    within 1.9e-9 for both methods (the largest during the fast rise, taken by DOP853);
-    bound 1e-8 (1 + |reference|), ~5x the measured.  Both take Rosenbrock steps here, and
-    RODASP no more steps than RODAS4 (measured 293 / 312, 471 / 521, 657 / 833)."""
+    within 1.9e-9 for the Rosenbrock methods (the largest during the fast rise, taken by
+    DOP853); bound 1e-8 (1 + |reference|), ~5x the measured.  All take stiff steps here,
+    RODASP no more than RODAS4 (measured 293 / 312, 471 / 521, 657 / 833) and Radau IIA
+    no more than RODASP."""
     from scipy.integrate import solve_ivp
 
     vn = 1.0 + dv
@@ -317,10 +389,12 @@ def test_stiff_relaxation_samples_against_scipy_radau(
         assert np.all(np.abs(phi - ref.y[0]) <= 1e-8 * (1.0 + np.abs(ref.y[0]))), phi - ref.y[0]
         assert np.all(np.abs(psi - ref.y[1]) <= 1e-8 * (1.0 + np.abs(ref.y[1]))), psi - ref.y[1]
     assert steps[engine.StiffMethod.RODASP] <= steps[engine.StiffMethod.RODAS4], steps
+    assert steps[engine.StiffMethod.RADAU5] <= steps[engine.StiffMethod.RODASP], steps
 
 
 def test_rodasp_keeps_the_relaxation_cheap_where_rodas4_loses_order() -> None:
-    """The corner RODASP was brought into the engine for (issue 22 item 3): a stiff
+    """The corner RODASP, then Radau IIA, was brought into the engine for (issue 22 item
+    3): a stiff
     machine (b/a = 4.9e4, kappa = 6.1e4, eps = 1) relaxing along its slow manifold after a
     load-point jump dv = 8e45, integrated to the steady state (v_o = 1 frame, as
     rsfcore.trajectory runs it).  Measured steps RODASP / RODAS4: 2,456 / 11,227 at rtol
@@ -349,3 +423,11 @@ def test_rodasp_keeps_the_relaxation_cheap_where_rodas4_loses_order() -> None:
         assert a.n_steps < ratio * b.n_steps, (rtol, a.n_steps, b.n_steps)
         assert a.peak_phi == pytest.approx(b.peak_phi, rel=1e-12)
         assert a.y_end[2] == pytest.approx(b.y_end[2], rel=1e-2)
+        # Radau IIA (issue 22 item 3, NUMERICS_VERSION 9): measured 731 / 2,084 steps and
+        # 7,720 / 20,651 right-hand sides at rtol 1e-10 / 1e-12, against RODASP's 2,451 /
+        # 9,471 and 16,241 / 58,862; the same peak and stop
+        r5 = res[engine.StiffMethod.RADAU5]
+        assert r5.n_steps < 0.4 * a.n_steps, (rtol, r5.n_steps, a.n_steps)
+        assert r5.n_rhs < 0.5 * a.n_rhs, (rtol, r5.n_rhs, a.n_rhs)
+        assert r5.peak_phi == pytest.approx(a.peak_phi, rel=1e-12)
+        assert r5.y_end[2] == pytest.approx(a.y_end[2], rel=1e-2)

@@ -383,7 +383,7 @@ def test_slow_spiral_blowup_time_within_its_claim_or_not_reported() -> None:
     p, dv = Params(1.000001, 1e-8, 0.0, 1.0), -0.5067365898367624
     ref = _spiral_blowup_scipy(p.ba, p.kappa, math.log1p(dv), 1e-12) / (1.0 + dv)
     checked = 0
-    for rtol in (1e-3, 1e-4, 1e-6, 1e-8, 1e-9, 1e-10):
+    for rtol in (1e-3, 1e-4, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
         r = simulate(p, "load-point-jump", dv, rtol=rtol, n_points=200)
         assert r.outcome == "unstable" and r.trajectory is not None
         assert r.trajectory.phi[-1] > 40.0  # the samples run on to the blow-up
@@ -392,7 +392,9 @@ def test_slow_spiral_blowup_time_within_its_claim_or_not_reported() -> None:
             continue
         checked += 1
         assert abs(r.blowup_time - ref) <= (r.rel_accuracy + 1e-7) * ref, (rtol, r.blowup_time)
-    assert checked >= 2  # (rtol 1e-6 and 1e-8 are checked within the budget)
+    # (NUMERICS_VERSION 9: rtol 1e-7 and 1e-8 are checked within the budget; 1e-6, whose
+    # first run took 2,104 steps against 2,079 before, no longer fits it)
+    assert checked >= 2
 
 
 def test_trajectory_times_of_a_decided_outcome_unchecked_beyond_the_budget() -> None:
