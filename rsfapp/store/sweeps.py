@@ -621,8 +621,9 @@ class SweepStore:
 
     def heartbeat(self, sweep_id: str, idx: int, *more: int) -> bool:
         """Refresh the lease of running chunks held by this process (``idx`` and
-        ``more``: a task's work unit, one UPDATE); False if one of them is no longer
-        held (the reaper took it back after its lease expired)."""
+        ``more``: a task's work unit, one UPDATE); False once none of them is held (the
+        reaper took them back after their lease expired), so the chunks of a unit still
+        held keep their lease."""
         idxs = [idx, *more]
         with self.db.write() as conn:
             n = conn.execute(
@@ -637,7 +638,7 @@ class SweepStore:
                 )
                 .values(heartbeat=time.time())
             ).rowcount
-        return n == len(idxs)
+        return n > 0
 
     def release_chunk(self, sweep_id: str, idx: int, others: Sequence[int] = ()) -> None:
         """Put a running chunk back in the queue (its worker hit an infrastructure error

@@ -562,7 +562,7 @@ def test_work_units_complete_in_one_transaction(db: Database) -> None:
     them in one transaction and claims the next unit of up to ``claim`` pending chunks
     (lowest first, running, this owner); a block stored before (by another worker) is
     not stored or counted twice, a unit delivered twice changes nothing; heartbeat
-    renews a whole unit and tells when one of its chunks was taken back; release_chunk
+    renews a whole unit and tells when all of its chunks were taken back; release_chunk
     gives back the chunk being retried (queued: its retry message) and the rest of the
     unit (pending); the blocks read back bit for bit."""
     st = SweepStore(db)
@@ -593,7 +593,7 @@ def test_work_units_complete_in_one_transaction(db: Database) -> None:
     assert not st.heartbeat("u", 4, 5)
     for i in (4, 5, 6):
         assert st.claim("u", i, 30.0) is not None
-    assert st.heartbeat("u", 4, 5, 6)
+    assert st.heartbeat("u", 4, 5, 6) and st.heartbeat("u", 6, 7)  # 7 lost, 6 held
     st.release_chunk("u", 5, [4, 5, 6])  # an error while computing chunk 5
     assert [_chunk_row(db, "u", i)[:2] for i in (4, 5, 6)] == [
         ("pending", None),
