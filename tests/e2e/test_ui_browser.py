@@ -16,8 +16,9 @@ websocket, with the ``websockets`` package that uvicorn already depends on).
   SI, and the page's SI scale agrees with the server's SI values;
 * scattered points: a scatter plot over two chosen parameters.
 
-The worker is slowed down (0.5 s a point, via tests/e2e/test_worker_faultplugin.py) so a
-sweep runs for a few seconds and the 1 s polling of the page can show it in progress.
+The worker is slowed down (0.5 s a point, via tests/e2e/test_worker_faultplugin.py) while
+the first test's sweep runs, so that it runs for a few seconds and the 1 s polling of the
+page can show it in progress; the other tests watch finished sweeps only, at full speed.
 
 chromium is required under CI=true (.ci/run installs it): missing, the test fails;
 locally it is skipped with the reason.  ``RSF_UI_SCREENSHOTS=<dir>`` writes a screenshot
@@ -277,9 +278,13 @@ def shoot(
 class UI:
     """The page's server, worker and browser, shared by the tests of this module."""
 
-    def __init__(self, srv: Server, browser: Browser, tmp_path: Path) -> None:
-        self.srv, self.b, self.tmp = srv, browser, tmp_path
+    def __init__(self, srv: Server, browser: Browser, tmp_path: Path, delay_file: Path) -> None:
+        self.srv, self.b, self.tmp, self.delay_file = srv, browser, tmp_path, delay_file
         self.b.call("Network.enable")
+
+    def slow_worker(self, seconds_per_point: float) -> None:
+        """Slow the worker down to ``seconds_per_point`` (0: full speed) from its next batch."""
+        self.delay_file.write_text(repr(seconds_per_point))
 
     def submit(self, body: dict[str, Any]) -> str:
         r = httpx.post(self.srv.url + "/v1/sweeps", json=body, timeout=60)
@@ -385,9 +390,13 @@ def ui(chromium_exe: str, redis_exe: str, tmp_path_factory: pytest.TempPathFacto
     try:
         started.append(redis := Redis(redis_exe, tmp_path))
         started.append(srv := Server(tmp_path, redis.url, RSF_INLINE_BUDGET_S="120"))
-        started.append(Worker(tmp_path, redis.url, plugin=True, RSF_TEST_POINT_DELAY_S="0.5"))
+        delay_file = tmp_path / "point-delay-s"
+        delay_file.write_text("0")
+        started.append(
+            Worker(tmp_path, redis.url, plugin=True, RSF_TEST_POINT_DELAY_FILE=str(delay_file))
+        )
         browser = Browser(chromium_exe, tmp_path)
-        yield UI(srv, browser, tmp_path)
+        yield UI(srv, browser, tmp_path, delay_file)
     finally:
         if browser is not None:
             browser.close()
@@ -450,7 +459,9 @@ def test_dashboard_in_headless_chromium(ui: UI) -> None:
     )
 
     # -- submit a 3 x 3 sweep from the form; at 1280 px the list shows its progress, ETA
-    #    and cancel without scrolling; the ETA says "estimating" until two samples
+    #    and cancel without scrolling; the ETA says "estimating" until two samples.  The
+    #    worker takes 0.5 s a point meanwhile, so the page sees the sweep half-way.
+    ui.slow_worker(0.5)
     browser.js(SET_SWEEP_FORM)
     seen: list[dict[str, Any]] = []
 
@@ -482,6 +493,7 @@ def test_dashboard_in_headless_chromium(ui: UI) -> None:
         "the sweep to finish in the list",
         each=record,
     )
+    ui.slow_worker(0.0)
     sid = seen[-1]["id"]
     assert len(sid) == 32 and seen[-1]["total"] == 9 and seen[-1]["done"] == 9
     assert seen[-1]["label"].startswith("9 / 9"), seen[-1]
