@@ -66,7 +66,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from .excursion import PHI_LEG
+from .excursion import LEG_MIN_RISE, PHI_LEG
+from .excursion import descent_leg as _descent_leg
 from .excursion import fast_leg as _fast_leg
 from .laws import EXP_CLIP, G_clipped, two_prod
 from .ode import radau5, rk, rodas4, rodasp
@@ -223,7 +224,8 @@ class EngineResult(NamedTuple):
         err_sum: sum over accepted steps of rtol times the normalised local error estimate.
         n_filled: number of sample rows written.
         n_stiff_steps: accepted Rosenbrock steps (stiff phases); n_jacobians: Jacobians.
-        n_legs: fast-slip legs taken in closed form (rsfcore.excursion; fast_leg=True).
+        n_legs: fast-slip legs and falling flanks taken in closed form (rsfcore.excursion;
+            fast_leg=True).
         n_logged: rows written to ``steplog`` (one per accepted step; -1 when it was too
             short, 0 when none was given): :func:`replay_samples` reads them.
     """
@@ -270,7 +272,7 @@ class EngineOptions(NamedTuple):
         eq_tol: with stop_on_return and v_o > 0, also stop (Status.CONVERGED) once both
             |phi - ln v_o| and |L| fall below eq_tol without a crossing (0: never).
         integrator: an :class:`Integrator` code (0 DOP853, 1 automatic, 2 Rosenbrock).
-        fast_leg: take fast-slip legs in closed form (rsfcore.excursion).
+        fast_leg: take fast-slip legs and falling flanks in closed form (rsfcore.excursion).
         stiff_method: a :class:`StiffMethod` code (0 RODAS4, 1 RODASP, 2 Radau IIA, the
             default): the implicit method of stiff phases.
     """
@@ -570,8 +572,9 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
             only.
             Its ``fast_leg``: take the fast-slip leg of an excursion above
             phi - ln c = PHI_LEG in closed form (rsfcore.excursion) instead of stepping
-            through it; tau does not advance over a leg, so no hybrid-time sample falls
-            inside one (samples in T do not either: a leg lasts < e^-50 of the time scale).
+            through it, and the falling flank of a state above PHI_LEG + LEG_MIN_RISE down
+            to PHI_LEG; tau does not advance over either, so no hybrid-time sample falls
+            inside one (samples in T do not either: both last < e^-50 of the time scale).
         sample_tau: sorted hybrid-time values at which to record the state (may be empty).
         sample_T: sorted physical-time values T at which to record the state (may be empty).
         samples: output array (len(sample_tau) + len(sample_T), 5) filled in order.
@@ -1153,6 +1156,33 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
                     n_rhs += 1
                     n_legs += 1
                     # restart the step size (the exit flank is not the entry's)
+                    h = _initial_h(y, f, tmp, ftmp, rtol, atol, ba, kappa, eps, vo, c, lnc)
+                    n_rhs += 1
+                    h_acc_prev = 0.0
+                    err_acc_prev = 1.0
+        # ---- the falling flank high above ln c in closed form (excursion.descent_leg):
+        # from a start (or a leg's exit) at phi - ln c >= PHI_LEG + LEG_MIN_RISE down to
+        # PHI_LEG, where stepping costs ~5 steps per unit of phi at rtol 1e-13 (c T grows as
+        # e^-(phi - ln c)) for ~e^-50 of the time that follows
+        if fast_leg and not runaway and y[0] - lnc >= PHI_LEG + LEG_MIN_RISE:
+            dleg = _descent_leg(y[0], y[1], ba, kappa, eps, y[0] - lnc - PHI_LEG)
+            if dleg[0]:
+                L_exit, dJ, rate_in, rate_exit = dleg[1], dleg[2], dleg[3], dleg[4]
+                # c T spent on the flank: integral of e^-(phi - ln c) d phi / rate, ~e^-50 of
+                # the time scale, taken to first order (the rate's change over the last unit
+                # of phi, O(1) of it, is below 1e-21 of the time that follows)
+                dcT = math.exp(-PHI_LEG) / rate_exit - math.exp(-(y[0] - lnc)) / rate_in
+                dcT = max(dcT, 0.0)
+                if y[2] + dcT < t_end and not (i_T < n_T and sample_T[i_T] <= y[2] + dcT):
+                    if n > 3:
+                        y[3] += -dJ / (ba - 1.0)
+                        y[4] += dcT
+                    y[2] += dcT
+                    y[0] = lnc + PHI_LEG
+                    y[1] = L_exit
+                    _rhs(y, f, ba, kappa, eps, vo, c, lnc)
+                    n_rhs += 1
+                    n_legs += 1
                     h = _initial_h(y, f, tmp, ftmp, rtol, atol, ba, kappa, eps, vo, c, lnc)
                     n_rhs += 1
                     h_acc_prev = 0.0

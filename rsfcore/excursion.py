@@ -42,6 +42,13 @@ spent on the leg is T-wise e^-(phi_in - ln c) (1/|rate_in| + 1/|rate_exit|)/c wi
 rate = kappa + (b/a) G(L) (the integral of d(cT) = e^-(phi - ln c) d phi/rate over the
 two flanks), below 1e-21 of the time scale at PHI_LEG = 50.
 
+A start high above ln c that falls (a velocity jump d > 150, or the exit of a leg there)
+takes its falling flank down to phi - ln c = PHI_LEG the same way (:func:`descent_leg`: L_exit
+the root of (leg 1) = kc (phi_exit - phi_in), within 2 ulp of L plus its conditioning,
+measured against 60-digit roots), instead of ~5 steps per unit of phi at rtol 1e-13 while
+c T grows as e^-(phi - ln c); c T spent there is e^-PHI_LEG/rate_exit - e^-(phi_in - ln
+c)/rate_in to first order.
+
 Derived here from the system `eq:psi_T` / `eq:phi_T` (the paper treats these excursions
 only through the separatrix asymptote, `eq: limiting trajectory2`).  Checked in
 tests/core/test_excursion.py against 50-digit quadrature of d phi/dL (leg 1, 3) and
@@ -57,7 +64,16 @@ import numba as nb
 
 from .laws import EXP_CLIP, G, L_star, two_prod
 
-__all__ = ["PHI_LEG", "LEG_MIN_RISE", "LegResult", "leg", "fast_leg", "leg_dJ", "leg_phi"]
+__all__ = [
+    "PHI_LEG",
+    "LEG_MIN_RISE",
+    "LegResult",
+    "leg",
+    "fast_leg",
+    "descent_leg",
+    "leg_dJ",
+    "leg_phi",
+]
 
 #: phi - ln c above which the leg is taken in closed form: a_phi = 1 - e^-50 = 1 - 2e-22
 #: rounds to 1, so the reduced equations are the engine's own to rounding.
@@ -204,6 +220,83 @@ def fast_leg(
     # (+inf beyond the double range of G: the exit flank then takes no time)
     rate_exit = kappa + ba * G(L_exit, eps) if eps * L_exit > -EXP_CLIP else math.inf
     return (True, L_exit, phi_in + rise / kc, dJ, rate_in, rate_exit)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def descent_leg(
+    phi_in: float, L_in: float, ba: float, kappa: float, eps: float, drop: float
+) -> tuple[bool, float, float, float, float]:
+    """The falling flank from (phi_in, L_in), phi_in - ln c >= PHI_LEG + drop, down to
+    phi_in - drop (the engine passes drop = phi_in - ln c - PHI_LEG: the end of the
+    region where (leg 1 - 3) are the engine's equations to rounding).
+
+    A start high above ln c (a velocity jump d > 150, or the exit of a rising leg there)
+    falls at d phi/dtau ~ -1 while c T grows as e^-(phi - ln c): the relative control of T
+    holds DOP853 to steps of ~0.2 in tau, ~3.3e3 steps from phi - ln c = 700 to 50 at
+    rtol 1e-13 (issue 22: three runs of a trajectory after d = 782, 10.3 ms), in ~e^-50
+    of the time of what follows.  Along the flank phi(L) is (leg 1) with phi falling with
+    L (kappa + (b/a) G > 0 and r + G > 0: both rates positive), so its end L_exit is the
+    root of kc (phi(L) - phi_in) = -kc drop below L_in, taken on the side where phi >=
+    phi_in - drop (the resolution of L, as for :func:`fast_leg`'s exit).
+
+    Returns (ok, L_exit, dJ_exit, rate_in, rate_exit), rate = kappa + (b/a) G.  ``ok`` is
+    False where the closed form does not apply or gains nothing: kappa or kappa_crit not
+    positive, an entry in the clipped range of G, L_in at or within its rounding of L*,
+    phi not falling (L_in >= L_peak, or the rate at the entry not positive), or a drop
+    below LEG_MIN_RISE.
+    """
+    kc = ba - 1.0
+    bad = (False, math.nan, math.nan, math.nan, math.nan)
+    if not (kc > 0.0 and kappa > 0.0 and math.isfinite(L_in) and drop >= LEG_MIN_RISE):
+        return bad
+    if eps * L_in < -EXP_CLIP:
+        return bad
+    r = kappa / kc
+    g_in = G(L_in, eps)
+    p, e = two_prod(eps, kappa)
+    omx = ((kc - p) - e) / kc
+    q = -omx
+    if eps > 0.0 and omx <= 0.5:
+        ex = math.exp(-eps * L_in)
+        rg_in = (ex - omx) / eps
+        rg_round = 64.0 * _U * (ex * (1.0 + abs(eps * L_in)) + omx) / eps
+    else:
+        rg_in = r + g_in
+        rg_round = 64.0 * _U * (r + abs(g_in))
+    blur = 64.0 * _U * (abs(phi_in) + abs(L_in)) * math.exp(-eps * L_in)
+    if not (rg_in > blur + rg_round):
+        return bad
+    rate_in = kappa + ba * g_in
+    if not (L_in < L_star(kappa, ba, eps) and rate_in > 0.0):
+        return bad
+    target = -kc * drop  # kc (phi(L_exit) - phi_in)
+    # bracket the exit below L_in: leg_phi increases with L on the falling flank
+    step = 1.0
+    lo = L_in - step
+    found = False
+    for _ in range(80):
+        if _leg_phi_q(lo, L_in, ba, r, eps, rg_in, q) < target:
+            found = True
+            break
+        step *= 2.0
+        lo = L_in - step
+    if not found:
+        return bad
+    hi = L_in
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if _leg_phi_q(mid, L_in, ba, r, eps, rg_in, q) < target:
+            lo = mid
+        else:
+            hi = mid
+    L_exit = hi
+    dJ = _leg_dJ_q(L_exit, L_in, r, eps, rg_in, q)
+    rate_exit = kappa + ba * G(L_exit, eps) if eps * L_exit > -EXP_CLIP else math.inf
+    if not (rate_exit > 0.0):
+        return bad
+    return (True, L_exit, dJ, rate_in, rate_exit)
 
 
 class LegResult(NamedTuple):

@@ -681,7 +681,9 @@ def simulate(
     sorted, >= 0) are given.  A fast-slip leg above phi - ln v_o = 50 taken in closed form
     (rsfcore.excursion; near b/a -> 1 these climb to phi ~ 1e5 .. 1e12 and back in < e^-50
     of the time) advances neither T nor the hybrid time, so no sample lies on it: the
-    samples step from its entry to its exit, at equal phi, and ``peak_phi`` gives its top.
+    samples step from its entry to its exit, at equal phi, and ``peak_phi`` gives its top;
+    likewise the fall of a start above phi - ln v_o = 150 (a velocity jump d > 150) down to
+    phi - ln v_o = 50, which takes < e^-50 of the time (rsfcore.excursion.descent_leg).
     Samples come from the dense output (7th order for DOP853 steps; for Rosenbrock steps a
     cubic Hermite interpolant whose error the step control bounds like the step's own,
     against RODASP's continuous extension),
