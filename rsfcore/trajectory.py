@@ -1532,7 +1532,9 @@ def _sample(
         s[:, 2] *= math.exp(-shift)
     phi, lth = s[:, 0], s[:, 1]
     tr = Trajectory(
-        T=s[:, 2].copy(),
+        # T >= 0: the dense output of c T near T = 0 (subnormal c T, e.g. -5e-323 after a
+        # fall from phi - ln v_o = 9000, -5.4e-123 in T at v_o = 1e-200) is rounding noise
+        T=np.maximum(s[:, 2], 0.0),
         phi=phi.copy(),
         psi=phi + p.ba * lth,
         ln_theta=lth.copy(),

@@ -392,3 +392,17 @@ def test_trajectory_samples_skip_the_descent() -> None:
     assert np.all(np.diff(T) >= -1e-11 * T[1:])
     assert not np.any((phi > 60.0) & (phi < 700.0))  # nothing sampled on the flank
     assert T[-1] == pytest.approx(cl.return_time, rel=10 * cl.rel_accuracy)
+
+
+@pytest.mark.parametrize(
+    ("p", "d", "kw"),
+    [
+        (Params(1.000000000001, 0.01, 0.0, 1.0), 782.0, {"t_end": 1e-250, "n_points": 20}),
+        (Params(2.0, 3.0, 0.5, 1e-200), 9000.0, {"n_points": 50}),
+    ],
+)
+def test_sampled_times_are_never_negative(p: Params, d: float, kw: dict[str, float]) -> None:
+    """T starts at 0 and never decreases; the dense output of c T at subnormal values came
+    out as -5.6e-313 .. -6.9e-311 (and -5.4e-123 in T at v_o = 1e-200, c T = -5e-323)."""
+    tr = rsfcore.simulate(p, "velocity-jump", d, rtol=1e-13, **kw).trajectory  # type: ignore[arg-type]
+    assert tr is not None and np.all(tr.T >= 0.0), tr.T[tr.T < 0.0]
