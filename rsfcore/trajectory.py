@@ -614,9 +614,10 @@ def classify(
         size: d for a velocity jump ([-1e4, 1e4]) or dv/v_o for a load-point jump ((-1, ..]).
         start: explicit start (phi0, psi0) instead of a named perturbation.
         rtol: relative tolerance of the integrator, [1e-13, 1e-3] (rsfcore.limits.RTOL).
-        integrator: "auto" (DOP853, switching to the Rosenbrock method RODASP while the
+        integrator: "auto" (DOP853, switching to the implicit Radau IIA method while the
             problem is stiff; the default), "explicit" (DOP853 only) or "rosenbrock"
-            (RODASP only); see :func:`simulate`.
+            (the stiff method only: Radau IIA since NUMERICS_VERSION 9, the name is
+            historical); see :func:`simulate`.
         log_size: the perturbation by its logarithm instead of ``size`` (d for a velocity
             jump, any finite value; ln(1 + dv) for a load-point jump, so every reported
             critical size, log_critical_size, can be checked); see :func:`start_from_log`.
@@ -684,9 +685,8 @@ def simulate(
     samples step from its entry to its exit, at equal phi, and ``peak_phi`` gives its top;
     likewise the fall of a start above phi - ln v_o = 150 (a velocity jump d > 150) down to
     phi - ln v_o = 50, which takes < e^-50 of the time (rsfcore.excursion.descent_leg).
-    Samples come from the dense output (7th order for DOP853 steps; for Rosenbrock steps a
-    cubic Hermite interpolant whose error the step control bounds like the step's own,
-    against RODASP's continuous extension),
+    Samples come from the dense output (7th order for DOP853 steps; for Radau IIA steps the
+    collocation polynomial, of stage order 3 like the step's error estimate),
     so they carry the integrator's accuracy.  Without
     ``t_end`` the trajectory ends at the decision (return to steady state, blow-up, or the
     passed peak for v_o = 0); with ``t_end`` it runs to that T (or to blow-up if
@@ -699,13 +699,15 @@ def simulate(
     instead of ~1e5 steps, and is exact where the steps blur L = phi + ln theta).  ``max_steps``
     (<= 1e7) bounds the work: UndecidedError(reason="budget") when it runs out first.
 
-    ``integrator``: "auto" (default) runs DOP853 and switches to RODASP (an L-stable
-    Rosenbrock method of order 4 that keeps its order on stiff relaxations, where RODAS4
-    loses it; analytic Jacobian; rsfcore.engine.StiffMethod) when Hairer's stiffness test
-    (h |lambda| > 6.1 on 15 consecutive steps) shows that stability, not accuracy, limits
-    the step, and back once h |lambda| < 1 for 20 steps: stiff machines (kappa up to 1e6)
-    then take ~1e3 steps instead of ~1e6.  "explicit" and "rosenbrock" force one method
-    (tests/core/test_stiff.py compares them).  Events, certificates and peaks are located
+    ``integrator``: "auto" (default) runs DOP853 and switches to Radau IIA (the L-stable
+    implicit method of order 5; analytic Jacobian; rsfcore.engine.StiffMethod, where the
+    Rosenbrock methods RODASP and RODAS4 stay selectable) when Hairer's stiffness test
+    (h |lambda| > 6.1 on 15 steps) shows that stability, not accuracy, limits the step
+    (or, at tight rtol, that DOP853 follows a decayed fast mode: h |lambda_fast| > 0.5
+    (rtol/1e-13)^(1/9), rsfcore.engine._ENTRY_HL_1E13), and back once h |lambda| < 1 for
+    20 steps: stiff machines (kappa up to 1e6) then take ~1e3 steps instead of ~1e6.
+    "explicit" and "rosenbrock" force one method (tests/core/test_stiff.py compares
+    them).  Events, certificates and peaks are located
     the same way with either.
 
     ``log_size`` gives the perturbation by its logarithm (:func:`start_from_log`).  A
@@ -934,9 +936,11 @@ NOISE_PROBE_MIN_STEPS = 64
 #: many steps (DOP853, order 8: 10^(1/8) = 1.33x the steps per decade tighter, as measured
 #: for TRAJECTORY_CHECK_RATIO; a velocity jump d = 6654 at b/a = 1 + 2.3e-4, kappa = 300
 #: kappa_crit, eps = 1: 3,253 / 2,443 / 2,842 steps at rtol 1e-13 / 1e-12 / 3e-13, predicted
-#: 2,439 and 2,836 from the first).  Rosenbrock (RODASP, order 4) steps shrink faster
-#: towards looser tolerances, so a stiff check may fit where this predicts it does not
-#: (its times are then None, as for a check that did not finish).
+#: 2,439 and 2,836 from the first).  Radau IIA's steps (order 5, controlled by an O(h^4)
+#: estimate) change faster with rtol (1.7x per decade on a stiff relaxation: 731 / 2,084 /
+#: 3,637 steps at 1e-10 / 1e-12 / 1e-13), so after a stiff run a looser check may fit where
+#: this predicts it does not, and a tighter one may start and stop at its budget (the times
+#: are then None either way, as for a check that did not finish).
 CHECK_STEPS_EXPONENT = 1.0 / 8.0
 
 

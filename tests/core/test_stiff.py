@@ -423,11 +423,66 @@ def test_rodasp_keeps_the_relaxation_cheap_where_rodas4_loses_order() -> None:
         assert a.n_steps < ratio * b.n_steps, (rtol, a.n_steps, b.n_steps)
         assert a.peak_phi == pytest.approx(b.peak_phi, rel=1e-12)
         assert a.y_end[2] == pytest.approx(b.y_end[2], rel=1e-2)
-        # Radau IIA (issue 22 item 3, NUMERICS_VERSION 9): measured 731 / 2,084 steps and
-        # 7,720 / 20,651 right-hand sides at rtol 1e-10 / 1e-12, against RODASP's 2,451 /
-        # 9,471 and 16,241 / 58,862; the same peak and stop
+        # Radau IIA (issue 22 item 3, NUMERICS_VERSION 9): measured 721 / 2,069 steps and
+        # 7,582 / 20,418 right-hand sides at rtol 1e-10 / 1e-12, against RODASP's 2,451 /
+        # 9,471 and 16,241 / 58,862; the same stop, and the peak within 10 rtol (it takes
+        # over before the peak, engine._ENTRY_HL_1E13: at 1e-10 its peak is 1.75e-10 off
+        # the rtol 1e-13 runs' 1.66030905792, RODASP's 3.2e-10)
         r5 = res[engine.StiffMethod.RADAU5]
         assert r5.n_steps < 0.4 * a.n_steps, (rtol, r5.n_steps, a.n_steps)
         assert r5.n_rhs < 0.5 * a.n_rhs, (rtol, r5.n_rhs, a.n_rhs)
-        assert r5.peak_phi == pytest.approx(a.peak_phi, rel=1e-12)
+        assert r5.peak_phi == pytest.approx(a.peak_phi, rel=10 * rtol)
         assert r5.y_end[2] == pytest.approx(a.y_end[2], rel=1e-2)
+
+
+def test_decayed_fast_rate_tells_a_slow_manifold_from_other_dynamics() -> None:
+    """engine._decayed_fast_rate: |lambda_fast| for real eigenvalues with the fast one
+    negative and the slow one 10x smaller (a decayed fast mode); 0 for a complex pair (a
+    spiral), a growing fast mode, or two comparable rates."""
+    J = np.zeros((3, 2))
+    J[:2, :2] = [[-100.0, 1.0], [1.0, -0.5]]  # eigenvalues ~-100.01, -0.49
+    assert engine._decayed_fast_rate(J) == pytest.approx(100.01, rel=1e-3)
+    J[:2, :2] = [[-1.0, -5.0], [5.0, -1.0]]  # -1 +- 5i
+    assert engine._decayed_fast_rate(J) == 0.0
+    J[:2, :2] = [[100.0, 1.0], [1.0, -0.5]]  # fast mode growing
+    assert engine._decayed_fast_rate(J) == 0.0
+    J[:2, :2] = [[-2.0, 0.0], [0.0, -1.0]]  # comparable rates
+    assert engine._decayed_fast_rate(J) == 0.0
+
+
+def test_radau_takes_over_a_slow_manifold_that_dop853_resolves() -> None:
+    """A load-point jump dv = 2.4e249 at b/a = 1 + 1e-12, kappa = 1e3, eps = 0 relaxes
+    along a slow manifold where DOP853, at rtol 1e-13, takes accuracy-limited steps of
+    h |lambda| ~ 0.5 - 1.3, below Hairer's stiffness threshold 6.1: with Radau IIA the
+    engine hands over there (engine._ENTRY_HL_1E13).  Measured right-hand sides 42,072
+    against 69,296 with RODASP (which keeps the 6.1 threshold; accept < 0.75x); the same
+    outcome, peak (within 1e-12) and converged stop (within 1e-2, a threshold crossing on
+    an exponential tail).  A slow spiral near its fixed point (b/a = 1.01, kappa = 0.5
+    kappa_crit, eps = 0.5, dv = 1e-12), whose DOP853 steps Hairer's indicator reads as
+    stiff from state differences at the rounding level, stays in DOP853."""
+    from rsfcore.trajectory import eq_tol
+
+    p = Params(1.000000000001, 1000.0, 0.0, 1.0)
+    lg = math.log1p(2.3695846141321417e249)
+    y0 = np.array([-lg, lg, 0.0])
+    e = np.empty(0)
+    out = np.empty((0, 5))
+    res = {}
+    for m in (engine.StiffMethod.RADAU5, engine.StiffMethod.RODASP):
+        opts = engine.EngineOptions(
+            rtol=1e-13, atol=1e-13, stop_on_return=True, eq_tol=eq_tol(p),
+            max_steps=10**6, stiff_method=m,
+        )  # fmt: skip
+        res[m] = engine.run(y0, p.ba, p.kappa, p.eps, p.vo, opts, e, e, out)
+        assert res[m].status == engine.Status.CONVERGED, res[m].status
+    a, b = res[engine.StiffMethod.RADAU5], res[engine.StiffMethod.RODASP]
+    assert a.n_rhs < 0.75 * b.n_rhs, (a.n_rhs, b.n_rhs)
+    assert a.n_stiff_steps > 0.5 * a.n_steps, (a.n_stiff_steps, a.n_steps)
+    assert a.peak_phi == pytest.approx(b.peak_phi, rel=1e-12)
+    assert a.y_end[2] == pytest.approx(b.y_end[2], rel=1e-2)
+    spiral = classify(Params.from_ratio(1.01, 0.5, 0.5, 1.0), "load-point-jump", 1e-12)
+    assert spiral.outcome == "unstable" and spiral.complete
+    q = Params.from_ratio(1.01, 0.5, 0.5, 1.0)
+    opts = engine.EngineOptions(rtol=1e-10, atol=1e-10, max_steps=10**5, phi_stop=40.0)
+    r = engine.run(np.array([-1e-12, 1e-12, 0.0]), q.ba, q.kappa, q.eps, q.vo, opts, e, e, out)
+    assert r.n_stiff_steps == 0, r.n_stiff_steps
