@@ -51,7 +51,7 @@ def _best(fn: Callable[[], object], reps: int) -> float:
 
 
 _INTEGRATORS = {"auto": engine.Integrator.AUTO, "explicit": engine.Integrator.EXPLICIT,
-                "rosenbrock": engine.Integrator.ROSENBROCK}  # fmt: skip
+                "implicit": engine.Integrator.IMPLICIT}  # fmt: skip
 
 
 def _rsfcore_state(p: Params, dv: float, rtol: float, integrator: str) -> tuple[np.ndarray, int]:
@@ -124,7 +124,7 @@ def main() -> None:
     simulate(Params(2.0, 2.0, 0.25), "load-point-jump", 1.0, times=[1.0])  # numba warm-up
 
     for name, (p, dv) in CASES.items():
-        ref, _ = _rsfcore_state(p, dv, 1e-13, "rosenbrock")
+        ref, _ = _rsfcore_state(p, dv, 1e-13, "implicit")
         print(f"\ncase {name}: b/a = {p.ba:.7g}, kappa = {p.kappa:g} (kappa/kappa_crit = "
               f"{p.kappa_ratio:.3g}), eps = {p.eps:g}, dv = {dv:g}; state at T = {T_END:g}")  # fmt: skip
         if p.kappa <= 1e5 or not args.quick:

@@ -195,8 +195,10 @@ class Integrator(IntEnum):
     #: back (the default)
     AUTO = 1
     #: the stiff method (:class:`StiffMethod`, Radau IIA by default) throughout (for tests
-    #: and comparison; the name is historical: up to NUMERICS_VERSION 8 it was a
-    #: Rosenbrock method)
+    #: and comparison)
+    IMPLICIT = 2
+    #: the historical name of IMPLICIT (up to NUMERICS_VERSION 8 the stiff method was a
+    #: Rosenbrock method); an alias, same value
     ROSENBROCK = 2
 
 

@@ -78,11 +78,13 @@ __all__ = [
 
 Perturbation = Literal["velocity-jump", "load-point-jump"]
 PERTURBATIONS: tuple[str, ...] = ("velocity-jump", "load-point-jump")
-IntegratorName = Literal["auto", "explicit", "rosenbrock"]
+IntegratorName = Literal["auto", "explicit", "implicit", "rosenbrock"]
 _INTEGRATORS: dict[str, Integrator] = {
     "auto": Integrator.AUTO,
     "explicit": Integrator.EXPLICIT,
-    "rosenbrock": Integrator.ROSENBROCK,
+    "implicit": Integrator.IMPLICIT,
+    # the historical name of "implicit" (the stiff method was Rosenbrock up to version 8)
+    "rosenbrock": Integrator.IMPLICIT,
 }
 
 # DEFAULT_RTOL, RTOL_RANGE and SIZE_MAX (|d| of a velocity jump) come from rsfcore.limits.
@@ -615,9 +617,9 @@ def classify(
         start: explicit start (phi0, psi0) instead of a named perturbation.
         rtol: relative tolerance of the integrator, [1e-13, 1e-3] (rsfcore.limits.RTOL).
         integrator: "auto" (DOP853, switching to the implicit Radau IIA method while the
-            problem is stiff; the default), "explicit" (DOP853 only) or "rosenbrock"
-            (the stiff method only: Radau IIA since NUMERICS_VERSION 9, the name is
-            historical); see :func:`simulate`.
+            problem is stiff; the default), "explicit" (DOP853 only) or "implicit"
+            (the stiff method only: Radau IIA since NUMERICS_VERSION 9; "rosenbrock" is
+            its historical alias); see :func:`simulate`.
         log_size: the perturbation by its logarithm instead of ``size`` (d for a velocity
             jump, any finite value; ln(1 + dv) for a load-point jump, so every reported
             critical size, log_critical_size, can be checked); see :func:`start_from_log`.
@@ -706,7 +708,7 @@ def simulate(
     (or, at tight rtol, that DOP853 follows a decayed fast mode: h |lambda_fast| > 0.5
     (rtol/1e-13)^(1/9), rsfcore.engine._ENTRY_HL_1E13), and back once h |lambda| < 1 for
     20 steps: stiff machines (kappa up to 1e6) then take ~1e3 steps instead of ~1e6.
-    "explicit" and "rosenbrock" force one method (tests/core/test_stiff.py compares
+    "explicit" and "implicit" (alias "rosenbrock") force one method (tests/core/test_stiff.py compares
     them).  Events, certificates and peaks are located
     the same way with either.
 
@@ -1083,7 +1085,9 @@ def _simulate(
     DECIDED_CERTIFY_BUDGET)."""
     rtol = lim.RTOL.check(rtol)
     if integrator not in _INTEGRATORS:
-        raise ParameterError("integrator", integrator, "'auto', 'explicit' or 'rosenbrock'")
+        raise ParameterError(
+            "integrator", integrator, "'auto', 'explicit' or 'implicit' ('rosenbrock': alias)"
+        )
     integ = _INTEGRATORS[integrator]
     max_steps = int(lim.MAX_STEPS.check(max_steps))
     if start is not None:
