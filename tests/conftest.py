@@ -3,7 +3,9 @@ PostgreSQL processes.
 
 Every process is started by us, on 127.0.0.1, with its own data directory, and is
 stopped by its pid (process group) at teardown.  Under CI=true a missing redis-server
-or PostgreSQL server is a failure, not a skip.
+or PostgreSQL server is a failure, not a skip.  PostgreSQL is one cluster for the
+session (``postgres_cluster``) with a fresh database for each test (``postgres``):
+``initdb`` is the expensive part, a database costs tens of milliseconds.
 """
 
 from __future__ import annotations
