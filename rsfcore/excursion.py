@@ -139,6 +139,33 @@ def leg_phi(L: float, L_in: float, ba: float, r: float, eps: float, rg_in: float
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _leg_entry(
+    phi_in: float, L_in: float, kappa: float, kc: float, eps: float
+) -> tuple[float, float, float, float, bool]:
+    """A leg's entry terms, shared by :func:`fast_leg` and :func:`descent_leg`: r =
+    kappa/kc, G(L_in), q = eps r - 1 = -(1 - x) with 1 - x to a few ulp (eps kappa = p + e
+    exactly; Sterbenz near x = 1), r + G(L_in) (from e^(-eps L_in) - (1 - x) where x >=
+    1/2) and whether r + G(L_in) is clear of its own rounding and of the rounding of L
+    (dG/dL = -e^(-eps L)): else the side of L* (and the exit) is not resolved here.
+
+    Returns (r, G(L_in), q, r + G(L_in), resolved)."""
+    r = kappa / kc
+    g_in = G(L_in, eps)
+    p, e = two_prod(eps, kappa)
+    omx = ((kc - p) - e) / kc
+    q = -omx
+    if eps > 0.0 and omx <= 0.5:
+        ex = math.exp(-eps * L_in)
+        rg_in = (ex - omx) / eps
+        rg_round = 64.0 * _U * (ex * (1.0 + abs(eps * L_in)) + omx) / eps
+    else:
+        rg_in = r + g_in
+        rg_round = 64.0 * _U * (r + abs(g_in))
+    blur = 64.0 * _U * (abs(phi_in) + abs(L_in)) * math.exp(-eps * L_in)
+    return r, g_in, q, rg_in, bool(rg_in > blur + rg_round)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def fast_leg(
     phi_in: float, L_in: float, ba: float, kappa: float, eps: float
 ) -> tuple[bool, float, float, float, float, float]:
@@ -165,22 +192,8 @@ def fast_leg(
         return bad
     if eps * L_in < -EXP_CLIP:
         return bad
-    r = kappa / kc
-    g_in = G(L_in, eps)
-    p, e = two_prod(eps, kappa)
-    omx = ((kc - p) - e) / kc  # 1 - x to a few ulp (Sterbenz near x = 1)
-    q = -omx
-    if eps > 0.0 and omx <= 0.5:
-        ex = math.exp(-eps * L_in)
-        rg_in = (ex - omx) / eps
-        rg_round = 64.0 * _U * (ex * (1.0 + abs(eps * L_in)) + omx) / eps
-    else:
-        rg_in = r + g_in
-        rg_round = 64.0 * _U * (r + abs(g_in))
-    # r + G must be clear of the rounding of L (dG/dL = -e^(-eps L)), else the side of L*
-    # (and the exit) is not resolved here
-    blur = 64.0 * _U * (abs(phi_in) + abs(L_in)) * math.exp(-eps * L_in)
-    if not (rg_in > blur + rg_round):
+    r, g_in, q, rg_in, resolved = _leg_entry(phi_in, L_in, kappa, kc, eps)
+    if not resolved:
         return bad
     L_pk = L_star(kappa, ba, eps)  # root of kappa + (b/a) G(L): the peak of phi
     if not (L_in > L_pk):
@@ -251,20 +264,8 @@ def descent_leg(
         return bad
     if eps * L_in < -EXP_CLIP:
         return bad
-    r = kappa / kc
-    g_in = G(L_in, eps)
-    p, e = two_prod(eps, kappa)
-    omx = ((kc - p) - e) / kc
-    q = -omx
-    if eps > 0.0 and omx <= 0.5:
-        ex = math.exp(-eps * L_in)
-        rg_in = (ex - omx) / eps
-        rg_round = 64.0 * _U * (ex * (1.0 + abs(eps * L_in)) + omx) / eps
-    else:
-        rg_in = r + g_in
-        rg_round = 64.0 * _U * (r + abs(g_in))
-    blur = 64.0 * _U * (abs(phi_in) + abs(L_in)) * math.exp(-eps * L_in)
-    if not (rg_in > blur + rg_round):
+    r, g_in, q, rg_in, resolved = _leg_entry(phi_in, L_in, kappa, kc, eps)
+    if not resolved:
         return bad
     rate_in = kappa + ba * g_in
     if not (L_in < L_star(kappa, ba, eps) and rate_in > 0.0):
