@@ -425,6 +425,19 @@ def _terms(y, ba, kappa, eps, vo, c, lnc):
     return ap, om, apom, load, g, z, inv_d, n0, n1
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _stiff_step_scales(y, ynew, fnew, n, rtol, atol, sc):
+    """A stiff (Radau IIA or Rosenbrock) step's end state and slope are finite in all n
+    components: then the error scales of (phi, L, T) are set in sc (atol on phi and L,
+    none on T) and True; else False (the step is rejected)."""
+    for j in range(n):
+        if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
+            return False
+    for j in range(3):
+        sc[j] = rk.error_scale(y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf)
+    return True
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _rhs(y, out, ba, kappa, eps, vo, c, lnc):
     """Hybrid-time right-hand side (module docstring) of the internal state
@@ -785,20 +798,11 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
             )
             n_rhs += n_r
             err = math.inf
-            if st == 0:
-                finite = True
-                for j in range(n):
-                    if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
-                        finite = False
-                if finite:
-                    for j in range(3):
-                        sc[j] = rk.error_scale(
-                            y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf
-                        )
-                    err, n_r = radau5.error_norm(
-                        _rhs, args, y, f, h, J, Z, sc, 3, rejected_last, tmp, ftmp, rbuf
-                    )
-                    n_rhs += n_r
+            if st == 0 and _stiff_step_scales(y, ynew, fnew, n, rtol, atol, sc):
+                err, n_r = radau5.error_norm(
+                    _rhs, args, y, f, h, J, Z, sc, 3, rejected_last, tmp, ftmp, rbuf
+                )
+                n_rhs += n_r
             if not (err <= 1.0):
                 n_rej += 1
                 # (Newton failed: half the step, as RADAU5)
@@ -820,20 +824,11 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
                 ok = rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
             n_rhs += 6
             err = math.inf
-            if ok:
-                finite = True
-                for j in range(n):
-                    if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
-                        finite = False
-                if finite:
-                    for j in range(3):
-                        sc[j] = rk.error_scale(
-                            y[j], ynew[j], rtol, atol if j < 2 else 1e-300, math.inf
-                        )
-                    if stiff_method == 1:
-                        err = rodasp.error_norm(R, f, fnew, h, sc, 0, 3, True)
-                    else:
-                        err = rodas4.error_norm(R, f, fnew, h, sc, 0, 3, True)
+            if ok and _stiff_step_scales(y, ynew, fnew, n, rtol, atol, sc):
+                if stiff_method == 1:
+                    err = rodasp.error_norm(R, f, fnew, h, sc, 0, 3, True)
+                else:
+                    err = rodas4.error_norm(R, f, fnew, h, sc, 0, 3, True)
             if not (err <= 1.0):
                 n_rej += 1
                 h *= rodas4.reject_factor(err)

@@ -166,6 +166,45 @@ def _leg_entry(
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _leg_root_below(
+    top: float,
+    step: float,
+    target: float,
+    L_in: float,
+    ba: float,
+    r: float,
+    eps: float,
+    rg_in: float,
+    q: float,
+) -> tuple[bool, float]:
+    """The root below ``top`` of kc (phi(L) - phi_in) = ``target`` on a flank where (leg 1)
+    increases with L (shared by :func:`fast_leg` and :func:`descent_leg`): bracketed by
+    steps doubling from ``step`` below ``top`` (at most 80), then bisected to adjacent
+    doubles (at most 200 halvings).  Returns (found, L) with L the upper end of the last
+    bracket, the side where (leg 1) >= target."""
+    lo = top - step
+    found = False
+    for _ in range(80):
+        if _leg_phi_q(lo, L_in, ba, r, eps, rg_in, q) < target:
+            found = True
+            break
+        step *= 2.0
+        lo = top - step
+    if not found:
+        return False, math.nan
+    hi = top
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if _leg_phi_q(mid, L_in, ba, r, eps, rg_in, q) < target:
+            lo = mid
+        else:
+            hi = mid
+    return True, hi
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def fast_leg(
     phi_in: float, L_in: float, ba: float, kappa: float, eps: float
 ) -> tuple[bool, float, float, float, float, float]:
@@ -202,32 +241,15 @@ def fast_leg(
     if not (rise > kc * LEG_MIN_RISE):
         return bad
     # bracket the exit below the peak: leg_phi increases with L there
-    step = max(L_in - L_pk, 1.0)
-    lo = L_pk - step
-    found = False
-    for _ in range(80):
-        # (an exit in the clipped range of the engine's G, eps L < -EXP_CLIP, is taken too:
-        # (leg 1, 3) stay exact there, J saturating as L -> -inf, and past the exit the
-        # engine's rates are saturated by its time change D, so the clipping changes them
-        # by < e^-500 relative; refused, such legs were stepped through: 3.4e3 steps to a
-        # peak phi = 1.3e6 at b/a = 1e5, x = 1 - 1e-12, classify's check run out of budget)
-        if _leg_phi_q(lo, L_in, ba, r, eps, rg_in, q) < 0.0:
-            found = True
-            break
-        step *= 2.0
-        lo = L_pk - step
+    # (an exit in the clipped range of the engine's G, eps L < -EXP_CLIP, is taken too:
+    # (leg 1, 3) stay exact there, J saturating as L -> -inf, and past the exit the
+    # engine's rates are saturated by its time change D, so the clipping changes them
+    # by < e^-500 relative; refused, such legs were stepped through: 3.4e3 steps to a
+    # peak phi = 1.3e6 at b/a = 1e5, x = 1 - 1e-12, classify's check run out of budget)
+    found, L_exit = _leg_root_below(L_pk, max(L_in - L_pk, 1.0), 0.0, L_in, ba, r, eps, rg_in, q)
     if not found:
         return bad
-    hi = L_pk
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        if _leg_phi_q(mid, L_in, ba, r, eps, rg_in, q) < 0.0:
-            lo = mid
-        else:
-            hi = mid
-    L_exit = hi  # phi(L_exit) >= phi_in by at most the resolution of L
+    # (phi(L_exit) >= phi_in by at most the resolution of L)
     dJ = _leg_dJ_q(L_exit, L_in, r, eps, rg_in, q)
     rate_in = -(kappa + ba * g_in)
     # (+inf beyond the double range of G: the exit flank then takes no time)
@@ -272,27 +294,9 @@ def descent_leg(
         return bad
     target = -kc * drop  # kc (phi(L_exit) - phi_in)
     # bracket the exit below L_in: leg_phi increases with L on the falling flank
-    step = 1.0
-    lo = L_in - step
-    found = False
-    for _ in range(80):
-        if _leg_phi_q(lo, L_in, ba, r, eps, rg_in, q) < target:
-            found = True
-            break
-        step *= 2.0
-        lo = L_in - step
+    found, L_exit = _leg_root_below(L_in, 1.0, target, L_in, ba, r, eps, rg_in, q)
     if not found:
         return bad
-    hi = L_in
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        if _leg_phi_q(mid, L_in, ba, r, eps, rg_in, q) < target:
-            lo = mid
-        else:
-            hi = mid
-    L_exit = hi
     dJ = _leg_dJ_q(L_exit, L_in, r, eps, rg_in, q)
     rate_exit = kappa + ba * G(L_exit, eps) if eps * L_exit > -EXP_CLIP else math.inf
     if not (rate_exit > 0.0):
