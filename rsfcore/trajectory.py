@@ -100,11 +100,13 @@ DECIDED_BUDGET = 500_000
 #: (bench/bench_stress.py: 5e5 steps, 0.33 s, still short of it).
 DECIDED_OUTCOME_BUDGET = 3_500
 #: Steps of all runs of such an outcome together (the first, the check at rtol/10 and the
-#: probe): ~5.6 ms at ~0.7 us per step, so that classify answers within 10 ms (issue 22).
+#: probe), so that classify answers within 10 ms (issue 22): such runs (slow spirals)
+#: cost ~1.25 us per step including rejections (measured, load 0.8), ~8.8 ms for 7,000;
+#: 8,000 (sized at ~0.7 us per step) took 10.0 - 12.3 ms where a check ran to its end.
 #: It was 5,000 per run, up to 15,000 in all (10 - 50 ms), and a check run cut short by it
 #: left the first run's claim unchecked: a blow-up time at rtol 1e-3 was 1.7e3 x off its
 #: claim of 0.04 (b/a = 1 + 8e-12, kappa < kappa_crit, a load-point jump dv = 5.7e6).
-DECIDED_CERTIFY_BUDGET = 8_000
+DECIDED_CERTIFY_BUDGET = 7_000
 #: The check runs of a trajectory whose outcome was certain before integrating take at
 #: most this many times the steps of its first run together (:func:`simulate`): DOP853
 #: takes ~1.33x the steps at a 10x tighter tolerance and ~2.4x at 1e3x, so the check and a
