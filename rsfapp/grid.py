@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rsfcore import limits, units
+from rsfcore.batch import AxisTable
 from rsfcore.params import ParameterError
 from rsfcore.units import PhysicalInputs
 
@@ -33,6 +34,7 @@ from .requests.sweeps import SI_FIXED, SI_SIZE_FIELDS
 
 __all__ = [
     "Axis",
+    "GridTables",
     "SpecError",
     "SweepSpec",
     "expand",
@@ -182,6 +184,21 @@ def _axis_values(ax: Axis) -> F64:
     return v
 
 
+@dataclass(frozen=True)
+class GridTables:
+    """A grid sweep's parameters as rsfcore.batch.critical_grid takes them: per parameter
+    a fixed value or its axis's values with the axis's stride (flat indices per step,
+    C order); ``kappa`` holds kappa_ratio when ``kappa_is_ratio``; ``size`` None for
+    critical sizes.  :meth:`SweepSpec.tables`."""
+
+    ba: float | AxisTable
+    kappa: float | AxisTable
+    eps: float | AxisTable
+    vo: float | AxisTable
+    size: float | AxisTable | None
+    kappa_is_ratio: bool
+
+
 @dataclass
 class SweepSpec:
     """A validated sweep.
@@ -218,6 +235,8 @@ class SweepSpec:
     #: per parameter that is the same on every row: its read-only layout over the most
     #: rows a range has needed (:meth:`_row_params`), kept for the spec's next ranges
     _rows_cache: dict[str, F64] = field(default_factory=dict, repr=False, compare=False)
+    #: :meth:`tables`, built once
+    _tables: list[GridTables] = field(default_factory=list, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.mode == "grid":
@@ -345,6 +364,44 @@ class SweepSpec:
             "vo": vals["vo"],
             "size": vals.get("size") if self.output == "outcome" else None,
         }
+
+    def tables(self) -> GridTables | None:
+        """The grid's parameters as axis tables (:class:`GridTables`), None for
+        scattered points.  The values are those :meth:`params` gives at every point:
+        each axis's :meth:`Axis.cached_all`, fixed values as given, a swept SI size
+        converted value by value (:func:`si_to_size` is elementwise), and kappa from
+        kappa_ratio by the same operation, done by the kernel per point."""
+        if self.mode != "grid":
+            return None
+        if self._tables:
+            return self._tables[0]
+        stride = 1
+        table: dict[str, float | AxisTable] = {}
+        for ax in reversed(self.axes):
+            table[ax.name] = AxisTable(ax.cached_all(), stride)
+            stride *= ax.n
+        for name, v in self.fixed.items():
+            if name not in table and v is not None:
+                table[name] = float(v)
+        si = self.si_size
+        if si is not None:
+            phys = self.physical_inputs()
+            assert phys is not None
+            t = table[si]
+            assert isinstance(t, AxisTable)
+            table["size"] = AxisTable(si_to_size(phys, self.perturbation, si, t.values), t.stride)
+        ratio = self.kappa_param == "kappa_ratio"
+        self._tables.append(
+            GridTables(
+                table["ba"],
+                table["kappa_ratio" if ratio else "kappa"],
+                table["eps"],
+                table["vo"],
+                table.get("size") if self.output == "outcome" else None,
+                ratio,
+            )
+        )
+        return self._tables[0]
 
     def swept_values(self, i0: int, i1: int) -> dict[str, F64]:
         """Values of the swept parameters at flat indices [i0, i1).

@@ -72,8 +72,10 @@ __all__ = [
     "SI_VARIABLES",
     "SI_VARIABLE_MAX_POINTS",
     "PART_POINTS",
+    "STORED",
     "chunk_parts",
     "compute_block",
+    "fused_block",
     "compute_chunk",
     "critical_si",
     "si_names",
@@ -129,15 +131,22 @@ def _failed_arrays(n: int, outcome: bool) -> dict[str, NDArray[Any]]:
     return out
 
 
+#: The arrays of a stored block, in the order the block holds them (``outcome`` and
+#: ``outcome_uncertain`` only when the sweep has a size).
+STORED: tuple[str, ...] = (
+    "critical_size",
+    "rel_accuracy",
+    "kind",
+    "method",
+    "failed",
+    "on_boundary",
+    "outcome",
+    "outcome_uncertain",
+)
+
+
 def _arrays(r: batch.BatchResult) -> dict[str, NDArray[Any]]:
-    arrays: dict[str, NDArray[Any]] = {
-        "critical_size": r.critical_size,
-        "rel_accuracy": r.rel_accuracy,
-        "kind": r.kind,
-        "method": r.method,
-        "failed": r.failed,
-        "on_boundary": r.on_boundary,
-    }
+    arrays: dict[str, NDArray[Any]] = {name: getattr(r, name) for name in STORED[:6]}
     if r.outcome is not None and r.outcome_uncertain is not None:
         arrays["outcome"] = r.outcome
         arrays["outcome_uncertain"] = r.outcome_uncertain
@@ -200,14 +209,58 @@ def compute_chunk(
 def compute_block(spec: SweepSpec, i0: int, i1: int) -> tuple[bytes, dict[int, str]]:
     """Flat indices [i0, i1) computed and encoded as the block the store keeps
     (:func:`rsfapp.store.sweeps.encode_block` of :func:`compute_chunk`'s arrays, the same
-    bytes), written from the parts (:class:`rsfapp.store.sweeps.BlockWriter`) without
-    assembling them; returns (block, errors)."""
+    bytes); returns (block, errors).
+
+    A grid's chunk is computed fused (:func:`fused_block`: one compiled call that
+    generates the parameters from the axes and reports the arrays that are one repeated
+    value).  Scattered points, and a chunk the fused call refuses or breaks on, go the
+    unfused way: in parts (:func:`chunk_parts`), the block written from the parts
+    (:class:`rsfapp.store.sweeps.BlockWriter`) without assembling them, a part that
+    breaks the batch call recomputed point by point."""
+    fused = fused_block(spec, i0, i1)
+    if fused is not None:
+        return fused
     w = BlockWriter()
     errors: dict[int, str] = {}
     for _off, arrays, errs in chunk_parts(spec, i0, i1):
         w.add(arrays)
         errors.update(errs)
     return w.finish(), errors
+
+
+def fused_block(spec: SweepSpec, i0: int, i1: int) -> tuple[bytes, dict[int, str]] | None:
+    """:func:`compute_block` of a grid's range in one :func:`rsfcore.batch.critical_grid`
+    call on the spec's axis tables (:meth:`SweepSpec.tables`): no parameter array, and
+    an array that is one repeated value over the range is neither laid out nor tested
+    (the kernel says so).  The same bits and block bytes as the parts
+    (tests/app/test_sweep_chunks.py).  None for scattered points, or when the call
+    raises (a value the spec's validation let through, or a defect of the kernel: the
+    unfused path then isolates the points that raise); MemoryError propagates."""
+    t = spec.tables()
+    if t is None:
+        return None
+    try:
+        r = batch.critical_grid(
+            t.ba,
+            t.kappa,
+            t.eps,
+            t.vo,
+            i0,
+            i1,
+            kappa_is_ratio=t.kappa_is_ratio,
+            perturbation=spec.perturbation,
+            rtol=spec.rtol,
+            size=t.size,
+        )
+    except MemoryError:
+        raise
+    except Exception:  # noqa: BLE001 - the unfused path isolates the offending points
+        return None
+    w = BlockWriter()
+    for name in STORED:
+        if name in r.values:
+            w.add_whole(name, r.values[name], r.n, r.repeated[name])
+    return w.finish(), dict(r.errors)
 
 
 def _compute_part(

@@ -2,18 +2,25 @@
 
 :func:`critical_points` is the array form of :func:`rsfcore.critical.critical_perturbation`
 for points that are not on a 2-D grid (N-D grids flattened, scattered samples): the
-parameters are 1-D arrays of equal length, any of them may vary, v_o included.  It runs
-the same compiled loop as :func:`rsfcore.diagram.stability_diagram`
-(:func:`rsfcore.critical.critical_batch`: exact zero/infinite decisions, compiled closed
-forms at kappa = kappa_crit and v_o = 0, the separatrix method elsewhere), then recomputes
-only the points the kernel flags (``FLAG_FALLBACK``) by bisection on certified
-classify() outcomes, one by one.
+parameters are 1-D arrays of equal length, any of them may vary, v_o included.  One
+compiled loop (:func:`rsfcore.batchloop.points_kernel`) runs each point through the
+per-point kernel of :func:`rsfcore.diagram.stability_diagram`
+(:func:`rsfcore.critical.critical_point`: exact zero/infinite decisions, compiled closed
+forms at kappa = kappa_crit and v_o = 0, the separatrix method elsewhere) and finishes it
+(:func:`rsfcore.batchloop.finish_point`); then only the points the kernel flags
+(``FLAG_FALLBACK``) are recomputed by bisection on certified classify() outcomes, one by
+one.
 
 v_o enters the critical size only through v_o = 0 versus v_o > 0: the system is invariant
 under phi -> phi + ln v_o, psi -> psi + (1 - b/a) ln v_o, T -> v_o T, so critical sizes
 of both perturbation kinds do not depend on v_o > 0 (module docstring of
-rsfcore.critical).  The kernel is therefore called at most twice per batch (once for the
-points with v_o > 0, once for v_o = 0).
+rsfcore.critical).  The kernel computes every point at v_o = 1 or v_o = 0.
+
+:func:`critical_grid` is the same computation at a range of flat indices of a grid (a
+sweep's chunk) given by its axes' values (:class:`AxisTable`), without laying out the
+parameters of the range: the compiled loop generates them
+(:func:`rsfcore.batchloop.points_kernel`, which both functions run, so the same bits), and
+reports which outputs are one repeated value over the range (:class:`GridResult`).
 
 Failure isolation: a point whose fallback raises (e.g. UndecidedError) is marked in
 ``failed`` with its message in ``errors[i]``; every other point is kept.
@@ -33,15 +40,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import batchloop as _loop
 from . import critical as _crit
+from .batchloop import OUTCOME_NONE, OUTCOME_STABLE, OUTCOME_UNSTABLE
 from .params import BA_MAX, KAPPA_MAX, ParameterError, check_range
 
 __all__ = [
+    "AxisTable",
     "BatchResult",
+    "GridResult",
+    "critical_grid",
     "critical_points",
     "OUTCOME_STABLE",
     "OUTCOME_UNSTABLE",
@@ -49,8 +62,6 @@ __all__ = [
     "KIND_FAILED",
 ]
 
-#: outcome codes (``BatchResult.outcome``); OUTCOME_NONE where not computed or failed
-OUTCOME_STABLE, OUTCOME_UNSTABLE, OUTCOME_NONE = 0, 1, -1
 #: kind / method code of a failed point
 KIND_FAILED = -1
 
@@ -105,6 +116,43 @@ def _check(name: str, a: NDArray[np.float64], bad: NDArray[np.bool_], valid: str
         raise ParameterError(f"{name}[{i}]", float(a[i]), valid)
 
 
+def _check_inputs(
+    ba: NDArray[np.float64],
+    kappa: NDArray[np.float64] | None,
+    eps: NDArray[np.float64],
+    vo: NDArray[np.float64],
+    pert: int,
+) -> None:
+    """The valid ranges of the parameters (ParameterError naming the first bad element;
+    ``kappa`` None: checked by the caller)."""
+    _check("ba", ba, ~((ba > 1.0) & (ba <= BA_MAX)), f"(1, {BA_MAX:g}]")
+    if kappa is not None:
+        _check("kappa", kappa, ~((kappa >= 0.0) & (kappa <= KAPPA_MAX)), f"[0, {KAPPA_MAX:g}]")
+    _check("eps", eps, ~((eps >= 0.0) & (eps <= 1.0)), "[0, 1]")
+    _check("vo", vo, ~((vo >= 0.0) & (vo <= 1e300)), "0 or (0, 1e300]")
+    if pert == 1:
+        _check("vo", vo, vo == 0.0, "> 0 for a load-point jump")
+
+
+def _check_size(sz: NDArray[np.float64] | None, pert: int) -> None:
+    """The valid range of perturbation sizes (ParameterError naming the first bad one)."""
+    if sz is not None:
+        if pert == 0:
+            _check("size", sz, ~((sz >= -1e4) & (sz <= 1e4)), "[-1e4, 1e4]")
+        else:
+            _check("size", sz, ~((sz > -1.0) & (sz <= 1e300)), "(-1, 1e300]")
+
+
+def _perturbation(perturbation: str, rtol: float) -> tuple[int, float]:
+    if perturbation not in _crit.PERTURBATIONS:
+        raise ParameterError(
+            "perturbation", perturbation, "one of " + ", ".join(_crit.PERTURBATIONS)
+        )
+    return _crit.PERTURBATIONS.index(perturbation), check_range(
+        "rtol", rtol, _crit.RTOL_RANGE[0], _crit.RTOL_RANGE[1]
+    )
+
+
 def critical_points(
     ba: ArrayLike,
     kappa: ArrayLike,
@@ -130,12 +178,7 @@ def critical_points(
     Raises ParameterError naming the first bad element (e.g. ``eps[17]``).  Never raises
     for a numerical failure at one point: that point is marked ``failed``.
     """
-    if perturbation not in _crit.PERTURBATIONS:
-        raise ParameterError(
-            "perturbation", perturbation, "one of " + ", ".join(_crit.PERTURBATIONS)
-        )
-    pert = _crit.PERTURBATIONS.index(perturbation)
-    rtol = check_range("rtol", rtol, _crit.RTOL_RANGE[0], _crit.RTOL_RANGE[1])
+    pert, rtol = _perturbation(perturbation, rtol)
     sizes = {
         int(np.size(v)) for v in (ba, kappa, eps, vo, size) if v is not None and np.ndim(v) >= 1
     }
@@ -144,127 +187,293 @@ def critical_points(
     ka = _arr("kappa", kappa, n)
     ea = _arr("eps", eps, n)
     va = _arr("vo", vo, n)
-    _check("ba", ba_a, ~((ba_a > 1.0) & (ba_a <= BA_MAX)), f"(1, {BA_MAX:g}]")
-    _check("kappa", ka, ~((ka >= 0.0) & (ka <= KAPPA_MAX)), f"[0, {KAPPA_MAX:g}]")
-    _check("eps", ea, ~((ea >= 0.0) & (ea <= 1.0)), "[0, 1]")
-    _check("vo", va, ~((va >= 0.0) & (va <= 1e300)), "0 or (0, 1e300]")
-    if pert == 1:
-        _check("vo", va, va == 0.0, "> 0 for a load-point jump")
-    sz: NDArray[np.float64] | None = None
+    _check_inputs(ba_a, ka, ea, va, pert)
+    sz = None if size is None else _arr("size", size, n)
+    _check_size(sz, pert)
+    one = np.ones(5, dtype=np.int64)
+    r = _compute((ba_a, ka, ea, va, sz), one, 0, n, False, perturbation, rtol, lazy=False)
+    return r.to_batch()
+
+
+class AxisTable(NamedTuple):
+    """A parameter of a grid (:func:`critical_grid`): its values along its axis and the
+    axis's stride, the number of flat indices per step along it (the product of the
+    lengths of the axes after it, C order).  The point with flat index i has the value
+    ``values[(i // stride) % len(values)]``."""
+
+    values: NDArray[np.float64]
+    stride: int = 1
+
+
+@dataclass
+class GridResult:
+    """Results of :func:`critical_grid` at the n points of a flat index range.
+
+    Attributes:
+        n: points in the range.
+        values: per output (the names of :class:`BatchResult`'s arrays: kind,
+            critical_size, rel_accuracy, method, on_boundary, failed, and outcome,
+            outcome_uncertain when a size is given), its array of length n, or, where
+            ``repeated`` says so, an array of length 1 whose element is every point's
+            value (bit for bit).
+        repeated: per output, True (one repeated value, stored once in ``values``), False
+            (it varies), None (not known: the array is whole and may still be one value;
+            after a per-point fallback).
+        errors: {offset in the range: "ExceptionType: message"} for the failed points.
+        n_fallback: points recomputed by bisection (or classify for negative sizes).
+    """
+
+    n: int
+    values: dict[str, NDArray[np.generic]]
+    repeated: dict[str, bool | None]
+    errors: dict[int, str] = field(default_factory=dict)
+    n_fallback: int = 0
+
+    def array(self, name: str) -> NDArray[np.generic]:
+        """The output ``name`` at every point (a repeated value laid out, same bits)."""
+        v = self.values[name]
+        return np.repeat(v, self.n) if self.repeated[name] else v
+
+    def to_batch(self) -> BatchResult:
+        """The same results as a :class:`BatchResult` (every array laid out)."""
+        has = "outcome" in self.values
+        return BatchResult(
+            self.array("kind"),  # type: ignore[arg-type]
+            self.array("critical_size"),  # type: ignore[arg-type]
+            self.array("rel_accuracy"),  # type: ignore[arg-type]
+            self.array("method"),  # type: ignore[arg-type]
+            self.array("on_boundary"),  # type: ignore[arg-type]
+            self.array("failed"),  # type: ignore[arg-type]
+            dict(self.errors),
+            self.array("outcome") if has else None,  # type: ignore[arg-type]
+            self.array("outcome_uncertain") if has else None,  # type: ignore[arg-type]
+            self.n_fallback,
+        )
+
+
+def _table(name: str, v: float | AxisTable) -> tuple[NDArray[np.float64], int]:
+    """A parameter of :func:`critical_grid` as (values, stride), checked for shape."""
+    t = v if isinstance(v, AxisTable) else AxisTable(np.array([v], dtype=np.float64), 1)
+    a = _arr(name, t.values, None)
+    if a.ndim != 1 or a.size == 0:
+        raise ParameterError(name, f"shape {a.shape}", "a scalar or a non-empty 1-D table")
+    if not int(t.stride) >= 1:
+        raise ParameterError(f"{name}.stride", t.stride, ">= 1")
+    return a, int(t.stride)
+
+
+def critical_grid(
+    ba: float | AxisTable,
+    kappa: float | AxisTable,
+    eps: float | AxisTable,
+    vo: float | AxisTable,
+    i0: int,
+    i1: int,
+    *,
+    kappa_is_ratio: bool = False,
+    perturbation: str = "velocity-jump",
+    rtol: float = _crit.DEFAULT_RTOL,
+    size: float | AxisTable | None = None,
+) -> GridResult:
+    """Critical sizes (and outcomes for ``size``) at the flat indices [i0, i1) of a grid:
+    the results :func:`critical_points` gives on the range's parameters, bit for bit
+    (the same compiled loop), without laying the parameters out.
+
+    Args:
+        ba, kappa, eps, vo, size: each a fixed value or an :class:`AxisTable` (values
+            along its axis and the axis's stride); ranges as in :func:`critical_points`
+            (size None: critical sizes only).
+        i0, i1: the flat index range, 0 <= i0 <= i1.
+        kappa_is_ratio: ``kappa`` holds kappa/kappa_crit, and kappa = kappa_ratio (ba - 1)
+            (the same operation as on arrays), kappa_ratio >= 0 with kappa <= 1e6 at
+            every combination of the two tables.
+        perturbation, rtol: as in :func:`critical_points`.
+
+    Every value of every table is checked (ParameterError naming the table's element,
+    e.g. ``eps[17]``), also those the range does not use.  The largest kappa of a ratio
+    table is max(ratio) (max(ba) - 1): products and differences of non-negative doubles
+    round monotonically, so no combination exceeds it.
+
+    Cost: the compiled loop only (no parameter array; an output that is one repeated
+    value over the range is not laid out: ``GridResult.repeated``)."""
+    pert, rtol = _perturbation(perturbation, rtol)
+    tb, sb = _table("ba", ba)
+    tk, sk = _table("kappa", kappa)
+    te, se = _table("eps", eps)
+    tv, sv = _table("vo", vo)
+    _check_inputs(tb, None if kappa_is_ratio else tk, te, tv, pert)
+    if kappa_is_ratio:
+        _check("kappa_ratio", tk, ~(tk >= 0.0), ">= 0")
+        top = float(tk.max()) * (float(tb.max()) - 1.0)
+        if not top <= KAPPA_MAX:
+            raise ParameterError(
+                "kappa_ratio", float(tk.max()), f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}"
+            )
+    ts: NDArray[np.float64] | None = None
+    ss = 1
     if size is not None:
-        sz = _arr("size", size, n)
-        if pert == 0:
-            _check("size", sz, ~((sz >= -1e4) & (sz <= 1e4)), "[-1e4, 1e4]")
-        else:
-            _check("size", sz, ~((sz > -1.0) & (sz <= 1e300)), "(-1, 1e300]")
-
-    kind = np.empty(n, dtype=np.int64)
-    value = np.empty(n)
-    acc = np.empty(n)
-    meth = np.empty(n, dtype=np.int64)
-    flags = np.zeros(n, dtype=np.int64)
-    moving = va > 0.0
-    if np.all(moving):
-        _crit.critical_batch(ba_a, ka, ea, 1.0, pert, rtol, kind, value, acc, meth, flags)
-    else:
-        for sel, v in ((moving, 1.0), (~moving, 0.0)):
-            idx = np.flatnonzero(sel)
-            if idx.size == 0:
-                continue
-            k2, v2, a2, m2, f2 = (
-                np.empty(idx.size, dtype=np.int64),
-                np.empty(idx.size),
-                np.empty(idx.size),
-                np.empty(idx.size, dtype=np.int64),
-                np.zeros(idx.size, dtype=np.int64),
-            )
-            _crit.critical_batch(ba_a[idx], ka[idx], ea[idx], v, pert, rtol, k2, v2, a2, m2, f2)
-            kind[idx], value[idx], acc[idx], meth[idx], flags[idx] = k2, v2, a2, m2, f2
-
-    failed = np.zeros(n, dtype=np.bool_)
-    errors: dict[int, str] = {}
-    fb = np.flatnonzero(flags & _crit.FLAG_FALLBACK)
-    from .params import Params
-
-    for i in fb:
-        try:
-            p = Params(float(ba_a[i]), float(ka[i]), float(ea[i]), float(va[i]))
-            res = _crit.bisect_critical(p, perturbation, rtol=rtol)
-            kind[i] = _crit.KINDS.index(res.kind)
-            value[i] = math.inf if res.critical_size is None else res.critical_size
-            acc[i] = res.rel_accuracy
-            meth[i] = (
-                _crit.M_ASYMPTOTE
-                if res.method == _crit.METHODS[_crit.M_ASYMPTOTE]
-                else _crit.M_BISECTION
-            )
-        except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
-            failed[i] = True
-            errors[int(i)] = f"{type(exc).__name__}: {exc}"[:2000]
-    value[kind == _crit.KIND_ZERO] = 0.0
-    value[kind == _crit.KIND_INFINITE] = math.inf
-    kind[failed] = KIND_FAILED
-    meth[failed] = -1
-    value[failed] = math.nan
-    acc[failed] = math.nan
-    on_b = (flags & (_crit.FLAG_ON_X1 | _crit.FLAG_ON_KCRIT)) != 0
-    out = BatchResult(
-        kind.astype(np.int8),
-        value,
-        acc,
-        meth.astype(np.int8),
-        on_b,
-        failed,
-        errors,
-        n_fallback=int(fb.size),
-    )
-    if sz is not None:
-        _outcomes(out, sz, flags, ba_a, ka, ea, va, perturbation, rtol)
-    return out
+        ts, ss = _table("size", size)
+        _check_size(ts, pert)
+    i0, i1 = int(i0), int(i1)
+    if not 0 <= i0 <= i1:
+        raise ParameterError("i1", i1, f">= i0 = {i0} >= 0")
+    strides = np.array([sb, sk, se, sv, ss], dtype=np.int64)
+    return _compute((tb, tk, te, tv, ts), strides, i0, i1, kappa_is_ratio, perturbation, rtol)
 
 
-def _outcomes(
-    out: BatchResult,
-    sz: NDArray[np.float64],
-    flags: NDArray[np.int64],
-    ba: NDArray[np.float64],
-    kappa: NDArray[np.float64],
-    eps: NDArray[np.float64],
-    vo: NDArray[np.float64],
+#: the size table of a call without sizes (never read; read-only as every table
+#: ``_arr`` gives, so the compiled loop has one signature)
+_NO_SIZE = np.zeros(1)
+_NO_SIZE.flags.writeable = False
+
+
+def _compute(
+    tables: tuple[
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64] | None,
+    ],
+    strides: NDArray[np.int64],
+    i0: int,
+    i1: int,
+    kappa_is_ratio: bool,
     perturbation: str,
     rtol: float,
-) -> None:
-    """Fill out.outcome / out.outcome_uncertain from the critical sizes (size >= 0) or by
-    classify() (size < 0)."""
+    lazy: bool = True,
+) -> GridResult:
+    """The compiled loop over [i0, i1) of checked tables, then the points it lists for
+    Python (:func:`_finish_listed`)."""
+    n = i1 - i0
+    ba, kappa, eps, vo, sz = tables
+    has_size = sz is not None
+    m = n if has_size else 0
+    kind = np.empty(n, dtype=np.int8)
+    value = np.empty(n)
+    acc = np.empty(n)
+    meth = np.empty(n, dtype=np.int8)
+    on_b = np.empty(n, dtype=np.bool_)
+    outcome = np.empty(m, dtype=np.int8)
+    unc = np.empty(m, dtype=np.bool_)
+    same = np.empty(_loop.N_OUT, dtype=np.bool_)
+    sp_idx = np.empty(n, dtype=np.int64)
+    sp_flags = np.empty(n, dtype=np.int64)
+    sp_par = np.empty((n, 5))
+    pert = _crit.PERTURBATIONS.index(perturbation)
+    n_sp = 0
+    if n:
+        n_sp = _loop.points_kernel(
+            ba, kappa, eps, vo, _NO_SIZE if sz is None else sz, strides, i0, i1,
+            kappa_is_ratio, has_size, pert, rtol, lazy,
+            kind, value, acc, meth, on_b, outcome, unc, same, sp_idx, sp_flags, sp_par,
+        )  # fmt: skip
+    else:
+        same[:] = False
+    outs: dict[str, tuple[NDArray[np.generic], int]] = {
+        "kind": (kind, _loop.OUT_KIND),
+        "critical_size": (value, _loop.OUT_VALUE),
+        "rel_accuracy": (acc, _loop.OUT_ACC),
+        "method": (meth, _loop.OUT_METHOD),
+        "on_boundary": (on_b, _loop.OUT_ON_BOUNDARY),
+    }
+    if has_size:
+        outs["outcome"] = (outcome, _loop.OUT_OUTCOME)
+        outs["outcome_uncertain"] = (unc, _loop.OUT_UNCERTAIN)
+    values: dict[str, NDArray[np.generic]] = {}
+    repeated: dict[str, bool | None] = {}
+    if n_sp == 0:
+        for name, (a, o) in outs.items():
+            one = bool(same[o]) and n > 0
+            values[name] = a[:1] if one else a
+            repeated[name] = one
+        values["failed"] = np.zeros(1 if lazy and n else n, dtype=np.bool_)
+        repeated["failed"] = bool(lazy and n)
+        return GridResult(n, values, repeated)
+    # some points need Python: every output laid out, then those points finished
+    for a, o in outs.values():
+        if same[o]:
+            a[1:] = a[0]
+    failed = np.zeros(n, dtype=np.bool_)
+    errors, n_fb = _finish_listed(
+        kind, value, acc, meth, outcome, unc, failed,
+        sp_idx[:n_sp], sp_flags[:n_sp], sp_par[:n_sp], has_size, perturbation, rtol,
+    )  # fmt: skip
+    values = {name: a for name, (a, _) in outs.items()}
+    values["failed"] = failed
+    return GridResult(n, values, dict.fromkeys(values, None if lazy else False), errors, n_fb)
+
+
+def _finish_listed(
+    kind: NDArray[np.int8],
+    value: NDArray[np.float64],
+    acc: NDArray[np.float64],
+    meth: NDArray[np.int8],
+    outcome: NDArray[np.int8],
+    unc: NDArray[np.bool_],
+    failed: NDArray[np.bool_],
+    sp_idx: NDArray[np.int64],
+    sp_flags: NDArray[np.int64],
+    sp_par: NDArray[np.float64],
+    has_size: bool,
+    perturbation: str,
+    rtol: float,
+) -> tuple[dict[int, str], int]:
+    """The points the compiled loop lists, in index order: FLAG_FALLBACK recomputed by
+    bisection on certified classify() outcomes (a failure marks the point failed: kind
+    and method -1, NaN size and accuracy), then finished as the loop finishes the
+    others (:func:`rsfcore.batchloop.finish_point`); a negative size classified by
+    :func:`rsfcore.trajectory.classify` (a failure marks the point failed, keeping its
+    critical size).  Returns ({offset: message} of the failed points, points
+    recomputed)."""
     from .params import Params
     from .trajectory import classify
 
-    k, cs = out.kind, out.critical_size
-    unstable = ((k == _crit.KIND_ZERO) & (sz > 0.0)) | ((k == _crit.KIND_FINITE) & (sz > cs))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        near = (k == _crit.KIND_FINITE) & (
-            np.abs(sz / cs - 1.0) <= np.maximum(out.rel_accuracy, 4e-16)
-        )
-    on_kc = (flags & _crit.FLAG_ON_KCRIT) != 0
-    outcome = np.where(unstable, OUTCOME_UNSTABLE, OUTCOME_STABLE).astype(np.int8)
-    uncertain = near | (on_kc & (vo > 0.0))
-    neg = np.flatnonzero(sz < 0.0)
+    errors: dict[int, str] = {}
+    n_fb = 0
     crtol = max(1e-13, min(1e-10, rtol))
-    for i in neg:
-        try:
-            r = classify(
-                Params(float(ba[i]), float(kappa[i]), float(eps[i]), float(vo[i])),
-                perturbation,
-                float(sz[i]),
-                rtol=crtol,
-                check_accuracy=False,
+    for j in range(sp_idx.size):
+        i = int(sp_idx[j])
+        fl = int(sp_flags[j])
+        ba, kappa, eps, vo, sz = (float(x) for x in sp_par[j])
+        p = Params(ba, kappa, eps, vo)
+        if fl & _crit.FLAG_FALLBACK:
+            n_fb += 1
+            try:
+                res = _crit.bisect_critical(p, perturbation, rtol=rtol)
+                kind[i] = _crit.KINDS.index(res.kind)
+                value[i] = math.inf if res.critical_size is None else res.critical_size
+                acc[i] = res.rel_accuracy
+                meth[i] = (
+                    _crit.M_ASYMPTOTE
+                    if res.method == _crit.METHODS[_crit.M_ASYMPTOTE]
+                    else _crit.M_BISECTION
+                )
+            except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
+                failed[i] = True
+                errors[i] = f"{type(exc).__name__}: {exc}"[:2000]
+        if failed[i]:
+            kind[i] = KIND_FAILED
+            meth[i] = -1
+            value[i] = math.nan
+            acc[i] = math.nan
+        else:
+            v, _, oc, u = _loop.finish_point(
+                int(kind[i]), float(value[i]), float(acc[i]), fl, sz, vo, has_size
             )
-            outcome[i] = OUTCOME_UNSTABLE if r.outcome == "unstable" else OUTCOME_STABLE
-            uncertain[i] = False
-        except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
-            out.failed[i] = True
-            out.errors[int(i)] = f"{type(exc).__name__}: {exc}"[:2000]
-    outcome[out.failed] = OUTCOME_NONE
-    uncertain[out.failed] = False
-    out.outcome, out.outcome_uncertain = outcome, uncertain
-    out.n_fallback += int(neg.size)
+            value[i] = v
+            if has_size:
+                outcome[i], unc[i] = oc, u
+        if has_size and sz < 0.0:
+            n_fb += 1
+            try:
+                r = classify(p, perturbation, sz, rtol=crtol, check_accuracy=False)
+                outcome[i] = OUTCOME_UNSTABLE if r.outcome == "unstable" else OUTCOME_STABLE
+                unc[i] = False
+            except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
+                failed[i] = True
+                errors[i] = f"{type(exc).__name__}: {exc}"[:2000]
+        if has_size and failed[i]:
+            outcome[i] = OUTCOME_NONE
+            unc[i] = False
+    return errors, n_fb

@@ -1,9 +1,10 @@
 """Celery tasks: compute one chunk of a sweep, or one long single query.
 
 A chunk is a range [i0, i1) of flat point indices of the sweep's spec
-(:class:`rsfapp.grid.SweepSpec`); its parameters are computed from the spec, its points
-by compiled batch calls on cache-sized parts (:func:`rsfapp.sweepdata.compute_block` ->
-:func:`rsfcore.batch.critical_points`), and its results stored as one compressed block,
+(:class:`rsfapp.grid.SweepSpec`); a grid's chunk is computed by one compiled call that
+generates its parameters from the axes and reports the arrays that are one repeated value
+(:func:`rsfapp.sweepdata.compute_block` -> :func:`rsfcore.batch.critical_grid`; scattered
+points: batch calls on cache-sized parts), and its results stored as one compressed block,
 written once (a chunk delivered twice, or recomputed after its worker was killed, is
 stored once).  A task goes on with the sweep's next pending chunks, claimed in work units
 (:func:`unit_chunks`) in the transaction that completes the unit before (chunk chaining,

@@ -195,6 +195,22 @@ class BlockWriter:
             elif a.size:
                 parts.append(a)
 
+    def add_whole(self, name: str, arr: NDArray[Any], n: int, repeated: bool | None) -> None:
+        """Array ``name`` of ``n`` elements whole, in one part, when the caller knows
+        whether it is one repeated value (bit for bit): ``repeated`` True (``arr[0]`` is
+        every element; ``arr`` may hold just that one), False (it varies: not tested),
+        None (not known: tested as :meth:`add` tests).  The same entry as :meth:`add`
+        of the whole array writes."""
+        if repeated is None:
+            self.add({name: arr})
+            return
+        if name in self._parts:
+            raise ValueError(f"{name}: already added")
+        a = np.ascontiguousarray(arr)
+        self._first[name] = a[:1].copy()
+        self._run[name] = n if repeated else 0
+        self._parts[name] = [] if repeated else [a]
+
     def finish(self) -> bytes:
         """The block as a compressed .npz (read by :func:`decode_block`)."""
         buf = io.BytesIO()

@@ -100,7 +100,11 @@ def test_a_part_that_breaks_the_batch_is_isolated_with_chunk_offsets(monkeypatch
             raise ZeroDivisionError("kernel defect at eps=0.6")
         return orig(ba, kappa, eps, vo, **kw)
 
+    def broken(*a, **kw):  # the defect breaks the fused call too: the parts take over
+        raise ZeroDivisionError("kernel defect")
+
     monkeypatch.setattr(batch, "critical_points", fragile)
+    monkeypatch.setattr(batch, "critical_grid", broken)
     monkeypatch.setattr(sweepdata, "PART_POINTS", 2)
     arrays, errors = sweepdata.compute_chunk(sp, 1, 7)  # parts [1,3) [3,5) [5,7)
     assert errors == {4: "ZeroDivisionError: kernel defect at eps=0.6"}
@@ -172,3 +176,141 @@ def test_same_bits_against_an_elementwise_test() -> None:
                 want = len({x.tobytes() for x in b}) == 1
                 assert _same_bits(b) is want
                 assert _same_bits(b, base[:1]) is (not b.any())
+
+
+def unfused_block(spec: SweepSpec, i0: int, i1: int) -> tuple[bytes, dict[int, str]]:
+    """The block from the parts (the unfused path of compute_block)."""
+    w = BlockWriter()
+    errors: dict[int, str] = {}
+    for _off, arrays, errs in sweepdata.chunk_parts(spec, i0, i1):
+        w.add(arrays)
+        errors.update(errs)
+    return w.finish(), errors
+
+
+#: grids the fused path must compute as the parts do: every kind and both v_o branches
+#: (MIXED), outcomes of a fixed size, sizes swept through zero and below (negative sizes
+#: are classified one by one, listed by the kernel), kappa given directly, a load-point
+#: jump, a size swept in SI, and cheap points decided alike (every array one value)
+FUSED = {
+    "critical": MIXED,
+    "outcome": OUTCOME,
+    "sizes": {**MIXED, "axes": [*MIXED["axes"][:2], {"name": "size", "values": [-0.4, 0.0, 0.9]}]},
+    "kappa": {
+        "axes": [
+            {"name": "kappa", "values": [0.0, 0.5, 1.0, 4.0]},
+            {"name": "eps", "start": 0.0, "stop": 0.8, "n": 6},
+        ],
+        "fixed": {"ba": 3.0, "vo": 1.0},
+    },
+    "load-point": {
+        "axes": [
+            {"name": "kappa_ratio", "values": [0.5, 1.0, 1.7]},
+            {"name": "eps", "values": [0.1, 0.4]},
+            {"name": "size", "values": [0.2, 3.0]},
+        ],
+        "fixed": {"ba": 2.0, "vo": 2.0},
+        "perturbation": "load-point-jump",
+    },
+    "si-size": {
+        "axes": [
+            {"name": "factor", "values": [0.5, 1.5, 20.0]},
+            {"name": "eps", "values": [0.1, 0.5]},
+        ],
+        "fixed": {
+            "physical": {
+                "a": 0.01,
+                "b": 0.015,
+                "Dc_m": 1e-5,
+                "sigma_Pa": 5e7,
+                "k_Pa_per_m": 2e10,
+                "V_star_m_s": 1e-6,
+            }
+        },
+    },
+    "cheap": {
+        "axes": [
+            {"name": "kappa_ratio", "start": 0.3, "stop": 0.95, "n": 3},
+            {"name": "eps", "start": 0.0, "stop": 0.6, "n": 4},
+            {"name": "ba", "start": 1.2, "stop": 20.0, "n": 50},
+        ],
+        "fixed": {"vo": 1.0},
+    },
+}
+
+
+@pytest.mark.parametrize("name", list(FUSED))
+def test_fused_block_is_the_unfused_block(name) -> None:
+    """The fused chunk (parameters generated in the kernel from the axes, repeated
+    arrays reported by it) stores what the parts store: the same entries (an array one
+    repeated value in both or in neither), every variable bit for bit (NaN and fill
+    values at the same places), the same errors; for ranges that start and end inside
+    a row, a single point and the whole grid."""
+    sp = spec_of(FUSED[name])
+    n = sp.n_total
+    ranges = ((0, n), (13, n - 5), (n // 2, n // 2 + 1), (1, n // 3))
+    for i0, i1 in [(a, b) for a, b in ranges if a < b]:
+        fused = sweepdata.fused_block(sp, i0, i1)
+        assert fused is not None
+        data, errors = fused
+        want, want_errors = unfused_block(sp, i0, i1)
+        assert errors == want_errors
+        assert entries(data) == entries(want)
+        got, ref = decode_block(data), decode_block(want)
+        assert set(got) == set(ref)
+        for var in ref:
+            assert same_bits(got[var], ref[var]), (var, i0, i1)
+        assert data == want  # the same bytes, too
+    if name == "cheap":
+        assert all("@const" in e for e in entries(data))
+    if name == "sizes":
+        assert (decode_block(data)["outcome"] >= 0).all()  # negative sizes classified
+
+
+def test_fused_block_failed_points_as_the_parts(monkeypatch) -> None:
+    """Points whose classification raises are failed with their messages at the same
+    offsets on both paths (outcome -1 there, the rest kept)."""
+    import rsfcore.trajectory as traj
+
+    orig = traj.classify
+
+    def fragile(params, perturbation, size, **kw):
+        if params.eps == 0.2:
+            raise FloatingPointError(f"classify broke at eps={params.eps}")
+        return orig(params, perturbation, size, **kw)
+
+    monkeypatch.setattr(traj, "classify", fragile)
+    sp = spec_of(FUSED["sizes"])
+    fused = sweepdata.fused_block(sp, 3, sp.n_total - 2)
+    assert fused is not None
+    want, want_errors = unfused_block(sp, 3, sp.n_total - 2)
+    assert fused[1] == want_errors and len(want_errors) > 0
+    assert all("classify broke at eps=0.2" in m for m in want_errors.values())
+    got, ref = decode_block(fused[0]), decode_block(want)
+    for var in ref:
+        assert same_bits(got[var], ref[var]), var
+    bad = np.array(sorted(want_errors))
+    assert ref["failed"][bad].all() and (ref["outcome"][bad] == -1).all()
+
+
+def test_compute_block_takes_the_fused_path_for_grids(monkeypatch) -> None:
+    """A grid's chunk never lays out parameters (the parts are not called); scattered
+    points and a fused call that raises take the parts, with the same block."""
+    sp = spec_of(MIXED)
+    want = unfused_block(sp, 5, 200)
+
+    def no_parts(*a, **kw):
+        raise AssertionError("the parts were used")
+
+    with monkeypatch.context() as m:
+        m.setattr(sweepdata, "chunk_parts", no_parts)
+        assert sweepdata.compute_block(sp, 5, 200) == want
+
+    def broken(*a, **kw):
+        raise ZeroDivisionError("kernel defect")
+
+    monkeypatch.setattr(batch, "critical_grid", broken)
+    assert sweepdata.fused_block(sp, 5, 200) is None
+    assert sweepdata.compute_block(sp, 5, 200) == want
+    pts = spec_of({"points": {"ba": [2.0, 3.0], "kappa_ratio": [0.5, 2.0], "eps": [0.1, 0.2]}})
+    assert sweepdata.fused_block(pts, 0, 2) is None

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rsfcore import batch
+from rsfcore import batch, batchloop
 from rsfcore import critical as crit
 from rsfcore.diagram import stability_diagram
 from rsfcore.params import ParameterError, Params
@@ -75,26 +75,186 @@ def test_negative_size_is_classified() -> None:
         assert res.outcome[i] == (1 if ref.outcome == "unstable" else 0)
 
 
+def _flagging_kernel(monkeypatch: pytest.MonkeyPatch, eps_flagged: float) -> None:
+    """The compiled loop, then every point at eps == ``eps_flagged`` listed as a
+    separatrix failure (FLAG_FALLBACK), as the kernel lists them."""
+    orig = batchloop.points_kernel
+
+    def flagging(*args):
+        n_sp = orig(*args)
+        ba_t, kappa_t, eps_t, vo_t, size_t, strides, i0, i1, ratio = args[:9]
+        sp_idx, sp_flags, sp_par = args[-3:]
+        for j in range(i1 - i0):
+            i = i0 + j
+            e = eps_t[(i // strides[2]) % eps_t.size]
+            if e != eps_flagged or j in sp_idx[:n_sp]:
+                continue
+            ba = ba_t[(i // strides[0]) % ba_t.size]
+            k = kappa_t[(i // strides[1]) % kappa_t.size]
+            sp_idx[n_sp], sp_flags[n_sp] = j, crit.FLAG_FALLBACK
+            sp_par[n_sp] = (
+                ba,
+                k * (ba - 1.0) if ratio else k,
+                e,
+                vo_t[(i // strides[3]) % vo_t.size],
+                size_t[(i // strides[4]) % size_t.size],
+            )
+            n_sp += 1
+        order = np.argsort(sp_idx[:n_sp], kind="stable")
+        sp_idx[:n_sp], sp_flags[:n_sp], sp_par[:n_sp] = (
+            sp_idx[order],
+            sp_flags[order],
+            sp_par[order],
+        )
+        return n_sp
+
+    monkeypatch.setattr(batchloop, "points_kernel", flagging)
+
+
 def test_failure_isolated(monkeypatch: pytest.MonkeyPatch) -> None:
     """A point whose fallback raises is recorded; the others are kept."""
-    orig = crit.critical_batch
-
-    def flagging(ba, kappa, eps, vo, pert, rtol, kind, value, acc, meth, flags):
-        orig(ba, kappa, eps, vo, pert, rtol, kind, value, acc, meth, flags)
-        flags[eps == 0.5] |= crit.FLAG_FALLBACK
 
     def failing(params, *a, **kw):
         raise FloatingPointError(f"boom at {params.eps}")
 
-    monkeypatch.setattr(crit, "critical_batch", flagging)
+    _flagging_kernel(monkeypatch, 0.5)
     monkeypatch.setattr(crit, "bisect_critical", failing)
     eps = np.array([0.1, 0.5, 0.2, 0.5])
     res = batch.critical_points(2.0, 3.0, eps, 1.0)
     assert res.failed.tolist() == [False, True, False, True]
     assert set(res.errors) == {1, 3} and "boom at 0.5" in res.errors[1]
     assert np.isnan(res.critical_size[[1, 3]]).all() and (res.kind[[1, 3]] == -1).all()
+    assert (res.method[[1, 3]] == -1).all() and np.isnan(res.rel_accuracy[[1, 3]]).all()
     ref = crit.critical_perturbation(Params(2.0, 3.0, 0.2, 1.0)).critical_size
     assert res.critical_size[2] == ref
+    assert res.n_fallback == 2
+
+
+def test_fallback_recomputes_by_bisection(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A listed point is recomputed by bisection and finished like the others (its
+    outcome from the bisected size)."""
+    _flagging_kernel(monkeypatch, 0.3)
+    res = batch.critical_points(2.0, 3.0, [0.1, 0.3], 1.0, size=[0.5, 0.5], rtol=1e-8)
+    bis = crit.bisect_critical(Params(2.0, 3.0, 0.3, 1.0), rtol=1e-8)
+    assert res.method[1] == crit.M_BISECTION and res.n_fallback == 1
+    assert res.critical_size[1] == bis.critical_size
+    assert res.outcome is not None
+    assert res.outcome[1] == (batch.OUTCOME_UNSTABLE if bis.critical_size < 0.5 else 0)
+
+
+def _grid_and_points(shape_values, fixed, ratio, size=None, **kw):
+    """critical_grid over the C-order grid of ``shape_values`` ({name: values}) and
+    critical_points on the same points laid out by numpy (meshgrid, independent of the
+    kernel's walk), over ranges that start and end inside rows."""
+    names = list(shape_values)
+    mesh = np.meshgrid(*shape_values.values(), indexing="ij")
+    flat = {n: m.ravel() for n, m in zip(names, mesh)}
+    stride, strides = 1, {}
+    for n in reversed(names):
+        strides[n] = stride
+        stride *= len(shape_values[n])
+    total = stride
+
+    def arg(name):
+        if name in shape_values:
+            return batch.AxisTable(np.asarray(shape_values[name], float), strides[name])
+        return fixed.get(name)
+
+    def pts(name, sl):
+        return flat[name][sl] if name in flat else fixed.get(name)
+
+    k = "kappa_ratio" if ratio else "kappa"
+    for i0, i1 in ((0, total), (3, total - 2), (total // 2, total // 2 + 1)):
+        sl = slice(i0, i1)
+        kap = pts(k, sl)
+        if ratio:
+            kap = np.broadcast_to(kap, (i1 - i0,)) * (
+                np.broadcast_to(pts("ba", sl), (i1 - i0,)) - 1.0
+            )
+        ref = batch.critical_points(
+            pts("ba", sl), kap, pts("eps", sl), pts("vo", sl), size=pts("size", sl), **kw
+        )
+        g = batch.critical_grid(
+            arg("ba"), arg(k), arg("eps"), arg("vo"), i0, i1,
+            kappa_is_ratio=ratio, size=arg("size"), **kw,
+        )  # fmt: skip
+        got = g.to_batch()
+        for f in ("kind", "critical_size", "rel_accuracy", "method", "on_boundary", "failed"):
+            assert getattr(got, f).tobytes() == getattr(ref, f).tobytes(), f
+        if size is not None:
+            assert got.outcome.tobytes() == ref.outcome.tobytes()
+            assert got.outcome_uncertain.tobytes() == ref.outcome_uncertain.tobytes()
+        assert got.errors == ref.errors and got.n_fallback == ref.n_fallback
+        for f, rep in g.repeated.items():  # what the kernel says of each output is true
+            a = g.array(f)
+            if rep is not None:
+                assert rep == (a.tobytes() == np.repeat(a[:1], a.size).tobytes()), f
+
+
+@pytest.mark.parametrize("pert", ["velocity-jump", "load-point-jump"])
+def test_grid_gives_the_bits_of_the_points(pert: str) -> None:
+    """critical_grid (parameters generated from the axes inside the compiled loop) gives
+    critical_points's bits at every point: every kind, kappa = kappa_crit, v_o = 0 next
+    to v_o > 0, sizes on both sides of the critical size and negative ones."""
+    vo = [0.0, 1.0, 3.0] if pert == "velocity-jump" else [0.5, 3.0]
+    axes = {
+        "kappa_ratio": [0.5, 1.0, 1.3, 2.5, 9.0],
+        "eps": [0.0, 0.2, 0.5, 0.9],
+        "vo": vo,
+        "ba": np.linspace(1.5, 12.0, 5),
+    }
+    _grid_and_points(axes, {}, True, perturbation=pert, rtol=1e-8)
+    sizes = {"eps": [0.1, 0.6], "size": [-0.3, 0.0, 0.4, 2.0], "kappa_ratio": [0.5, 1.0, 1.6]}
+    _grid_and_points(sizes, {"ba": 3.0, "vo": 1.0}, True, size=1, perturbation=pert, rtol=1e-8)
+    direct = {"kappa": [0.0, 0.5, 2.0, 7.0], "ba": [1.5, 3.0, 9.0]}
+    _grid_and_points(direct, {"eps": 0.3, "vo": 2.0}, False, perturbation=pert, rtol=1e-8)
+
+
+def test_grid_failures_as_the_points(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Failed points (NaN sizes, -1 codes) at the same places on both paths."""
+
+    def failing(params, *a, **kw):
+        raise FloatingPointError(f"boom at {params.eps}")
+
+    _flagging_kernel(monkeypatch, 0.5)
+    monkeypatch.setattr(crit, "bisect_critical", failing)
+    axes = {"eps": [0.1, 0.5, 0.2], "ba": [2.0, 4.0]}
+    _grid_and_points(axes, {"kappa_ratio": 3.0, "vo": 1.0, "size": 0.5}, True, size=1)
+
+
+def test_grid_repeated_outputs_are_not_laid_out() -> None:
+    """Cheap points decided alike: every output one repeated value, kept as one."""
+    g = batch.critical_grid(
+        batch.AxisTable(np.linspace(1.2, 20.0, 1000), 1),
+        batch.AxisTable(np.linspace(0.3, 0.95, 10), 1000),
+        0.2,
+        1.0,
+        123,
+        9000,
+        kappa_is_ratio=True,
+    )
+    assert g.n == 8877 and all(g.repeated.values())
+    assert all(v.size == 1 for v in g.values.values())
+    assert g.values["kind"][0] == crit.KIND_ZERO and g.values["critical_size"][0] == 0.0
+
+
+@pytest.mark.parametrize(
+    "kw, field",
+    [
+        (dict(ba=batch.AxisTable(np.array([2.0, 0.5]), 1)), "ba[1]"),
+        (dict(eps=batch.AxisTable(np.array([0.1, 1.5]), 3)), "eps[1]"),
+        (dict(kappa=batch.AxisTable(np.array([1.0, -1.0]), 1)), "kappa_ratio[1]"),
+        (dict(kappa=2e5, ba=batch.AxisTable(np.array([2.0, 7.0]), 1)), "kappa_ratio"),
+        (dict(ba=batch.AxisTable(np.array([2.0]), 0)), "ba.stride"),
+        (dict(i0=5, i1=4), "i1"),
+    ],
+)
+def test_grid_bad_input_names_the_table(kw: dict, field: str) -> None:
+    args = dict(ba=2.0, kappa=1.0, eps=0.1, vo=1.0, i0=0, i1=4)
+    args.update(kw)
+    with pytest.raises(ParameterError) as e:
+        batch.critical_grid(**args, kappa_is_ratio=True)
+    assert e.value.field == field
 
 
 @pytest.mark.parametrize(
