@@ -12,6 +12,7 @@ from rsfcore import critical as crit
 from rsfcore.diagram import stability_diagram
 from rsfcore.params import ParameterError, Params
 from rsfcore.trajectory import classify
+from tests.e2e.test_worker_faultplugin import list_as_fallback
 
 
 def _random_points(n: int, seed: int) -> tuple[np.ndarray, ...]:
@@ -81,32 +82,7 @@ def _flagging_kernel(monkeypatch: pytest.MonkeyPatch, eps_flagged: float) -> Non
     orig = batchloop.points_kernel
 
     def flagging(*args):
-        n_sp = orig(*args)
-        ba_t, kappa_t, eps_t, vo_t, size_t, strides, i0, i1, ratio = args[:9]
-        sp_idx, sp_flags, sp_par = args[-3:]
-        for j in range(i1 - i0):
-            i = i0 + j
-            e = eps_t[(i // strides[2]) % eps_t.size]
-            if e != eps_flagged or j in sp_idx[:n_sp]:
-                continue
-            ba = ba_t[(i // strides[0]) % ba_t.size]
-            k = kappa_t[(i // strides[1]) % kappa_t.size]
-            sp_idx[n_sp], sp_flags[n_sp] = j, crit.FLAG_FALLBACK
-            sp_par[n_sp] = (
-                ba,
-                k * (ba - 1.0) if ratio else k,
-                e,
-                vo_t[(i // strides[3]) % vo_t.size],
-                size_t[(i // strides[4]) % size_t.size],
-            )
-            n_sp += 1
-        order = np.argsort(sp_idx[:n_sp], kind="stable")
-        sp_idx[:n_sp], sp_flags[:n_sp], sp_par[:n_sp] = (
-            sp_idx[order],
-            sp_flags[order],
-            sp_par[order],
-        )
-        return n_sp
+        return list_as_fallback(orig, args, orig(*args), eps_flagged)
 
     monkeypatch.setattr(batchloop, "points_kernel", flagging)
 

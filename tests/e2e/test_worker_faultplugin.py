@@ -4,8 +4,9 @@ A numerical failure of rsfcore cannot be produced on demand with valid parameter
 sweeps of the fast core finish too quickly to be killed or cancelled half-way.  So the
 tests start real Celery workers with ``--include test_worker_faultplugin`` and:
 
-* ``RSF_TEST_FAIL_EPS=<eps>``: the compiled batch kernel (rsfcore.critical.critical_batch,
-  as called by rsfcore.batch) flags the points with that eps for the per-point fallback,
+* ``RSF_TEST_FAIL_EPS=<eps>``: the compiled batch loop (rsfcore.batchloop.points_kernel,
+  as called by rsfcore.batch, fused or not) lists the points with that eps for the
+  per-point fallback (:func:`list_as_fallback`),
   and the fallback (rsfcore.critical.bisect_critical) raises FloatingPointError for them:
   the real failure-isolation path of a chunk (the sweep must record them and go on);
 * ``RSF_TEST_POINT_DELAY_S=<s>``: each batch call sleeps that long per point (so a sweep
@@ -24,6 +25,40 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+
+def list_as_fallback(kernel: Any, args: tuple[Any, ...], n_sp: int, eps_flagged: float) -> int:
+    """After ``kernel(*args)`` (rsfcore.batchloop.points_kernel) returned ``n_sp``: also
+    list every point of the range whose eps is ``eps_flagged`` as a separatrix failure
+    (FLAG_FALLBACK) with its parameters, in index order, as the loop lists them; returns
+    the new count.  The parameters follow the tables' map (value at flat index i:
+    ``t[(i // stride) % len(t)]``)."""
+    from rsfcore.decision import FLAG_FALLBACK
+
+    ba_t, kappa_t, eps_t, vo_t, size_t, strides, i0, i1, ratio = args[:9]
+    sp_idx, sp_flags, sp_par = args[-3:]
+    listed = set(sp_idx[:n_sp].tolist())
+    for j in range(i1 - i0):
+        i = i0 + j
+        e = eps_t[(i // strides[2]) % eps_t.size]
+        if abs(e - eps_flagged) >= 1e-12 or j in listed:
+            continue
+        ba = ba_t[(i // strides[0]) % ba_t.size]
+        k = kappa_t[(i // strides[1]) % kappa_t.size]
+        sp_idx[n_sp], sp_flags[n_sp] = j, FLAG_FALLBACK
+        sp_par[n_sp] = (
+            ba,
+            k * (ba - 1.0) if ratio else k,
+            e,
+            vo_t[(i // strides[3]) % vo_t.size],
+            size_t[(i // strides[4]) % size_t.size],
+        )
+        n_sp += 1
+    order = np.argsort(sp_idx[:n_sp], kind="stable")
+    sp_idx[:n_sp], sp_flags[:n_sp], sp_par[:n_sp] = sp_idx[order], sp_flags[order], sp_par[order]
+    return n_sp
+
 
 def _install() -> None:
     fail_eps = os.environ.get("RSF_TEST_FAIL_EPS")
@@ -40,28 +75,26 @@ def _install() -> None:
         except (OSError, ValueError):
             return 0.0
 
-    import numpy as np
-
+    import rsfcore.batchloop as loop
     import rsfcore.critical as crit
 
-    kernel, bisect = crit.critical_batch, crit.bisect_critical
+    kernel, bisect = loop.points_kernel, crit.bisect_critical
 
-    def slow_or_flagging(ba: Any, kappa: Any, eps: Any, *a: Any) -> Any:
+    def slow_or_flagging(*args: Any) -> Any:
         delay = point_delay()
         if delay > 0:
-            time.sleep(delay * len(ba))
-        out = kernel(ba, kappa, eps, *a)
+            time.sleep(delay * (args[7] - args[6]))  # i1 - i0 points
+        n_sp = kernel(*args)
         if fail_eps is not None:
-            flags = a[-1]
-            flags[np.abs(eps - float(fail_eps)) < 1e-12] |= crit.FLAG_FALLBACK
-        return out
+            n_sp = list_as_fallback(kernel, args, n_sp, float(fail_eps))
+        return n_sp
 
     def failing(params: Any, *a: Any, **kw: Any) -> Any:
         if fail_eps is not None and abs(params.eps - float(fail_eps)) < 1e-12:
             raise FloatingPointError(f"injected failure at eps={params.eps}")
         return bisect(params, *a, **kw)
 
-    crit.critical_batch = slow_or_flagging
+    loop.points_kernel = slow_or_flagging
     crit.bisect_critical = failing
 
 
