@@ -207,6 +207,9 @@ class TrajectoryResult:
     #: the linear instability of kappa < kappa_crit): simulate() certifies it by runs at
     #: tolerances 10x apart (not part of to_dict)
     integration_decided: bool = False
+    #: accepted steps of the stiff method (Radau IIA) among n_steps, which predict a check
+    #: run's steps (:func:`_check_steps`; not part of to_dict)
+    n_stiff_steps: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dict (no inf/nan: a runaway peak is reported as null)."""
@@ -739,12 +742,16 @@ def simulate(
     None, complete False).  Where the outcome was certain before integrating (a closed
     form, the separatrix side, kappa < kappa_crit) the check runs share
     DECIDED_CERTIFY_BUDGET steps with the first run, and are not started where their steps,
-    predicted from the first run's (CHECK_STEPS_EXPONENT), would not fit; where a tighter
+    predicted from the first run's (CHECK_STEPS_EXPONENT for DOP853 steps,
+    STIFF_CHECK_STEPS_EXPONENT for Radau IIA steps), would not fit; where a tighter
     tolerance was needed, the run reported is checked by the same third run as a first
     run would be; a trajectory's first run is checked
     where it took at most DECIDED_OUTCOME_BUDGET steps, by checks of at most
     TRAJECTORY_CHECK_RATIO x its steps in all.  Times they cannot check are None and
-    ``complete`` False (a trajectory's samples still run to its end).
+    ``complete`` False (a trajectory's samples still run to its end).  A trajectory whose
+    outcome the integration decides is checked by classify-type runs; where the separatrix
+    side decides theirs, each has DECIDED_OUTCOME_BUDGET steps, and one predicted not to
+    fit is not started (it would stop at the budget and check nothing).
     """
     # the question (and its budget) is the same for both runs; only rtol and the samples differ
     run = functools.partial(
@@ -797,14 +804,18 @@ def simulate(
         """Step budget of the next check run (None: the caller's max_steps)."""
         return left if limited else None
 
-    if limited and _check_steps(res.n_steps, r, _check_rtols(r, _erratic(res, r))) > left:
+    if limited and _check_steps(res, r, _check_rtols(r, _erratic(res, r))) > left:
         # the check (and the probe this run needs) is predicted not to finish within what
         # is left: not started (issue 22: at rtol 1e-13 a first run of 3,253 steps, then
         # 2,443 + 2,304 steps of a check and a probe cut short, 11.8 ms for times reported
         # as None)
         return _unchecked(res)
     try:
-        check = run(rtol=other, decided_budget=allowance())
+        check = run(
+            rtol=other,
+            decided_budget=allowance(),
+            predicted_steps=_check_steps(res, r, (other,)),
+        )
     except (UndecidedError, ParameterError):
         return res  # no second opinion to be had; the first run's estimate stands
     if limited and not check.complete:
@@ -817,11 +828,19 @@ def simulate(
         # tightest for a claim above CERTIFIED_ACCURACY), else at a nearby tolerance
         # (NOISE_PROBE_RATIO), samples the error that does not scale with rtol
         probe_r = _probe_rtol(r, acc)
-        if limited and probe_r != other and _check_steps(res.n_steps, r, (probe_r,)) > left:
+        if limited and probe_r != other and _check_steps(res, r, (probe_r,)) > left:
             return _unchecked(res)
         try:
             # (at rtol 1e-12 the probe's tolerance is the check run's, 1e-13: the same run)
-            probe = check if probe_r == other else run(rtol=probe_r, decided_budget=allowance())
+            probe = (
+                check
+                if probe_r == other
+                else run(
+                    rtol=probe_r,
+                    decided_budget=allowance(),
+                    predicted_steps=_check_steps(res, r, (probe_r,)),
+                )
+            )
         except (UndecidedError, ParameterError):
             probe = None
         if limited and probe is not None and not probe.complete:
@@ -940,12 +959,15 @@ NOISE_PROBE_MIN_STEPS = 64
 #: many steps (DOP853, order 8: 10^(1/8) = 1.33x the steps per decade tighter, as measured
 #: for TRAJECTORY_CHECK_RATIO; a velocity jump d = 6654 at b/a = 1 + 2.3e-4, kappa = 300
 #: kappa_crit, eps = 1: 3,253 / 2,443 / 2,842 steps at rtol 1e-13 / 1e-12 / 3e-13, predicted
-#: 2,439 and 2,836 from the first).  Radau IIA's steps (order 5, controlled by an O(h^4)
-#: estimate) change faster with rtol (1.7x per decade on a stiff relaxation: 731 / 2,084 /
-#: 3,637 steps at 1e-10 / 1e-12 / 1e-13), so after a stiff run a looser check may fit where
-#: this predicts it does not, and a tighter one may start and stop at its budget (the times
-#: are then None either way, as for a check that did not finish).
+#: 2,439 and 2,836 from the first).
 CHECK_STEPS_EXPONENT = 1.0 / 8.0
+#: The same for the steps of the stiff method: Radau IIA's steps (order 5, controlled by an
+#: O(h^4) estimate with exponent 1/4) change 10^(1/4) = 1.78x per decade (stiff relaxations
+#: after load-point jumps, rtol 1e-13 -> 1e-12: 4,515 -> 2,639 Radau IIA steps at b/a =
+#: 1 + 1e-12, kappa = 1e3, dv = 2.4e249; 731 / 2,084 / 3,637 steps at 1e-10 / 1e-12 /
+#: 1e-13 at b/a = 4.9e4).  With the DOP853 exponent for them, a looser check that fits
+#: was predicted not to, and a tighter one was started and cut at its budget.
+STIFF_CHECK_STEPS_EXPONENT = 1.0 / 4.0
 
 
 def _check_rtols(rtol: float, erratic: bool) -> tuple[float, ...]:
@@ -957,10 +979,19 @@ def _check_rtols(rtol: float, erratic: bool) -> tuple[float, ...]:
     return (other, probe_r) if erratic and probe_r != other else (other,)
 
 
-def _check_steps(n: int, rtol: float, rtols: Sequence[float]) -> float:
-    """Predicted steps of check runs at ``rtols`` after a run of ``n`` steps at ``rtol``
-    (CHECK_STEPS_EXPONENT)."""
-    return float(sum(n * (rtol / r) ** CHECK_STEPS_EXPONENT for r in rtols))
+def _check_steps(res: TrajectoryResult, rtol: float, rtols: Sequence[float]) -> float:
+    """Predicted steps of check runs at ``rtols`` after the run ``res`` at ``rtol``: its
+    stiff steps scaled by STIFF_CHECK_STEPS_EXPONENT, the others (DOP853 steps and
+    rejections) by CHECK_STEPS_EXPONENT."""
+    n_stiff = min(res.n_stiff_steps, res.n_steps)
+    n_soft = res.n_steps - n_stiff
+    return float(
+        sum(
+            n_soft * (rtol / r) ** CHECK_STEPS_EXPONENT
+            + n_stiff * (rtol / r) ** STIFF_CHECK_STEPS_EXPONENT
+            for r in rtols
+        )
+    )
 
 
 def _probe_rtol(rtol: float, acc: float) -> float:
@@ -1080,11 +1111,15 @@ def _simulate(
     side_rtol: float | None = None,
     separatrix_side: bool = True,
     decided_budget: int | None = None,
+    predicted_steps: float | None = None,
 ) -> TrajectoryResult:
     """:func:`simulate` without the second run (one integration); ``side_rtol`` is the
     tolerance of the separatrix side of a large load-point jump (default ``rtol``);
     ``decided_budget`` replaces DECIDED_OUTCOME_BUDGET (a check run's share of
-    DECIDED_CERTIFY_BUDGET)."""
+    DECIDED_CERTIFY_BUDGET).  ``predicted_steps``: a check run's predicted steps
+    (:func:`_check_steps`); where its outcome is certain before integrating and its budget
+    is smaller, it is not integrated (answered as a run cut by that budget: times None,
+    complete False), since a check cut short checks nothing."""
     rtol = lim.RTOL.check(rtol)
     if integrator not in _INTEGRATORS:
         raise ParameterError(
@@ -1220,6 +1255,19 @@ def _simulate(
         cap = DECIDED_BUDGET
     else:
         cap = DECIDED_OUTCOME_BUDGET
+    # when the closed form already decided the outcome, only the times and the peak
+    # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
+    # (kappa < kappa_crit with a moving load point is decided too: every perturbation
+    # grows, and a slow outward spiral near kappa_crit would otherwise use 1e7 steps)
+    decided = (
+        plan.outcome is not None
+        or sep_side != 0
+        or (p_run.kappa < p_run.kappa_crit and method == "auto")
+    )
+    # only the outcome asked (classify): the times are a by-product worth at most
+    # DECIDED_OUTCOME_BUDGET steps (a check run: what is left of
+    # DECIDED_CERTIFY_BUDGET); a trajectory request gets DECIDED_BUDGET
+    budget = min(cap, max_steps) if decided else max_steps
     if (
         beyond
         or plan.certificate in ("at_equilibrium", "below_separatrix", "above_separatrix")
@@ -1227,20 +1275,15 @@ def _simulate(
     ):
         # decided in closed form; nothing to integrate
         res = None
+    elif decided and predicted_steps is not None and predicted_steps > budget:
+        # a check run of a trajectory whose first run the integration decided, while
+        # this run's outcome is certain before integrating (the separatrix side of a
+        # named perturbation: classify's question): its budget would cut it, and then it
+        # checks nothing (issue 22: at rtol 1e-13 after a load-point jump dv = 2.4e249
+        # on b/a = 1 + 1e-12, kappa = 1e3, a probe of 3,493 steps stopped at the budget,
+        # 2.8 ms of 11.4)
+        res = None
     else:
-        # when the closed form already decided the outcome, only the times and the peak
-        # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
-        # (kappa < kappa_crit with a moving load point is decided too: every perturbation
-        # grows, and a slow outward spiral near kappa_crit would otherwise use 1e7 steps)
-        decided = (
-            plan.outcome is not None
-            or sep_side != 0
-            or (p_run.kappa < p_run.kappa_crit and method == "auto")
-        )
-        # only the outcome asked (classify): the times are a by-product worth at most
-        # DECIDED_OUTCOME_BUDGET steps (a check run: what is left of
-        # DECIDED_CERTIFY_BUDGET); a trajectory request gets DECIDED_BUDGET
-        budget = min(cap, max_steps) if decided else max_steps
         # A named perturbation is integrated in the v_o = 1 frame, where its start is exact
         # (from (phi0, psi0) it is blurred by the rounding of psi0 = (1 - b/a) ln v_o + ...:
         # 2e-9 relative for a load-point jump at b/a = 1e6, v_o = 1e-12); times are scaled
@@ -1282,11 +1325,13 @@ def _simulate(
     if res is None:
         status, y_end, T_cert, T_ret = None, None, math.nan, math.nan
         peak_phi, peak_T, n_steps, n_rhs, err_sum = phi0, 0.0, 0, 0, 0.0
+        n_stiff = 0
     else:
         status, y_end, T_cert, T_ret = res.status, res.y_end, res.T_cert, res.T_return
         peak_phi, peak_T, err_sum = res.peak_phi + frame_shift, res.peak_T * tsc, res.err_sum
         T_cert, T_ret = T_cert * tsc, T_ret * tsc
         n_steps, n_rhs = res.n_steps + res.n_rejected, res.n_rhs
+        n_stiff = res.n_stiff_steps
 
     runaway = not math.isnan(T_cert)
     blowup_time = return_time = None
@@ -1432,6 +1477,7 @@ def _simulate(
         physical=physical,
         complete=complete,
         integration_decided=integration_decided,
+        n_stiff_steps=int(n_stiff),
     )
 
 

@@ -545,6 +545,61 @@ def test_decided_outcome_skips_checks_that_cannot_fit(monkeypatch: pytest.Monkey
     assert runs == [1e-12, 1e-13] and sum(steps) <= DECIDED_CERTIFY_BUDGET
 
 
+@pytest.mark.parametrize(
+    "p, lg, rtol, started",
+    [
+        # b/a = 1 + 1e-12, kappa = 1e3, dv = 2.4e249: the check at 1e-12 fits, the probe at
+        # 3e-13 (predicted 4,193 steps) does not
+        (Params(1.000000000001, 1e3, 0.0, 1.0), math.log1p(2.4e249), 1e-13, [1e-13, 1e-12]),
+        # bench_certificates seed 7207: b/a = 4e5, kappa = 1e6, dv_crit (1 - 1e-2): neither
+        # the check at 2.4e-13 nor the probe at 1e-13 fits (6,700 and 8,500 predicted)
+        (
+            Params(397544.353490429, 1e6, 0.20643284880761995, 1.3384498731185478e-34),
+            0.9992345819896207,
+            2.4155622840337133e-12,
+            [2.4155622840337133e-12],
+        ),
+    ],
+)
+def test_trajectory_check_runs_that_their_budget_would_cut_are_not_started(
+    monkeypatch: pytest.MonkeyPatch, p: Params, lg: float, rtol: float, started: list[float]
+) -> None:
+    """A trajectory of a stiff relaxation after a load-point jump below the critical size:
+    the integration decides its first run (samples asked), and its check runs are
+    classify-type runs whose outcome the separatrix side decides, so each has
+    DECIDED_OUTCOME_BUDGET steps.  Those predicted not to fit (_check_steps: DOP853 steps
+    scale 10^(1/8) per decade, Radau IIA steps 10^(1/4)) are not started; with every
+    check run started (prediction 0) the same ones are cut at that budget, and the answer
+    is the same (a check cut short checks nothing): issue 22, 11.4 and 11.6 ms CPU with
+    the cut runs, 7.8 and 4.1 ms without.  The check that runs is predicted within 10 %."""
+    from rsfcore import engine, trajectory
+    from rsfcore.trajectory import DECIDED_OUTCOME_BUDGET
+
+    done: list[tuple[float, int, engine.Status]] = []
+    orig = trajectory._run
+
+    def counting(*a: Any, **k: Any) -> Any:
+        res, s = orig(*a, **k)
+        done.append((float(a[3]), res.n_steps + res.n_rejected, res.status))
+        return res, s
+
+    monkeypatch.setattr(trajectory, "_run", counting)
+    first = simulate(p, LJ, log_size=lg, rtol=rtol, n_points=16)
+    assert first.complete and first.certificate == "converged_to_steady_state"
+    assert [r for r, _, _ in done] == started
+    assert all(st == engine.Status.CONVERGED for _, _, st in done)
+    for r, n, _ in done[1:]:
+        predicted = trajectory._check_steps(first, rtol, (r,))
+        assert abs(predicted - n) <= 0.1 * n, (predicted, n)
+    done.clear()
+    monkeypatch.setattr(trajectory, "_check_steps", lambda *a, **k: 0.0)
+    every = simulate(p, LJ, log_size=lg, rtol=rtol, n_points=16)
+    cut = [(r, n) for r, n, st in done if st == engine.Status.BUDGET]
+    assert len(done) == len(started) + len(cut) and cut
+    assert all(n == DECIDED_OUTCOME_BUDGET for _, n in cut)
+    assert every.to_dict() == first.to_dict()
+
+
 def test_a_time_its_check_run_lacks_is_not_reported() -> None:
     # issue 22 stress run (bench_certificates seed 6007): a stable outcome certain before
     # integrating (x > 1, no runaway possible) whose run at rtol 2.6e-10 ends by crossing
