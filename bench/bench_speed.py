@@ -24,6 +24,14 @@ UndecidedError(not_certified): an answer that says the outcome is not certain, t
 
     python bench/bench_speed.py [--n 40] [--seed 22] [--rtols 1e-3,1e-6,1e-8,1e-10,1e-12,1e-13]
                                 [--kinds critical,classify,trajectory] [--worst 12] [--clock cpu]
+                                [--corner kappa-tiny]
+
+``--corner kappa-tiny`` times only the corner of kappa far below kappa_crit (linear
+instability, the outcome certain, the run only for its times): ``--n`` x 20 queries with
+kappa log-uniform in [1e-300, min(1e-3, kappa_crit)), b/a - 1 log-uniform in [1e-12, 1e6],
+eps 0 / 1 / uniform, v_o = 1 or log-uniform in [1e-300, 1e300], both perturbations (sizes
+of both signs, magnitudes up to the valid range), rtol log-uniform in [1e-13, 1e-3]; p50 /
+p99 / max per kind, the count over 10 ms and over 7 ms, and the worst cases.
 """
 
 from __future__ import annotations
@@ -232,6 +240,75 @@ def corner_summary(slow: list[Q]) -> list[tuple[str, int, float]]:
     return out
 
 
+def kappa_tiny_queries(n: int, rng: np.random.Generator, kinds: tuple[str, ...]) -> list[Q]:
+    """``n`` random queries of the corner kappa << kappa_crit (``--corner kappa-tiny``)."""
+    out: list[Q] = []
+    for _ in range(n):
+        ba = 1.0 + 10.0 ** rng.uniform(-12.0, 6.0)
+        kc = ba - 1.0
+        kappa = 10.0 ** rng.uniform(-300.0, min(-3.0, math.log10(kc) - 1e-9))
+        u = rng.uniform()
+        eps = 0.0 if u < 0.2 else (1.0 if u < 0.4 else float(rng.uniform()))
+        vo = 1.0 if rng.uniform() < 0.6 else 10.0 ** rng.uniform(-300.0, 300.0)
+        p = Params(ba, kappa, eps, vo)
+        rtol = 10.0 ** rng.uniform(-13.0, -3.0)
+        if rng.uniform() < 0.4:
+            pert = VJ
+            lg = 10.0 ** rng.uniform(-6.0, math.log10(SIZE_MAX))
+            lg = lg if rng.uniform() < 0.7 else -lg
+        else:
+            pert = LJ
+            if rng.uniform() < 0.2:
+                lg = math.log1p(-float(rng.uniform(0.0, 0.999)))
+            else:
+                hi = math.log(min(VO_MAX / vo, VO_MAX))
+                lg = 10.0 ** rng.uniform(-6.0, math.log10(hi))
+        kind = kinds[int(rng.integers(len(kinds)))]
+        out.append(Q(kind, p, pert, rtol, log_size=lg))
+    return out
+
+
+def corner_main(a: argparse.Namespace, kinds: tuple[str, ...]) -> None:
+    """``--corner kappa-tiny``: time the corner's queries, best of 3 over 10 ms."""
+    kinds = tuple(k for k in kinds if k != "critical") or ("classify",)
+    rng = np.random.default_rng(a.seed)
+    qs = kappa_tiny_queries(20 * a.n, rng, kinds)
+    for q in kappa_tiny_queries(20, np.random.default_rng(a.seed + 1), kinds):
+        _time(q)  # warm-up (untimed)
+    for q in qs:
+        _time(q)
+        q.first = q.seconds
+        if q.seconds > TARGET_S:
+            best = q.seconds
+            for _ in range(2):
+                _time(q)
+                best = min(best, q.seconds)
+            q.seconds = best
+    print(f"{'kind':<11}{'n':>6}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>10}{'>10ms':>7}{'>7ms':>7}")
+    for k in kinds:
+        sel = [q for q in qs if q.kind == k and not q.error.startswith("Param")]
+        if not sel:
+            continue
+        t = np.array([q.seconds for q in sel]) * 1e3
+        print(
+            f"{k:<11}{len(sel):>6}{np.median(t):>9.3f}{np.percentile(t, 99):>9.2f}"
+            f"{t.max():>10.1f}{int((t > 10.0).sum()):>7}{int((t > 7.0).sum()):>7}"
+        )
+    for k in kinds:
+        worst = sorted((q for q in qs if q.kind == k), key=lambda q: -q.seconds)[: a.worst]
+        print(f"slowest {k} queries:")
+        for q in worst:
+            print(
+                f"  {q.seconds * 1e3:9.2f} ms  {q.label()}\n               -> {q.info or q.error}"
+            )
+    bad = [q for q in qs if q.error and not q.error.startswith(("Param", "Undecided"))]
+    print(f"other exceptions: {len(bad)}")
+    for q in bad[:10]:
+        print(f"  {q.label()}\n      {q.error}")
+    load1 = os.getloadavg()
+    print(f"load average at the end {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=40, help="random points of each sampling")
@@ -246,6 +323,12 @@ def main() -> None:
         default="wall",
         help="time each query by wall clock (default) or by this process's CPU time",
     )
+    ap.add_argument(
+        "--corner",
+        choices=("kappa-tiny",),
+        default=None,
+        help="time only one corner's random queries (see the module docstring)",
+    )
     a = ap.parse_args()
     global CLOCK
     CLOCK = time.process_time if a.clock == "cpu" else time.perf_counter
@@ -257,6 +340,9 @@ def main() -> None:
         " load average"
         f" {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f} (2-core machine, shared)"
     )
+    if a.corner is not None:
+        corner_main(a, kinds)
+        return
     rng = np.random.default_rng(a.seed)
     points = [] if a.no_corners else corner_points()
     points += sample_points(a.n, rng)

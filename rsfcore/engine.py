@@ -59,6 +59,7 @@ Sec. II.10); docs/core-api.md (hybrid time and its measured cost).
 from __future__ import annotations
 
 import math
+import sys
 from enum import IntEnum
 from typing import NamedTuple
 
@@ -90,6 +91,7 @@ __all__ = [
     "blowup_tail",
     "STATUS",
     "TIME_LIMIT",
+    "PHI_SUBNORMAL",
     "NSTATE",
 ]
 
@@ -130,6 +132,10 @@ class Status(IntEnum):
     #: phi = -6000, where e^phi underflows to 0, stepped to T ~ 1e308 and then took
     #: infinite steps until its budget: 30 s for a trajectory)
     TIME_LIMIT = 7
+    #: phi - ln c fell below EngineOptions.phi_floor (PHI_SUBNORMAL: e^(phi - ln c), the
+    #: slip rate and every rate proportional to it, is subnormal there and carries fewer
+    #: than 53 bits, 0 below -745; the run does not follow the model beyond)
+    PHI_FLOOR = 8
 
     @property
     def text(self) -> str:
@@ -154,6 +160,10 @@ _BUDGET = int(Status.BUDGET)
 _STEP_UNDERFLOW = int(Status.STEP_UNDERFLOW)
 _CONVERGED = int(Status.CONVERGED)
 _TIME_LIMIT = int(Status.TIME_LIMIT)
+_PHI_FLOOR = int(Status.PHI_FLOOR)
+#: ln of the smallest normal double (-708.40): below phi - ln c = PHI_SUBNORMAL, e^(phi -
+#: ln c) is subnormal (Status.PHI_FLOOR)
+PHI_SUBNORMAL = math.log(sys.float_info.min)
 #: c T and the hybrid time beyond which a run stops (Status.TIME_LIMIT)
 TIME_LIMIT = 1e300
 #: A stiff phase hands back to DOP853 after 20 Rosenbrock steps in a row with h |lambda|
@@ -293,6 +303,7 @@ class EngineOptions(NamedTuple):
         fast_leg: take fast-slip legs and falling flanks in closed form (rsfcore.excursion).
         stiff_method: a :class:`StiffMethod` code (0 RODAS4, 1 RODASP, 2 Radau IIA, the
             default): the implicit method of stiff phases.
+        phi_floor: stop (Status.PHI_FLOOR) once phi - ln c < phi_floor (-inf: never).
     """
 
     rtol: float
@@ -307,6 +318,7 @@ class EngineOptions(NamedTuple):
     integrator: int = 1
     fast_leg: bool = False
     stiff_method: int = int(StiffMethod.RADAU5)
+    phi_floor: float = -math.inf
 
     def typed(self) -> EngineOptions:
         """The same options with every field coerced to its declared type."""
@@ -323,6 +335,7 @@ class EngineOptions(NamedTuple):
             int(self.integrator),
             bool(self.fast_leg),
             int(self.stiff_method),
+            float(self.phi_floor),
         )
 
 
@@ -656,6 +669,7 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
     integrator = opts.integrator
     fast_leg = opts.fast_leg
     stiff_method = opts.stiff_method
+    phi_floor = opts.phi_floor
     n = y0.shape[0]  # 5, or 3 = (phi, ln theta, T) when slip and load point are not wanted
     c = vo if vo > 0.0 else 1.0
     lnc = math.log(c)
@@ -786,6 +800,9 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
     while n_steps + n_rej < max_steps:
         if tau > TIME_LIMIT or y[2] > TIME_LIMIT:
             status = _TIME_LIMIT
+            break
+        if y[0] - lnc < phi_floor:
+            status = _PHI_FLOOR
             break
         if stiff and stiff_method == 2:
             # ---- one Radau IIA step (stiff phase) --------------------------------------

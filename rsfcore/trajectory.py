@@ -47,6 +47,7 @@ from .decision import DecisionFlag, Kind, first_decision
 from .engine import (
     LOG_Y,
     NSTATE,
+    PHI_SUBNORMAL,
     EngineOptions,
     EngineResult,
     Integrator,
@@ -378,6 +379,50 @@ def _times_unresolved(p: Params, phi0: float, psi0: float, rtol: float) -> bool:
     return 0.0 < abs(L0 - Ls) <= rtol * (abs(Ls) + 1.0)
 
 
+def _linear_instability(p: Params, plan: _Plan, sep_side: int, method: str) -> bool:
+    """The outcome is certain before integrating because kappa < kappa_crit with v_o > 0
+    (every perturbation grows: unstable, `linear_instability` unless the run reaches
+    L > L*); the run is only for the times (method "auto")."""
+    return (
+        method == "auto"
+        and plan.outcome is None
+        and sep_side == 0
+        and p.vo > 0.0
+        and p.kappa < p.kappa_crit
+    )
+
+
+def _times_beyond_reach(
+    p: Params,
+    phi0: float,
+    psi0: float,
+    rtol: float,
+    plan: _Plan,
+    sep_side: int,
+    method: str,
+    only_outcome: bool,
+) -> bool:
+    """A classify question (``only_outcome``) of a :func:`_linear_instability` whose times
+    no run could report (:func:`_times_unresolved`: the start within the integration's
+    resolution of L*): the run is skipped.
+
+    Where kappa/kappa_crit <~ rtol, a load-point jump starts at L = 0, within ~kappa of
+    L* (L* -> 0 with kappa), so its times were always dropped; the run only used its
+    budget.  The jump moves the slider by ~kappa dv: it starts ~ln(1/kappa) e-folds from
+    runaway, or relocks and reloads over T ~ kappa_crit ln T / kappa, where e^phi
+    underflows to subnormals (each right-hand side then ~3x its usual cost, and steps
+    rejected on the lost bits): b/a = 1108, kappa = 2.6e-256, eps = 1, ln(1 + dv) = 4.15,
+    rtol 8.1e-11 ran DECIDED_OUTCOME_BUDGET = 3,500 steps (43,853 right-hand sides) in
+    13 ms for an answer without times (issue 22 item 3).  The answer is the same
+    (unstable, complete False, times None), with the certificate `linear_instability`
+    where the run used to reach L > L* within its budget (`L_above_Lstar`)."""
+    return (
+        only_outcome
+        and _linear_instability(p, plan, sep_side, method)
+        and _times_unresolved(p, phi0, psi0, rtol)
+    )
+
+
 #: unit roundoff of doubles, 2^-53
 _ULP1 = 2.0**-53
 
@@ -563,10 +608,12 @@ def _run(
     integrator: Integrator = Integrator.AUTO,
     fast_leg: bool = True,
     steplog: NDArray[np.float64] = _EMPTY_LOG,
+    phi_floor: float = -math.inf,
 ) -> tuple[EngineResult, NDArray[np.float64]]:
     """One engine run; fast-slip legs in closed form (rsfcore.excursion) unless ``fast_leg``
     is False (method "integrate").  ``steplog`` ((m, LOG_Y + 5), m > 0): log the accepted
-    steps of the full state (engine.integrate), for samples taken afterwards."""
+    steps of the full state (engine.integrate), for samples taken afterwards.  ``phi_floor``:
+    the run stops once phi - ln v_o falls below it (engine.Status.PHI_FLOOR)."""
     n_samp = sample_tau.shape[0] + sample_T.shape[0]
     lth0 = (psi0 - phi0) / p.ba
     # without samples (or a step log) only (phi, ln theta, T) are carried
@@ -594,6 +641,7 @@ def _run(
         eq_tol=eq_tol(p),
         integrator=integrator,
         fast_leg=fast_leg,
+        phi_floor=phi_floor,
     )
     res = run(y0, p.ba, p.kappa, p.eps, p.vo, opts, sample_tau, sample_T, samples, steplog)
     return res, samples
@@ -642,7 +690,11 @@ def classify(
     DECIDED_OUTCOME_BUDGET steps; beyond, or where the check runs are predicted not to fit
     what is left of DECIDED_CERTIFY_BUDGET (:func:`simulate`), they are None and
     ``complete`` False (a
-    trajectory request, :func:`simulate` with ``n_points``, integrates further).  Fast-slip
+    trajectory request, :func:`simulate` with ``n_points``, integrates further).  For
+    kappa < kappa_crit the runs stop where phi - ln v_o falls below engine.PHI_SUBNORMAL
+    (e^(phi - ln v_o) subnormal: the engine does not follow the model there), and a start
+    within the integration's resolution of L* is not integrated (its times would not be
+    reported): times None, ``complete`` False.  Fast-slip
     legs above phi - ln v_o = 50 are taken in closed form (rsfcore.excursion).
     Raises UndecidedError if no certificate is reached within the budget
     (1e7 steps, ~10 s), ParameterError on invalid input.
@@ -1249,6 +1301,17 @@ def _simulate(
         )
     frame_shift = 0.0  # ln v_o of the run when it is integrated in the v_o = 1 frame
     steplog = _EMPTY_LOG
+    # A linear instability's run (kappa < kappa_crit, outcome certain) stops where e^(phi
+    # - ln v_o) turns subnormal: a start that relocks (a velocity drop, or a load-point
+    # jump at kappa << kappa_crit) reloads over T ~ kappa_crit ln T / kappa, and where
+    # phi - ln v_o < PHI_SUBNORMAL the engine does not follow the model (a_phi loses its
+    # bits, then is 0, which stops the state's aging; G is clipped): its steps cost ~3x
+    # (subnormal arithmetic) and shrink on the noise, and its times were erratic (at b/a =
+    # 2, kappa = 1e-200: blow-up times 5e202 .. 1e203 whatever the drop d = -600 .. -1000,
+    # and -6e240 once, claiming 2 .. 14 or 8e39; b/a = 1.6e5, kappa = 3.6e-167, eps = 1,
+    # d = -7.7, rtol 2.4e-10: 3,500 steps in 13.7 ms for no times; trajectories up to
+    # 151,001 steps, 1.2 s: issue 22 item 3).  Its times are then None, complete False.
+    floor = PHI_SUBNORMAL if _linear_instability(p_run, plan, sep_side, method) else -math.inf
     if decided_budget is not None:
         cap = int(decided_budget)  # a check run's share (simulate; with t_end or times too)
     elif not only_outcome:
@@ -1274,6 +1337,11 @@ def _simulate(
         or (plan.certificate or "").endswith("_L_on_Lstar")
     ):
         # decided in closed form; nothing to integrate
+        res = None
+    elif _times_beyond_reach(p_run, phi0, psi0, rtol, plan, sep_side, method, only_outcome):
+        # only the outcome asked, certain before integrating (kappa < kappa_crit), and
+        # the run's times would not be reported (the start within the integration's
+        # resolution of L*): nothing to integrate for
         res = None
     elif decided and predicted_steps is not None and predicted_steps > budget:
         # a check run of a trajectory whose first run the integration decided, while
@@ -1315,6 +1383,7 @@ def _simulate(
             integrator=integ,
             fast_leg=method == "auto",
             steplog=steplog,
+            phi_floor=floor,
         )
     plan_run = plan  # (the separatrix side may replace the plan below)
     tsc = math.exp(-frame_shift)  # frame time -> T
@@ -1457,6 +1526,7 @@ def _simulate(
             and res.status != Status.BUDGET
             else None,
             steplog=steplog,
+            phi_floor=floor,
         )
 
     return TrajectoryResult(
@@ -1509,6 +1579,7 @@ def _sample(
     shift: float = 0.0,
     res0: EngineResult | None = None,
     steplog: NDArray[np.float64] = _EMPTY_LOG,
+    phi_floor: float = -math.inf,
 ) -> Trajectory:
     """Samples of the run from (phi0, psi0) with p; ``shift`` = ln v_o when p and the start
     are the v_o = 1 frame of a run at v_o (t_end and times are given in T and scaled to the
@@ -1517,7 +1588,8 @@ def _sample(
     run without samples that sets their extent, when the caller already has it; with its
     ``steplog`` (res0.n_logged rows) samples in hybrid time are read from the logged steps
     (engine.replay_samples: bit-identical to a second run with the samples, at the cost of
-    ~200 steps instead of the whole run)."""
+    ~200 steps instead of the whole run).  ``phi_floor``: as the classification run's
+    (:func:`_run`)."""
     if sampling not in ("tau", "time"):
         raise ParameterError("sampling", sampling, "'tau' or 'time'")
     scale = math.exp(shift)  # T' = scale T
@@ -1528,7 +1600,15 @@ def _sample(
     te = math.inf if t_end is None else t_end
     sor = None if t_end is None else False
     run = functools.partial(
-        _run, p, phi0, psi0, rtol, plan, integrator=integrator, fast_leg=fast_leg
+        _run,
+        p,
+        phi0,
+        psi0,
+        rtol,
+        plan,
+        integrator=integrator,
+        fast_leg=fast_leg,
+        phi_floor=phi_floor,
     )
     if times is not None and len(times) > 0:
         sT = np.asarray(times, dtype=np.float64)

@@ -414,6 +414,74 @@ def test_decided_outcome_check_runs_share_one_budget(monkeypatch: pytest.MonkeyP
     assert not res.complete and res.blowup_time is None
 
 
+def test_linear_instability_without_reportable_times_is_not_integrated(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """kappa = 2.6e-256 << kappa_crit = 1107: a load-point jump starts at L = 0, within
+    ~kappa of L* (2.4e-259), below the integration's resolution of L, so no run can report
+    its times (test_start_within_resolution_of_Lstar_has_no_times).  The run spent
+    DECIDED_OUTCOME_BUDGET (3,500 steps, 13 ms) on them (issue 22 item 3).  The outcome
+    needs no run (kappa < kappa_crit, v_o > 0: every perturbation grows)."""
+    _, steps = _count_runs(monkeypatch)
+    r = classify(Params(1108.0, 2.6e-256, 1.0, 1.0), LJ, log_size=4.15, rtol=8.1e-11)
+    assert (r.outcome, r.certificate) == ("unstable", "linear_instability")
+    assert r.n_steps == 0 and steps == [0]
+    assert not r.complete and r.blowup_time is None and r.peak_time is None
+    # where the start is resolved (kappa = 1e-3: L* = 9e-7 >> rtol) the runs give the times
+    # (blow-up at T = 0.00884, checked at rtol/10 and 1e-13)
+    r = classify(Params(1108.0, 1e-3, 1.0, 1.0), LJ, log_size=4.15, rtol=8.1e-11)
+    assert r.n_steps > 0 and r.complete and r.blowup_time is not None
+    # a trajectory still integrates (its samples are asked)
+    t = simulate(Params(1108.0, 2.6e-256, 1.0, 1.0), LJ, log_size=4.15, n_points=20)
+    assert t.n_steps > 0 and t.trajectory is not None
+
+
+def test_linear_instability_run_stops_where_e_phi_turns_subnormal() -> None:
+    """A velocity drop at kappa << kappa_crit relocks: phi - ln v_o falls below
+    engine.PHI_SUBNORMAL (-708.4), where e^(phi - ln v_o) is subnormal (then 0) and the
+    engine no longer follows the model (issue 22 item 3).  b/a = 1.6e5, kappa = 3.6e-167,
+    d = -7.7: the first run stepped there to its budget of 3,500 steps (13.7 ms; 1.2 s for
+    a trajectory); b/a = 2, kappa = 1e-200, eps = 0, d = -1000 (below the floor from the
+    start) reported blow-up times 6.4e202, 5.1e202, 1.1e203 at rtol 1e-6, 1e-8, 1e-10,
+    where a slip-law slider at rest (theta frozen) reloads to phi = ln v_o after
+    T = 1000/kappa = 1e203.  Such runs now stop at the floor: outcome certain, no times."""
+    from rsfcore.engine import PHI_SUBNORMAL
+    from rsfcore.trajectory import DECIDED_OUTCOME_BUDGET
+
+    p = Params(157429.90348448302, 3.648894910830068e-167, 1.0, 1.0)
+    r = classify(p, VJ, log_size=-7.673601576154921, rtol=2.4052824304104485e-10)
+    assert (r.outcome, r.certificate) == ("unstable", "linear_instability")
+    assert not r.complete and r.blowup_time is None
+    assert 0 < r.n_steps < DECIDED_OUTCOME_BUDGET // 4
+    t = simulate(p, VJ, log_size=-7.673601576154921, rtol=2.4e-10, n_points=50)
+    assert t.trajectory is not None and not t.complete and t.blowup_time is None
+    # the samples run to the floor (the last one just past it), not beyond
+    assert t.trajectory.phi[-1] < PHI_SUBNORMAL < t.trajectory.phi[-2]
+    p = Params(2.0, 1e-200, 0.0, 1.0)
+    for rtol in (1e-6, 1e-8, 1e-10):
+        r = classify(p, VJ, -1000.0, rtol=rtol)
+        assert (r.outcome, r.n_steps, r.blowup_time, r.complete) == ("unstable", 0, None, False)
+
+
+def test_engine_phi_floor() -> None:
+    """engine.EngineOptions.phi_floor stops a run once phi - ln c is below it (Status
+    PHI_FLOOR), at the start too; the default (-inf) never does."""
+    import numpy as np
+
+    from rsfcore.engine import PHI_SUBNORMAL, EngineOptions, Status, run
+
+    y0 = np.array([-720.0, 0.0, 0.0])
+    # v_o = e^-20: phi - ln c = -700 at the start, above the floor
+    vo = math.exp(-20.0)
+    for v, stopped in ((1.0, True), (vo, False)):
+        opts = EngineOptions(rtol=1e-8, atol=1e-8, max_steps=50, phi_floor=PHI_SUBNORMAL)
+        res = run(y0, 2.0, 0.5, 1.0, v, opts)
+        assert (res.status == Status.PHI_FLOOR) == stopped
+        assert (res.n_steps == 0) == stopped
+    res = run(y0, 2.0, 0.5, 1.0, 1.0, EngineOptions(rtol=1e-8, atol=1e-8, max_steps=50))
+    assert res.status != Status.PHI_FLOOR and res.n_steps > 0
+
+
 def test_probe_at_the_check_tolerance_reuses_the_check(monkeypatch: pytest.MonkeyPatch) -> None:
     """At rtol 1e-12 the check (rtol/10) and the probe (the tightest, 1e-13) are one run:
     two integrations, not three, and the answer is complete."""

@@ -145,7 +145,7 @@ def test_stiffness_ratio_estimates_h_lambda() -> None:
 
 
 def test_engine_status_and_result_types() -> None:
-    assert [int(s) for s in engine.Status] == list(range(8))
+    assert [int(s) for s in engine.Status] == list(range(9))
     assert engine.STATUS[int(engine.Status.STEP_UNDERFLOW)] == "step_underflow"
     y0 = np.array([1.0, 0.0, 0.0])
     empty = np.empty(0)
