@@ -7,8 +7,9 @@ starts them.  Steps:
 1. rsfcore alone: ``rsfcore.batch.critical_points`` on the same points, two processes in
    parallel (the worker cores) with a worker's memory setting
    (:func:`rsfapp.memory.keep_freed_memory`), parameters generated first and not timed,
-   blocks dealt out alternately, in 10^6-point blocks and in the worker's 2^16-point
-   parts; run before the sweep and again after it (the ratios are against the mean: the
+   blocks dealt out alternately, in 10^6-point blocks and in 2^16-point parts (those of
+   the unfused chunk path, :data:`rsfapp.sweepdata.PART_POINTS`; a worker computes a
+   grid's chunk fused, :func:`rsfcore.batch.critical_grid`, in one call); run before the sweep and again after it (the ratios are against the mean: the
    machine is shared and its load moves).  The primary reference is the faster of the
    two per CPU second (the best a library user gets from the public batch call); the
    other is printed too.
@@ -134,9 +135,9 @@ def rsfcore_rate(
 
 def reference_blocks(n: int) -> dict[str, int]:
     """The reference's block sizes: {name: points per batch call}: 10^6-point blocks
-    (or n/100) and, when that is larger, the worker's part size
-    (:data:`rsfapp.sweepdata.PART_POINTS`: a chunk of cheap points runs faster in parts,
-    its data stay in the core's cache)."""
+    (or n/100) and, when that is larger, the part size of the unfused chunk path
+    (:data:`rsfapp.sweepdata.PART_POINTS`: cheap points run faster in parts, their data
+    stay in the core's cache)."""
     from rsfapp.sweepdata import PART_POINTS
 
     blk = max(1, min(1_000_000, n // 100))
@@ -321,6 +322,7 @@ PROFILE_CATEGORIES: tuple[tuple[str, str, str | None], ...] = (
     ("kernel", "rsfcore/", None),
     ("parameters", "rsfapp/grid.py", None),
     ("block encoding", "rsfapp/store/sweeps.py", "add"),
+    ("block encoding", "rsfapp/store/sweeps.py", "add_whole"),
     ("block encoding", "rsfapp/store/sweeps.py", "finish"),
     ("block encoding", "rsfapp/store/sweeps.py", "_same_bits"),
     ("result arrays", "rsfapp/sweepdata.py", None),
