@@ -33,9 +33,9 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Any, Literal, ParamSpec
 
 import numpy as np
 from numpy.typing import NDArray
@@ -91,14 +91,17 @@ _INTEGRATORS: dict[str, Integrator] = {
 # DEFAULT_RTOL, RTOL_RANGE and SIZE_MAX (|d| of a velocity jump) come from rsfcore.limits.
 PHI_STOP = 40.0
 MAX_STEPS = STEP_BUDGET
-#: Step budget when a closed form has already decided the outcome and a trajectory is
-#: wanted (~0.5 s).
-DECIDED_BUDGET = 500_000
-#: The same when only the outcome is asked (classify): its times are a by-product, reported
-#: where the first run reaches them within this many steps and :func:`simulate`'s check
-#: runs within DECIDED_CERTIFY_BUDGET steps in all, else None with complete False.  Slow
-#: outward spirals at kappa < kappa_crit near b/a -> 1 need 1e4 .. 1e7 steps to blow up
-#: (bench/bench_stress.py: 5e5 steps, 0.33 s, still short of it).
+#: Step budget of the first run when the outcome is certain before integrating (a closed
+#: form, the separatrix side, kappa < kappa_crit with v_o > 0), for classify and for a
+#: trajectory alike: its times are a by-product, reported where the first run reaches them
+#: within this many steps and :func:`simulate`'s check runs within DECIDED_CERTIFY_BUDGET
+#: steps in all, else None with complete False (and the samples of a trajectory end where
+#: the run stopped).  Slow outward spirals at kappa < kappa_crit near b/a -> 1 need 1e4 ..
+#: 1e7 steps to blow up (~1e5 turns per e-fold at kappa_crit - kappa ~ 1e-11): a
+#: trajectory's run went on to 5e5 steps (DECIDED_BUDGET, removed) and its samples were
+#: taken by two more runs to the blow-up with the full budget, 1.5e6 .. 1e7 steps each:
+#: 6 - 25 s CPU for one query (issue 22, bench_speed seed 991; b/a = 1 + 4.3e-11,
+#: kappa = 0.18 kappa_crit), now 3.6 - 5.2 ms.
 DECIDED_OUTCOME_BUDGET = 3_500
 #: Steps of all runs of such an outcome together (the first, the check at rtol/10 and the
 #: probe), so that classify answers within 10 ms (issue 22): such runs (slow spirals)
@@ -108,6 +111,15 @@ DECIDED_OUTCOME_BUDGET = 3_500
 #: left the first run's claim unchecked: a blow-up time at rtol 1e-3 was 1.7e3 x off its
 #: claim of 0.04 (b/a = 1 + 8e-12, kappa < kappa_crit, a load-point jump dv = 5.7e6).
 DECIDED_CERTIFY_BUDGET = 7_000
+#: Step budget of a run that takes a trajectory's samples up to a time the caller gave
+#: (``t_end`` or ``times``; each run of :func:`_sample`), sized for ~5 - 8 ms of CPU
+#: (~1.0 - 1.5 us per DOP853 step with rejections, measured on slow spirals), which leaves
+#: room for the classification run before it.  Where it runs out first, the samples end
+#: where the run stopped and the answer says so (complete False, ``reason``).  A t_end far
+#: beyond the dynamics ran to the full
+#: budget (1e7 steps, twice: 25 s at b/a = 1 + 1e-10, kappa = 1.5 kappa_crit, t_end = 1e12,
+#: ~1e6 turns of a slow inward spiral) and its samples silently ended at T = 5.3e11.
+SAMPLE_BUDGET = 5_000
 #: The check runs of a trajectory whose outcome was certain before integrating take at
 #: most this many times the steps of its first run together (:func:`simulate`): DOP853
 #: takes ~1.33x the steps at a 10x tighter tolerance and ~2.4x at 1e3x, so the check and a
@@ -151,6 +163,8 @@ class Trajectory:
     slip: NDArray[np.float64]
     load_point: NDArray[np.float64]
     physical: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    #: why the samples end before the extent asked ('' when they do not; not a column)
+    cut: str = ""
 
     def to_dict(self) -> dict[str, list[float]]:
         out = {
@@ -184,8 +198,10 @@ class TrajectoryResult:
     ill-conditioned for any method, 1.5 off at rtol 1e-10, and the claim says so (7.6).
     ``complete`` is False when the outcome is certain but the step budget ran out before
     the return/blow-up time (then None) and the final peak (then the largest phi reached
-    so far, a lower bound), or when such an outcome's times could not be checked within
-    DECIDED_CERTIFY_BUDGET (:func:`simulate`; a trajectory's samples still run to the end).
+    so far, a lower bound), when such an outcome's times could not be checked within
+    DECIDED_CERTIFY_BUDGET (:func:`simulate`), or when a trajectory's samples end before
+    the extent asked (a step budget: the samples end where the run stopped); ``reason``
+    says which ('' when complete).
     """
 
     outcome: Literal["stable", "unstable"]
@@ -204,6 +220,8 @@ class TrajectoryResult:
     trajectory: Trajectory | None = None
     physical: PhysicalParams | None = None
     complete: bool = True
+    #: why ``complete`` is False, in words ('' when complete)
+    reason: str = ""
     #: the outcome rests on the integration alone (no closed form, no separatrix side, not
     #: the linear instability of kappa < kappa_crit): simulate() certifies it by runs at
     #: tolerances 10x apart (not part of to_dict)
@@ -230,6 +248,7 @@ class TrajectoryResult:
             "size": self.size,
             "trajectory": None if self.trajectory is None else self.trajectory.to_dict(),
             "complete": self.complete,
+            "reason": self.reason,
         }
         if self.physical is not None:
             ph = self.physical
@@ -714,6 +733,27 @@ def classify(
     )
 
 
+_P = ParamSpec("_P")
+
+
+def _said_complete(fn: Callable[_P, TrajectoryResult]) -> Callable[_P, TrajectoryResult]:
+    """:func:`simulate` whose answer says where its samples end short of the extent asked
+    (Trajectory.cut: complete False, the cut added to ``reason``).  Applied to the answer
+    after the check runs, which check the times of the classification run (complete there)
+    whatever the samples' extent."""
+
+    @functools.wraps(fn)
+    def said(*args: _P.args, **kwargs: _P.kwargs) -> TrajectoryResult:
+        res = fn(*args, **kwargs)
+        cut = "" if res.trajectory is None else res.trajectory.cut
+        if not cut or cut in res.reason:
+            return res
+        return replace(res, complete=False, reason="; ".join(r for r in (res.reason, cut) if r))
+
+    return said
+
+
+@_said_complete
 def simulate(
     params: Params,
     perturbation: str = "velocity-jump",
@@ -833,10 +873,10 @@ def simulate(
     # steps.  Where a check cannot finish within what is left, the first run's times are
     # not checked and are not reported (_unchecked); a tighter run rarely takes fewer steps
     # than the first, so it is not started with less than that.  A trajectory (samples
-    # asked) of such an outcome, whose first run goes on to DECIDED_BUDGET for the
-    # samples, is checked where that run took at most DECIDED_OUTCOME_BUDGET steps (what
-    # classify integrates), and its check runs together take at most
-    # TRAJECTORY_CHECK_RATIO x its steps.  Its check runs were cut at
+    # asked) of such an outcome has classify's first run (DECIDED_OUTCOME_BUDGET steps; its
+    # samples end where that run stopped) and classify's DECIDED_CERTIFY_BUDGET, and its
+    # check runs together take at most TRAJECTORY_CHECK_RATIO x its steps too.  Its check
+    # runs were cut at
     # DECIDED_OUTCOME_BUDGET, and the first run's claim stood unchecked: up to 71x below the
     # error of a blow-up time after a slow outward spiral (b/a = 1 + 2.5e-8, kappa = 0.63
     # kappa_crit, rtol 1e-3: 3.5 against 0.049; 11x at b/a = 1 + 1e-6, rtol 1e-8), while a
@@ -845,9 +885,7 @@ def simulate(
     budgeted = only_outcome and decided
     sampled = decided and not only_outcome
     if sampled:
-        if res.n_steps > DECIDED_OUTCOME_BUDGET:
-            return _unchecked(res)
-        left = TRAJECTORY_CHECK_RATIO * res.n_steps
+        left = min(TRAJECTORY_CHECK_RATIO * res.n_steps, DECIDED_CERTIFY_BUDGET - res.n_steps)
     else:
         left = DECIDED_CERTIFY_BUDGET - res.n_steps
     limited = budgeted or sampled
@@ -1062,7 +1100,15 @@ def _unchecked(res: TrajectoryResult) -> TrajectoryResult:
     """``res`` (an outcome certain before integrating) without the times that its check
     runs could not confirm within DECIDED_CERTIFY_BUDGET: times None, complete False (the
     peak is the first run's, unchecked, as after a budget cut)."""
-    return replace(res, blowup_time=None, return_time=None, peak_time=None, complete=False)
+    why = (
+        "the outcome is certain before integrating, but runs at a tighter tolerance could not"
+        f" check its times within the step budget ({DECIDED_CERTIFY_BUDGET} steps in all, sized"
+        " for ~10 ms): times not reported, peak_phi and rel_accuracy the first run's own,"
+        " unchecked"
+    )
+    return replace(
+        res, blowup_time=None, return_time=None, peak_time=None, complete=False, reason=why
+    )
 
 
 def _confirmed(res: TrajectoryResult, *checks: TrajectoryResult | None) -> TrajectoryResult:
@@ -1079,7 +1125,13 @@ def _confirmed(res: TrajectoryResult, *checks: TrajectoryResult | None) -> Traje
         if getattr(res, name) is not None
         and any(c is not None and getattr(c, name) is None for c in checks)
     }
-    return replace(res, complete=False, **drop) if drop else res  # type: ignore[arg-type]
+    if not drop:
+        return res
+    why = (
+        f"a run at a tighter tolerance certified the outcome without {', '.join(drop)}"
+        " (e.g. by convergence instead of a return), so it could not check them: not reported"
+    )
+    return replace(res, complete=False, reason=why, **drop)  # type: ignore[arg-type]
 
 
 def _erratic(res: TrajectoryResult, rtol: float) -> bool:
@@ -1312,12 +1364,9 @@ def _simulate(
     # d = -7.7, rtol 2.4e-10: 3,500 steps in 13.7 ms for no times; trajectories up to
     # 151,001 steps, 1.2 s: issue 22 item 3).  Its times are then None, complete False.
     floor = PHI_SUBNORMAL if _linear_instability(p_run, plan, sep_side, method) else -math.inf
-    if decided_budget is not None:
-        cap = int(decided_budget)  # a check run's share (simulate; with t_end or times too)
-    elif not only_outcome:
-        cap = DECIDED_BUDGET
-    else:
-        cap = DECIDED_OUTCOME_BUDGET
+    # a check run's share (simulate; with t_end or times too), else classify's budget for
+    # classify and trajectories alike
+    cap = int(decided_budget) if decided_budget is not None else DECIDED_OUTCOME_BUDGET
     # when the closed form already decided the outcome, only the times and the peak
     # are integrated: a smaller budget keeps stiff corners (kappa ~ 1e6) quick
     # (kappa < kappa_crit with a moving load point is decided too: every perturbation
@@ -1327,9 +1376,9 @@ def _simulate(
         or sep_side != 0
         or (p_run.kappa < p_run.kappa_crit and method == "auto")
     )
-    # only the outcome asked (classify): the times are a by-product worth at most
-    # DECIDED_OUTCOME_BUDGET steps (a check run: what is left of
-    # DECIDED_CERTIFY_BUDGET); a trajectory request gets DECIDED_BUDGET
+    # the times are a by-product worth at most DECIDED_OUTCOME_BUDGET steps (a check
+    # run: what is left of DECIDED_CERTIFY_BUDGET), also for a trajectory (its samples
+    # end where the run stops)
     budget = min(cap, max_steps) if decided else max_steps
     if (
         beyond
@@ -1367,7 +1416,7 @@ def _simulate(
         if (
             n_points > 0
             and sampling == "tau"
-            and t_end is None
+            and (t_end is None or decided)
             and (times is None or len(times) == 0)
         ):
             # samples evenly in hybrid time up to where this run ends: it logs its steps
@@ -1405,6 +1454,7 @@ def _simulate(
     runaway = not math.isnan(T_cert)
     blowup_time = return_time = None
     complete = True
+    why = ""  # (TrajectoryResult.reason)
     if plan.certificate is not None and plan.certificate.endswith("_L_on_Lstar"):
         # On the line L = L* itself dL/ds = 0 and d phi/dT = (kappa/kappa_crit) e^phi
         # exactly, so the blow-up time is e^-phi0 kappa_crit/kappa (closed form; the
@@ -1435,6 +1485,8 @@ def _simulate(
         else:
             peak_T = None
             complete = False
+            why = f"L > L* (a certain runaway) was reached, but {_stop_text(status, budget)}"
+            why += " before the blow-up: no blow-up time"
     elif status == Status.RETURNED:
         outcome, cert = "stable", plan.certificate or "returned_to_steady_state"
         return_time = float(T_ret)
@@ -1446,10 +1498,19 @@ def _simulate(
         # budget reached; the outcome is certain, the times and the peak are not final
         outcome, cert = plan.outcome, plan.certificate
         complete = False
+        if res is None and beyond:
+            why = "decided in closed form from a start beyond what the integration takes: no"
+            why += " times, peak_phi is the start's"
+        else:
+            why = f"the outcome is certain before integrating; {_stop_text(status, budget)}"
+            why += " before its times: times not reported, peak_phi the largest phi so far"
     elif p_run.kappa < p_run.kappa_crit:
         outcome, cert = "unstable", "linear_instability"
         peak_phi, peak_T = math.inf, None
         complete = False
+        why = "the outcome is certain before integrating (kappa < kappa_crit: every"
+        why += f" perturbation grows); {_stop_text(status, budget)} before L > L*: no blow-up"
+        why += " time"
     elif sep_side and max_steps >= cap:
         # overruled by the separatrix just below (when the caller's own max_steps ran out
         # first, that budget bounds the work: BudgetExceeded as for any undecided run)
@@ -1471,6 +1532,8 @@ def _simulate(
         outcome, cert = plan.outcome, plan.certificate  # type: ignore[assignment]
         blowup_time = return_time = None
         peak_phi, peak_T, complete = phi0, 0.0, False
+        why = "decided by the side of the traced separatrix (the critical size), while the"
+        why += " integration ended on the other side: its times and peak are not reported"
 
     if complete and cert != "at_equilibrium" and _times_unresolved(p_run, phi0, psi0, rtol):
         # the start is within the integration's resolution of L* (L0 - L* below rtol,
@@ -1480,6 +1543,8 @@ def _simulate(
         # 6e-6 (issue 22 stress run, kappa 1e-85 .. 1e-294).  Reported as not final.
         blowup_time = return_time = peak_T = None
         complete = False
+        why = "the start lies within the integration's resolution of L* (|L0 - L*| <= rtol"
+        why += " (|L*| + 1)): the outcome is certain, its times and peak are not resolved"
 
     integration_decided = (
         res is not None
@@ -1488,7 +1553,8 @@ def _simulate(
         and not (p_run.vo > 0.0 and p_run.kappa < p_run.kappa_crit)
     )
     traj = None
-    want = n_points > 0 or (times is not None and len(times) > 0)
+    want_T = times is not None and len(times) > 0
+    want = n_points > 0 or want_T
     if want:
         # sampled in the frame the outcome is integrated in (v_o = 1 for a named
         # perturbation): the start is exact there, while the rounding of (phi0, psi0) far
@@ -1502,6 +1568,19 @@ def _simulate(
                 phi_s, psi_s = lg_named, lg_named
             else:
                 phi_s, psi_s = -lg_named, (p_run.ba - 1.0) * lg_named
+        # the classification run is the run that sets the samples' extent when it is the
+        # same run (same frame, plan and steps): without t_end, and also where its budget
+        # cut it short of t_end (a run to t_end would take the same steps and stop at the
+        # same budget); where the budget cut it, the samples end there
+        reuse = (
+            res is not None
+            and shift == frame_shift
+            and plan is plan_run
+            and (
+                t_end is None
+                or (res.status == Status.BUDGET and float(res.y_end[2]) < t_end * math.exp(shift))
+            )
+        )
         traj = _sample(
             p_s,
             phi_s,
@@ -1516,17 +1595,12 @@ def _simulate(
             integ,
             fast_leg=method == "auto",
             shift=shift,
-            # the classification run is the run that sets the samples' extent when it is
-            # the same run (same frame, no t_end, finished within its budget)
-            res0=res
-            if res is not None
-            and t_end is None
-            and shift == frame_shift
-            and plan is plan_run
-            and res.status != Status.BUDGET
-            else None,
+            res0=res if reuse else None,
             steplog=steplog,
             phi_floor=floor,
+            # runs to the end of the classification run: its budget; to a time the caller
+            # gave, SAMPLE_BUDGET (at most the classification run's budget)
+            max_steps=budget if reuse and not want_T else min(SAMPLE_BUDGET, budget),
         )
 
     return TrajectoryResult(
@@ -1546,9 +1620,19 @@ def _simulate(
         trajectory=traj,
         physical=physical,
         complete=complete,
+        reason=why,
         integration_decided=integration_decided,
         n_stiff_steps=int(n_stiff),
     )
+
+
+def _stop_text(status: Status | None, budget: int) -> str:
+    """Why a run stopped short of a certificate, in words (TrajectoryResult.reason)."""
+    if status == Status.BUDGET:
+        return f"the step budget ({budget} steps) ran out"
+    if status is None:  # (a check run whose predicted steps exceed its budget)
+        return f"the run was not started (predicted beyond its step budget, {budget} steps)"
+    return f"the run stopped ({status.text})"
 
 
 def _frame_ok(vo: float, t_end: float | None, times: Sequence[float] | None) -> bool:
@@ -1580,6 +1664,7 @@ def _sample(
     res0: EngineResult | None = None,
     steplog: NDArray[np.float64] = _EMPTY_LOG,
     phi_floor: float = -math.inf,
+    max_steps: int = MAX_STEPS,
 ) -> Trajectory:
     """Samples of the run from (phi0, psi0) with p; ``shift`` = ln v_o when p and the start
     are the v_o = 1 frame of a run at v_o (t_end and times are given in T and scaled to the
@@ -1589,7 +1674,9 @@ def _sample(
     ``steplog`` (res0.n_logged rows) samples in hybrid time are read from the logged steps
     (engine.replay_samples: bit-identical to a second run with the samples, at the cost of
     ~200 steps instead of the whole run).  ``phi_floor``: as the classification run's
-    (:func:`_run`)."""
+    (:func:`_run`).  ``max_steps``: the budget of each run (that of ``res0`` where it is
+    given); where it runs out, the samples end where the run stopped and Trajectory.cut
+    says so."""
     if sampling not in ("tau", "time"):
         raise ParameterError("sampling", sampling, "'tau' or 'time'")
     scale = math.exp(shift)  # T' = scale T
@@ -1609,13 +1696,20 @@ def _sample(
         integrator=integrator,
         fast_leg=fast_leg,
         phi_floor=phi_floor,
+        max_steps=max_steps,
     )
+    cut = ""  # (Trajectory.cut)
     if times is not None and len(times) > 0:
         sT = np.asarray(times, dtype=np.float64)
         if not np.all(np.isfinite(sT)) or np.any(sT < 0) or np.any(np.diff(sT) < 0):
             raise ParameterError("times", "...", "finite, non-negative and sorted ascending")
         res, samples = run(t_end=min(te, float(sT[-1])), stop_on_return=False, sample_T=sT)
         n_filled = res.n_filled
+        if res.status == Status.BUDGET:
+            cut = (
+                f"the samples end at T = {float(res.y_end[2]) / scale:.6g} ({n_filled} of"
+                f" {len(sT)} times reached): {_stop_text(res.status, max_steps)}"
+            )
     elif plan.certificate == "at_equilibrium" and t_end is None:
         # decided at T = 0 and nothing moves: the trajectory is its start (a run without a
         # stop would step to its budget, seconds)
@@ -1626,19 +1720,37 @@ def _sample(
         # the extent of the samples from a run like theirs (same frame, steps and legs:
         # where a leg is entered shifts tau by O(1) per unit of phi above the threshold, so
         # the classification's tau_end, from its own frame, does not fit)
-        if res0 is None:
+        done = False  # (samples in T taken up to t_end by one run)
+        if res0 is None and sampling == "time" and t_end is not None:
+            # samples evenly in T up to t_end: one run, where it reaches t_end or its budget
+            # (then the samples it reached, evenly spaced up to t_end); where it stops
+            # earlier (a blow-up), it sets the extent of a second run, as below
+            sT = np.linspace(0.0, te, n_points)
+            res0, samples = run(t_end=te, stop_on_return=sor, sample_T=sT)
+            n_filled = res0.n_filled
+            done = res0.status in (Status.T_END, Status.BUDGET)
+        elif res0 is None:
             # (logging its steps when the samples are in hybrid time up to its end)
-            if sampling == "tau" and t_end is None:
-                steplog = np.empty((min(STEP_LOG_ROWS, MAX_STEPS), LOG_Y + NSTATE))
+            if sampling == "tau":
+                steplog = np.empty((min(STEP_LOG_ROWS, max_steps), LOG_Y + NSTATE))
             else:
                 steplog = _EMPTY_LOG
             res0, _ = run(t_end=te, stop_on_return=sor, steplog=steplog)
         tau_end, T_end = res0.tau_end, float(res0.y_end[2])
-        if sampling == "time":
+        if res0.status == Status.BUDGET:
+            # (a later run with the same budget stops at the same step)
+            short = "" if t_end is None else f", short of t_end = {t_end / scale:.6g}"
+            cut = (
+                f"the samples end at T = {T_end / scale:.6g}{short}:"
+                f" {_stop_text(res0.status, max_steps)}"
+            )
+            if done:
+                cut += f" ({n_filled} of {n_points} samples, evenly spaced in T up to t_end)"
+        if not done and sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
             res, samples = run(t_end=te, stop_on_return=sor, sample_T=sT)
             n_filled = res.n_filled
-        else:
+        elif not done:
             sTau = np.linspace(0.0, tau_end, n_points)
             if res0.n_logged > 0 and steplog.shape[0] > 0:
                 samples = np.empty((n_points, NSTATE))
@@ -1676,6 +1788,7 @@ def _sample(
         ln_theta=lth.copy(),
         slip=s[:, 3].copy(),
         load_point=s[:, 4].copy(),
+        cut=cut,
     )
     if physical is not None:
         ph = physical

@@ -9,6 +9,7 @@ import pytest
 
 from rsfcore import ParameterError, Params, PhysicalParams, classify, simulate
 from rsfcore.analytic import velocity_jump_crit_kcrit
+from rsfcore.trajectory import DECIDED_OUTCOME_BUDGET, SAMPLE_BUDGET
 
 from .reference import perturbation_of, reference_cases
 
@@ -309,6 +310,14 @@ def test_state_frozen_at_underflowed_velocity_stops_at_the_time_limit() -> None:
         (Params(2, 1, 0.3, 0), "velocity-jump", 1.5, 1e-6),  # v_o = 0, peak passed
         # decided in closed form (psi0 beyond 1e8), integrated for the samples only
         (Params(1e6, 1e6, 1.0, 1.0), "load-point-jump", 1.2070337877465452e156, 1e-8),
+        # a slow outward spiral (kappa = 0.18 kappa_crit): the run stops at its budget,
+        # DECIDED_OUTCOME_BUDGET, and the samples end there (issue 22, bench_speed seed 991)
+        (
+            Params(1.0000000000430638, 7.706221673638276e-12, 0.43432546839273345, 6.843e-06),
+            "load-point-jump",
+            -0.017153579760950312,
+            1e-8,
+        ),
     ],
 )
 def test_samples_from_the_step_log_equal_a_second_run(
@@ -374,8 +383,9 @@ def test_slow_spiral_blowup_time_within_its_claim_or_not_reported() -> None:
     """A slow outward spiral (kappa = 0.01 kappa_crit at b/a = 1 + 1e-6: 86 turns, excursions
     to phi ~ 8.6e3, the outcome certain before integrating): the trajectory's blow-up time
     is within its rel_accuracy of an independent scipy run, or not reported (None, complete
-    False) where it is not checked (a first run beyond DECIDED_OUTCOME_BUDGET steps, or
-    checks beyond TRAJECTORY_CHECK_RATIO x its steps).  Before issue 22's fix
+    False, a reason) where it is not checked (a first run beyond DECIDED_OUTCOME_BUDGET
+    steps, whose samples end where it stopped, or checks beyond TRAJECTORY_CHECK_RATIO x its
+    steps or DECIDED_CERTIFY_BUDGET).  Before issue 22's fix
     the check runs were cut short and the first run's claim stood unchecked: 11x below the
     error at rtol 1e-8 (1.5e-5 against 1.7e-4), 7.1x at 1e-10.  The referee at rtol 1e-12
     agrees with its own 1e-13 run and with the engine's 1e-13 run to 1.4e-9; 1e-7 of it is
@@ -386,15 +396,19 @@ def test_slow_spiral_blowup_time_within_its_claim_or_not_reported() -> None:
     for rtol in (1e-3, 1e-4, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
         r = simulate(p, "load-point-jump", dv, rtol=rtol, n_points=200)
         assert r.outcome == "unstable" and r.trajectory is not None
-        assert r.trajectory.phi[-1] > 40.0  # the samples run on to the blow-up
+        if r.certificate == "L_above_Lstar":
+            assert r.trajectory.phi[-1] > 40.0  # the samples run on to the blow-up
+        else:  # the run stopped at its budget: so do the samples, and the answer says so
+            assert r.certificate == "linear_instability" and r.n_steps == DECIDED_OUTCOME_BUDGET
+            assert "the samples end at T" in r.reason
         if r.blowup_time is None:
-            assert not r.complete
+            assert not r.complete and r.reason
             continue
         checked += 1
         assert abs(r.blowup_time - ref) <= (r.rel_accuracy + 1e-7) * ref, (rtol, r.blowup_time)
-    # (NUMERICS_VERSION 9: rtol 1e-7 and 1e-8 are checked within the budget; 1e-6, whose
-    # first run took 2,104 steps against 2,079 before, no longer fits it)
-    assert checked >= 2
+    # (rtol 1e-7 is checked within the budget; 1e-8, 3,316 steps, was checked within
+    # TRAJECTORY_CHECK_RATIO x those until its checks shared DECIDED_CERTIFY_BUDGET)
+    assert checked >= 1
 
 
 def test_trajectory_times_of_a_decided_outcome_unchecked_beyond_the_budget() -> None:
@@ -407,3 +421,67 @@ def test_trajectory_times_of_a_decided_outcome_unchecked_beyond_the_budget() -> 
     assert r.outcome == "unstable" and not r.complete
     assert r.blowup_time is None and r.peak_time is None
     assert r.trajectory is not None and len(r.trajectory.T) == 200
+
+
+#: issue 22 (bench_speed seed 991): a slow outward spiral, kappa = 0.18 kappa_crit at
+#: b/a = 1 + 4.3e-11 (~1e5 turns per e-fold): its outcome is certain before integrating,
+#: its blow-up millions of steps away
+_SPIRAL = (
+    Params(1.0000000000430638, 7.706221673638276e-12, 0.43432546839273345, 6.843075815542354e-06),
+    "load-point-jump",
+    -0.017153579760950312,
+)
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-13])
+def test_spiral_trajectory_is_classify_plus_samples_to_the_budget(rtol: float) -> None:
+    """A trajectory of the spiral asks classify's question with classify's budget: the
+    same outcome, certificate and steps (it went on to 5e5 steps and two hidden runs of up
+    to 1e7 steps for its samples: 6 - 25 s), its samples evenly up to where the run stopped
+    (T still growing, samples finite), complete False and a reason saying where."""
+    p, pert, size = _SPIRAL
+    c = classify(p, pert, size, rtol=rtol)
+    r = simulate(p, pert, size, rtol=rtol, n_points=200)
+    assert (r.outcome, r.certificate, r.n_steps) == (c.outcome, c.certificate, c.n_steps)
+    assert (r.outcome, r.certificate) == ("unstable", "linear_instability")
+    assert r.n_steps == DECIDED_OUTCOME_BUDGET and r.blowup_time is None and not r.complete
+    assert "kappa < kappa_crit" in c.reason and c.reason in r.reason
+    assert "the samples end at T" in r.reason and "step budget" in r.reason
+    tr = r.trajectory
+    assert tr is not None and len(tr.T) == 200
+    assert np.all(np.isfinite(tr.phi)) and np.all(np.diff(tr.T) > 0)
+    # the cut is the reported one: the last sample is the run's end
+    assert f"{tr.T[-1]:.6g}" in r.reason
+    assert r.to_dict()["reason"] == r.reason
+
+
+@pytest.mark.parametrize("sampling", ["tau", "time"])
+def test_t_end_beyond_reach_is_cut_and_said(sampling: str) -> None:
+    """A t_end far beyond the dynamics (a slow inward spiral, kappa = 1.5 kappa_crit at
+    b/a = 1 + 1e-10, ~1e6 turns to T = 1e12) is answered with the samples up to where
+    SAMPLE_BUDGET stopped the run, complete False and the reason (it ran to the full 1e7
+    steps twice, 25 s, and its samples ended silently at T = 5.3e11 with complete True).
+    The outcome and return time are the classification's, which the cut does not touch."""
+    p = Params(1.0 + 1e-10, 1.5e-10, 0.5, 1.0)
+    c = classify(p, "velocity-jump", 0.01, rtol=1e-8)
+    r = simulate(p, "velocity-jump", 0.01, rtol=1e-8, n_points=200, t_end=1e12, sampling=sampling)
+    assert (r.outcome, r.certificate, r.return_time) == (c.outcome, c.certificate, c.return_time)
+    assert c.complete and c.reason == ""
+    assert not r.complete and "short of t_end = 1e+12" in r.reason
+    assert f"step budget ({SAMPLE_BUDGET} steps)" in r.reason
+    tr = r.trajectory
+    assert tr is not None and 0.0 < tr.T[-1] < 1e12
+    if sampling == "time":  # the samples it reached, evenly spaced in T up to t_end
+        assert 2 <= len(tr.T) < 200 and tr.T[1] == pytest.approx(1e12 / 199, rel=1e-12)
+    else:
+        assert len(tr.T) == 200
+
+
+def test_t_end_within_reach_is_complete() -> None:
+    """A t_end the run reaches: complete, no reason, the last sample at t_end (samples in T
+    come from one run to t_end)."""
+    for sampling in ("tau", "time"):
+        r = simulate(Params(2, 2, 0.25, 1), "velocity-jump", 1.0, n_points=50, t_end=5.0,
+                     sampling=sampling)  # fmt: skip
+        assert r.complete and r.reason == "" and r.trajectory is not None
+        assert len(r.trajectory.T) == 50 and r.trajectory.T[-1] == pytest.approx(5.0, rel=1e-12)
