@@ -116,9 +116,15 @@ def classify(
             f"return_time   {d['return_time']}",
             f"peak_phi      {d['peak_phi']}  at T = {d['peak_time']}",
             f"rel_accuracy  {d['rel_accuracy']:.2e}   steps {d['n_steps']}",
+            *_incomplete_lines(d),
             *echo_lines(d),
         ],
     )
+
+
+def _incomplete_lines(d: dict[str, Any]) -> list[str]:
+    """Why an answer is not complete (its ``reason``), as a text line; none when complete."""
+    return [] if d.get("complete", True) else [f"incomplete    {d.get('reason') or '-'}"]
 
 
 @app.command()
@@ -184,6 +190,7 @@ def trajectory(
     lines = [
         f"outcome {d['outcome']} ({d['certificate']}); peak_phi {d['peak_phi']} at T = "
         f"{d['peak_time']}",
+        *_incomplete_lines(d),
         *echo_lines(d),
         f"sampling      {d['sampling']['kind']}: {d['sampling']['description']}",
         "T phi psi",

@@ -123,7 +123,9 @@ class ClassifyResult(Answer):
     outcome 'stable' | 'unstable'; certificate: what decided it; blowup_time (unstable) /
     return_time (stable, v_o > 0), peak_phi, peak_time in T; rel_accuracy of those (a
     tested bound); n_steps, n_rhs; the params and start point used; the perturbation and
-    its dimensionless size; ``si``: the same in SI (s, m/s, Pa) when asked in SI.
+    its dimensionless size; ``complete`` and, when it is false, ``reason`` (why: a step
+    budget, unchecked times, samples ending before the extent asked); ``si``: the same in
+    SI (s, m/s, Pa) when asked in SI.
     """
 
     outcome: str
@@ -140,6 +142,7 @@ class ClassifyResult(Answer):
     perturbation: str | None = None
     size: float | None = None
     complete: bool | None = None
+    reason: str | None = None
     si: dict[str, Any] | None = None
     _convert: ClassVar[dict[str, Callable[[Any], Any]]] = _PARAMS
 

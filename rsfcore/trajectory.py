@@ -772,6 +772,7 @@ def simulate(
     log_size: float | None = None,
     check_accuracy: bool = True,
     separatrix_side: bool = True,
+    sample_steps: int = SAMPLE_BUDGET,
 ) -> TrajectoryResult:
     """Classify a perturbation and optionally return its trajectory.
 
@@ -797,6 +798,11 @@ def simulate(
     = 50 only L moves the state, so a leg to phi ~ 1e11 near b/a -> 1 costs one formula
     instead of ~1e5 steps, and is exact where the steps blur L = phi + ln theta).  ``max_steps``
     (<= 1e7) bounds the work: UndecidedError(reason="budget") when it runs out first.
+    ``sample_steps`` (default SAMPLE_BUDGET, ~5 - 8 ms) bounds each run that takes the
+    samples up to a time given (``t_end``, ``times``); where it runs out, the samples end
+    where the run stopped, complete False and ``reason`` says so (a reference run may pass
+    up to 1e7).  Without them, the samples of an outcome certain before integrating end
+    where its run stops (DECIDED_OUTCOME_BUDGET steps, as classify's).
 
     ``integrator``: "auto" (default) runs DOP853 and switches to Radau IIA (the L-stable
     implicit method of order 5; analytic Jacobian; rsfcore.engine.StiffMethod, where the
@@ -859,6 +865,7 @@ def simulate(
         log_size=log_size,
         side_rtol=rtol,  # the separatrix side is asked once, at the caller's tolerance
         separatrix_side=separatrix_side,
+        sample_steps=sample_steps,
     )
     res = run(rtol=rtol, n_points=n_points, times=times, sampling=sampling, physical=physical)
     if res.n_steps == 0 or not check_accuracy or not res.complete:
@@ -1214,6 +1221,7 @@ def _simulate(
     log_size: float | None = None,
     side_rtol: float | None = None,
     separatrix_side: bool = True,
+    sample_steps: int = SAMPLE_BUDGET,
     decided_budget: int | None = None,
     predicted_steps: float | None = None,
 ) -> TrajectoryResult:
@@ -1231,6 +1239,7 @@ def _simulate(
         )
     integ = _INTEGRATORS[integrator]
     max_steps = int(lim.MAX_STEPS.check(max_steps))
+    sample_steps = int(lim.MAX_STEPS.check(sample_steps, name="sample_steps"))
     if start is not None:
         phi0 = lim.PHI_START.check(start[0])
         psi0 = lim.PSI_START.check(start[1])
@@ -1599,8 +1608,8 @@ def _simulate(
             steplog=steplog,
             phi_floor=floor,
             # runs to the end of the classification run: its budget; to a time the caller
-            # gave, SAMPLE_BUDGET (at most the classification run's budget)
-            max_steps=budget if reuse and not want_T else min(SAMPLE_BUDGET, budget),
+            # gave, sample_steps (and the caller's max_steps)
+            max_steps=budget if reuse and not want_T else min(sample_steps, max_steps),
         )
 
     return TrajectoryResult(

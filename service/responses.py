@@ -63,7 +63,13 @@ class ClassifyResult(_Cached):
     )
     size: float | None = Field(description="Perturbation size (-).")
     complete: bool = Field(
-        description="False when the outcome is certain but the step budget ended before the final times/peak."
+        description="False when the outcome is certain but the step budget ended before the final "
+        "times/peak, when such times could not be checked within the budget, or when a "
+        "trajectory's samples end before the extent asked (t_end, or the blow-up): see reason."
+    )
+    reason: str = Field(
+        description="Why complete is false, e.g. where the samples end and which step budget "
+        "stopped the run ('' when complete)."
     )
 
 

@@ -43,6 +43,7 @@ from rsfcore.analytic import (
     U_vo0_scale,
     velocity_jump_crit_kcrit,
 )
+from rsfcore.limits import STEP_BUDGET
 
 A_LAW = 10.0
 
@@ -60,7 +61,11 @@ class Drift:
 
 
 def drift(p: Params, d: float, rtol: float, t_end: float | None) -> Drift:
-    r = simulate(p, "velocity-jump", d, rtol=rtol, t_end=t_end, n_points=100_000)
+    # (thousands of oscillations: beyond the ~10 ms that SAMPLE_BUDGET allows a query)
+    r = simulate(
+        p, "velocity-jump", d, rtol=rtol, t_end=t_end, n_points=100_000, sample_steps=STEP_BUDGET
+    )
+    assert t_end is None or "samples end" not in r.reason  # (the whole extent asked)
     t = r.trajectory
     assert t is not None
     if p.vo == 0.0:

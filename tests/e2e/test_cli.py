@@ -191,3 +191,15 @@ def test_sweep_commands_fail_at_once_on_a_refused_connection(
     p = rsf("sweep", *command, "--url", url, check=False)
     assert p.returncode == 2, p.stderr
     assert url in p.stderr and "cannot connect" in p.stderr and "rsf serve" in p.stderr
+
+
+def test_incomplete_answer_says_why() -> None:
+    """An answer with complete false prints its reason (a slow outward spiral whose blow-up
+    is beyond the step budget: issue 22); the JSON carries it too."""
+    args = ["--ba", "1.0000000000430638", "--kappa", "7.706221673638276e-12", "--eps",
+            "0.43432546839273345", "--vo", "6.843075815542354e-06", "--perturbation",
+            "load-point-jump", "--size", "-0.017153579760950312"]  # fmt: skip
+    out = rsf("classify", *args).stdout
+    assert "incomplete    the outcome is certain before integrating (kappa < kappa_crit" in out
+    d = json.loads(rsf("trajectory", *args, "--n-points", "5", "--json").stdout)
+    assert d["complete"] is False and "the samples end at T" in d["reason"]
