@@ -1518,8 +1518,12 @@ def _simulate(
         peak_phi, peak_T = math.inf, None
         complete = False
         why = "the outcome is certain before integrating (kappa < kappa_crit: every"
-        why += f" perturbation grows); {_stop_text(status, budget)} before L > L*: no blow-up"
-        why += " time"
+        if res is None and _times_unresolved(p_run, phi0, psi0, rtol):
+            why += " perturbation grows); not integrated: the start lies within the"
+            why += " integration's resolution of L*, where no run resolves its times"
+        else:
+            why += f" perturbation grows); {_stop_text(status, budget)} before L > L*: no"
+            why += " blow-up time"
     elif sep_side and max_steps >= cap:
         # overruled by the separatrix just below (when the caller's own max_steps ran out
         # first, that budget bounds the work: BudgetExceeded as for any undecided run)
@@ -1641,6 +1645,10 @@ def _stop_text(status: Status | None, budget: int) -> str:
         return f"the step budget ({budget} steps) ran out"
     if status is None:  # (a check run whose predicted steps exceed its budget)
         return f"the run was not started (predicted beyond its step budget, {budget} steps)"
+    if status == Status.PHI_FLOOR:
+        return "the run stopped where e^(phi - ln v_o) turns subnormal (engine.PHI_SUBNORMAL)"
+    if status == Status.TIME_LIMIT:
+        return "the run stopped where c T passed 1e300 (nothing moves any more at this rtol)"
     return f"the run stopped ({status.text})"
 
 
