@@ -293,6 +293,41 @@ def test_fused_block_failed_points_as_the_parts(monkeypatch) -> None:
     assert ref["failed"][bad].all() and (ref["outcome"][bad] == -1).all()
 
 
+def test_fused_block_fallback_failures_as_the_parts(monkeypatch) -> None:
+    """Points the kernel hands to the bisection fallback, whose bisection raises: failed
+    on both paths at the same offsets, with NaN sizes and accuracies and -1 codes (the
+    fill values), every other point kept, bit for bit."""
+    import rsfcore.batchloop as loop
+    import rsfcore.critical as crit
+    from tests.e2e.test_worker_faultplugin import list_as_fallback
+
+    kernel = loop.points_kernel
+
+    def flagging(*args):
+        return list_as_fallback(kernel, args, kernel(*args), 0.5)
+
+    def failing(params, *a, **kw):
+        raise FloatingPointError(f"bisection broke at eps={params.eps}")
+
+    monkeypatch.setattr(loop, "points_kernel", flagging)
+    monkeypatch.setattr(crit, "bisect_critical", failing)
+    for body in (MIXED, OUTCOME):
+        sp = spec_of(body)
+        fused = sweepdata.fused_block(sp, 7, sp.n_total - 3)
+        assert fused is not None
+        want, want_errors = unfused_block(sp, 7, sp.n_total - 3)
+        assert fused[1] == want_errors and len(want_errors) > 0
+        got, ref = decode_block(fused[0]), decode_block(want)
+        for var in ref:
+            assert same_bits(got[var], ref[var]), var
+        bad = np.array(sorted(want_errors))
+        assert (
+            np.isnan(ref["critical_size"][bad]).all() and np.isnan(ref["rel_accuracy"][bad]).all()
+        )
+        assert (ref["kind"][bad] == -1).all() and (ref["method"][bad] == -1).all()
+        assert ref["failed"].sum() == bad.size
+
+
 def test_compute_block_takes_the_fused_path_for_grids(monkeypatch) -> None:
     """A grid's chunk never lays out parameters (the parts are not called); scattered
     points and a fused call that raises take the parts, with the same block."""
