@@ -853,7 +853,10 @@ def simulate(
     ``complete`` False (a trajectory's samples still run to its end).  A trajectory whose
     outcome the integration decides is checked by classify-type runs; where the separatrix
     side decides theirs, each has DECIDED_OUTCOME_BUDGET steps, and one predicted not to
-    fit is not started (it would stop at the budget and check nothing).
+    fit is not started (it would stop at the budget and check nothing): a check at 10 rtol
+    takes the place of one at rtol/10, and where no check run fits, the times are None and
+    ``complete`` False.  Times are compared between runs by their size in the frame of the
+    integration (v_o = 1 for a named perturbation), where below 1e-290 they carry no digit.
     """
     # the question (and its budget) is the same for both runs; only rtol and the samples differ
     run = functools.partial(
