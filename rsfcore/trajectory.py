@@ -1454,12 +1454,7 @@ def _simulate(
                 phi_i, psi_i = lg_named, lg_named
             else:
                 phi_i, psi_i = -lg_named, (p_run.ba - 1.0) * lg_named
-        if (
-            n_points > 0
-            and sampling == "tau"
-            and (t_end is None or decided)
-            and (times is None or len(times) == 0)
-        ):
+        if n_points > 0 and sampling == "tau" and (times is None or len(times) == 0):
             # samples evenly in hybrid time up to where this run ends: it logs its steps
             # and the samples are read from them (_sample), instead of a second run
             steplog = np.empty((min(budget, STEP_LOG_ROWS), LOG_Y + NSTATE))
@@ -1553,6 +1548,14 @@ def _simulate(
         if res is None and _times_unresolved(p_run, phi0, psi0, rtol):
             why += " perturbation grows); not integrated: the start lies within the"
             why += " integration's resolution of L*, where no run resolves its times"
+        elif status == Status.TIME_LIMIT:
+            # (the steady state is unstable, so a run that settles on it has lost the growth:
+            # a spiral growing by < rtol a turn, b/a = 1 + 4.3e-11, kappa = 0.18 kappa_crit,
+            # rtol 1e-3: 445 steps to c T = 1e300)
+            why += " perturbation grows); the run at this rtol damped the slow growth and"
+            why += " settled on the (unstable) steady state, where c T passed 1e300: no"
+            why += " blow-up time, and its samples are not the model's (a tighter rtol follows"
+            why += " the growth)"
         else:
             why += f" perturbation grows); {_stop_text(status, budget)} before L > L*: no"
             why += " blow-up time"
@@ -1614,16 +1617,22 @@ def _simulate(
             else:
                 phi_s, psi_s = -lg_named, (p_run.ba - 1.0) * lg_named
         # the classification run is the run that sets the samples' extent when it is the
-        # same run (same frame, plan and steps): without t_end, and also where its budget
-        # cut it short of t_end (a run to t_end would take the same steps and stop at the
-        # same budget); where the budget cut it, the samples end there
+        # same run (same frame, plan and steps): without t_end, and also where it stopped
+        # short of t_end at a stop that a run to t_end makes too (its budget, the blow-up,
+        # the subnormal floor, the time limit: the same steps to the same stop; a return
+        # or convergence is not one, a run to t_end goes on); where the budget cut it, the
+        # samples end there (issue 22: a spiral's blow-up at 2,900 steps was integrated
+        # twice for a t_end beyond it, 14 ms)
         reuse = (
             res is not None
             and shift == frame_shift
             and plan is plan_run
             and (
                 t_end is None
-                or (res.status == Status.BUDGET and float(res.y_end[2]) < t_end * math.exp(shift))
+                or (
+                    res.status in _STOPS_OF_EVERY_RUN
+                    and float(res.y_end[2]) < t_end * math.exp(shift)
+                )
             )
         )
         traj = _sample(
@@ -1670,6 +1679,11 @@ def _simulate(
         n_stiff_steps=int(n_stiff),
         frame_log=frame_shift,
     )
+
+
+#: where a run stops whether or not it runs to a t_end (engine.Status): a classification
+#: run that stopped there before t_end is the run to t_end (:func:`_simulate`)
+_STOPS_OF_EVERY_RUN = (Status.BUDGET, Status.RUNAWAY, Status.PHI_FLOOR, Status.TIME_LIMIT)
 
 
 def _stop_text(status: Status | None, budget: int) -> str:

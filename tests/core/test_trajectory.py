@@ -485,3 +485,46 @@ def test_t_end_within_reach_is_complete() -> None:
                      sampling=sampling)  # fmt: skip
         assert r.complete and r.reason == "" and r.trajectory is not None
         assert len(r.trajectory.T) == 50 and r.trajectory.T[-1] == pytest.approx(5.0, rel=1e-12)
+
+
+def test_spiral_settled_by_a_loose_rtol_says_so() -> None:
+    """At rtol 1e-3 the spiral grows by less than the tolerance a turn: the run damps the
+    growth, settles on the (unstable) steady state and stops at c T = 1e300 after 445 steps.
+    The outcome stands (kappa < kappa_crit), and the answer says its samples are not the
+    model's; at rtol 1e-6 the run follows the growth until its budget."""
+    p, pert, size = _SPIRAL
+    r = simulate(p, pert, size, rtol=1e-3, n_points=20)
+    assert (r.outcome, r.certificate, r.complete) == ("unstable", "linear_instability", False)
+    assert "settled on the (unstable) steady state" in r.reason
+    assert "settled" not in simulate(p, pert, size, rtol=1e-6, n_points=20).reason
+
+
+@pytest.mark.parametrize(
+    "p, pert, size, t_end",
+    [
+        (Params(2, 2, 0.25, 1), "load-point-jump", 14.0, 1e6),  # blow-up before t_end
+        # the budget stops a spiral (b/a = 1 + 7.6e-9, kappa = 0.0087 kappa_crit) at T ~ 2
+        (
+            Params(1.000000007608968, 6.597048988121373e-11, 0.7529611416920722, 1.1117770e8),
+            "load-point-jump",
+            -0.19491714098653953,
+            1e12,
+        ),
+    ],
+)
+def test_t_end_beyond_a_stop_reuses_the_classification_run(
+    monkeypatch: pytest.MonkeyPatch, p: Params, pert: str, size: float, t_end: float
+) -> None:
+    """A t_end beyond where the classification run stopped for good (the blow-up, its
+    budget) is that run: the samples read from its step log are bit-identical to those of
+    a second run to t_end (a log of 1 row falls back to it)."""
+    import rsfcore.trajectory as tr
+
+    new = simulate(p, pert, size, rtol=1e-8, n_points=50, t_end=t_end)
+    monkeypatch.setattr(tr, "STEP_LOG_ROWS", 1)
+    old = simulate(p, pert, size, rtol=1e-8, n_points=50, t_end=t_end)
+    assert new.trajectory is not None and old.trajectory is not None
+    assert new.trajectory.T[-1] < t_end and len(new.trajectory.T) == 50
+    for name in ("T", "phi", "psi", "ln_theta", "slip", "load_point"):
+        np.testing.assert_array_equal(getattr(new.trajectory, name), getattr(old.trajectory, name))
+    assert (new.certificate, new.reason) == (old.certificate, old.reason)
