@@ -854,8 +854,8 @@ def simulate(
     outcome the integration decides is checked by classify-type runs; where the separatrix
     side decides theirs, each has DECIDED_OUTCOME_BUDGET steps, and one predicted not to
     fit is not started (it would stop at the budget and check nothing): a check at 10 rtol
-    takes the place of one at rtol/10, and where no check run fits, the times are None and
-    ``complete`` False.  Times are compared between runs by their size in the frame of the
+    takes the place of one at rtol/10, and where none fits, the first run's own estimate
+    stands (as for a check cut short).  Times are compared between runs by their size in the frame of the
     integration (v_o = 1 for a named perturbation), where below 1e-290 they carry no digit.
     """
     # the question (and its budget) is the same for both runs; only rtol and the samples differ
@@ -934,9 +934,7 @@ def simulate(
             )
     except (UndecidedError, ParameterError):
         return res  # no second opinion to be had; the first run's estimate stands
-    if not check.complete:
-        # no check run finished within its budget: times and peak unchecked, not reported
-        # (a trajectory's samples still run to its end)
+    if limited and not check.complete:
         return _unchecked(res)
     left -= check.n_steps
     ok, acc = _certified(res, check, other / r)
