@@ -1129,10 +1129,11 @@ def _unchecked(res: TrajectoryResult) -> TrajectoryResult:
     runs could not confirm within DECIDED_CERTIFY_BUDGET: times None, complete False (the
     peak is the first run's, unchecked, as after a budget cut)."""
     why = (
-        "the outcome is certain before integrating, but runs at a tighter tolerance could not"
-        f" check its times within the step budget ({DECIDED_CERTIFY_BUDGET} steps in all, sized"
-        " for ~10 ms): times not reported, peak_phi and rel_accuracy the first run's own,"
-        " unchecked"
+        "no run at another tolerance could check the times within its step budget"
+        f" ({DECIDED_CERTIFY_BUDGET} steps in all where the outcome is certain before"
+        f" integrating, {DECIDED_OUTCOME_BUDGET} for a check run the separatrix side decides;"
+        " sized for ~10 ms): times not reported, peak_phi and rel_accuracy the first run's"
+        " own, unchecked"
     )
     return replace(
         res, blowup_time=None, return_time=None, peak_time=None, complete=False, reason=why
