@@ -47,8 +47,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import batchloop as _loop
 from . import critical as _crit
+from . import limits as lim
 from .batchloop import OUTCOME_NONE, OUTCOME_STABLE, OUTCOME_UNSTABLE
-from .params import BA_MAX, KAPPA_MAX, ParameterError, check_range
+from .params import BA_MAX, KAPPA_MAX, ParameterError, Params, check_range
 
 __all__ = [
     "AxisTable",
@@ -274,6 +275,7 @@ def critical_grid(
     perturbation: str = "velocity-jump",
     rtol: float = _crit.DEFAULT_RTOL,
     size: float | AxisTable | None = None,
+    sizes_from_critical: bool = False,
 ) -> GridResult:
     """Critical sizes (and outcomes for ``size``) at the flat indices [i0, i1) of a grid:
     the results :func:`critical_points` gives on the range's parameters, bit for bit
@@ -288,6 +290,10 @@ def critical_grid(
             (the same operation as on arrays), kappa_ratio >= 0 with kappa <= 1e6 at
             every combination of the two tables.
         perturbation, rtol: as in :func:`critical_points`.
+        sizes_from_critical: sizes in :data:`rsfcore.limits.DIAGRAM_SIZE` (finite, >= 0,
+            no upper end) instead of the ranges of :func:`critical_points`: every outcome
+            is then decided from the critical size alone (never by classify, whose range
+            bounds the others), as :func:`rsfcore.diagram.stability_diagram` does.
 
     Every value of every table is checked (ParameterError naming the table's element,
     e.g. ``eps[17]``), also those the range does not use.  The largest kappa of a ratio
@@ -313,7 +319,10 @@ def critical_grid(
     ss = 1
     if size is not None:
         ts, ss = _table("size", size)
-        _check_size(ts, pert)
+        if sizes_from_critical:
+            _check("size", ts, lim.DIAGRAM_SIZE.bad_mask(ts), lim.DIAGRAM_SIZE.text)
+        else:
+            _check_size(ts, pert)
     i0, i1 = int(i0), int(i1)
     if not 0 <= i0 <= i1:
         raise ParameterError("i1", i1, f">= i0 = {i0} >= 0")
@@ -404,6 +413,21 @@ def _compute(
     return GridResult(n, values, dict.fromkeys(values, None if lazy else False), errors, n_fb)
 
 
+def _bisect(p: Params, perturbation: str, rtol: float) -> tuple[int, float, float, int] | str:
+    """(kind, critical size, accuracy, method) by :func:`rsfcore.critical.bisect_critical`
+    (inf where infinite), or "ExceptionType: message" where it raised."""
+    try:
+        res = _crit.bisect_critical(p, perturbation, rtol=rtol)
+    except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
+        return f"{type(exc).__name__}: {exc}"[:2000]
+    return (
+        _crit.KINDS.index(res.kind),
+        math.inf if res.critical_size is None else res.critical_size,
+        res.rel_accuracy,
+        _crit.M_ASYMPTOTE if res.method == _crit.METHODS[_crit.M_ASYMPTOTE] else _crit.M_BISECTION,
+    )
+
+
 def _finish_listed(
     kind: NDArray[np.int8],
     value: NDArray[np.float64],
@@ -424,14 +448,16 @@ def _finish_listed(
     and method -1, NaN size and accuracy), then finished as the loop finishes the
     others (:func:`rsfcore.batchloop.finish_point`); a negative size classified by
     :func:`rsfcore.trajectory.classify` (a failure marks the point failed, keeping its
-    critical size).  Returns ({offset: message} of the failed points, points
-    recomputed)."""
-    from .params import Params
+    critical size).  A point listed again with the parameters of one already bisected (a
+    size axis) takes that bisection's result instead of running it again.  Returns
+    ({offset: message} of the failed points, points recomputed)."""
     from .trajectory import classify
 
     errors: dict[int, str] = {}
     n_fb = 0
     crtol = max(1e-13, min(1e-10, rtol))
+    # bisections already run, by parameters (a size axis lists one point per size)
+    done: dict[tuple[float, float, float, float], tuple[int, float, float, int] | str] = {}
     for j in range(sp_idx.size):
         i = int(sp_idx[j])
         fl = int(sp_flags[j])
@@ -439,19 +465,15 @@ def _finish_listed(
         p = Params(ba, kappa, eps, vo)
         if fl & _crit.FLAG_FALLBACK:
             n_fb += 1
-            try:
-                res = _crit.bisect_critical(p, perturbation, rtol=rtol)
-                kind[i] = _crit.KINDS.index(res.kind)
-                value[i] = math.inf if res.critical_size is None else res.critical_size
-                acc[i] = res.rel_accuracy
-                meth[i] = (
-                    _crit.M_ASYMPTOTE
-                    if res.method == _crit.METHODS[_crit.M_ASYMPTOTE]
-                    else _crit.M_BISECTION
-                )
-            except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
+            key = (ba, kappa, eps, vo)
+            if key not in done:
+                done[key] = _bisect(p, perturbation, rtol)
+            got = done[key]
+            if isinstance(got, str):
                 failed[i] = True
-                errors[i] = f"{type(exc).__name__}: {exc}"[:2000]
+                errors[i] = got
+            else:
+                kind[i], value[i], acc[i], meth[i] = got
         if failed[i]:
             kind[i] = KIND_FAILED
             meth[i] = -1

@@ -178,7 +178,10 @@ def points_kernel(
     (ba, kappa, eps, vo, size)``.  Returns the number of such points.
 
     The range is walked in runs over which every table's index is fixed or (a table of
-    stride 1) steps by one, so no index arithmetic per point."""
+    stride 1) steps by one, so no index arithmetic per point.  A point whose ba, kappa,
+    eps and vo are the same table elements as the previous point's (only its size
+    differs: a size axis innermost) reuses that point's :func:`critical_point` result
+    instead of recomputing it (same inputs, same bits)."""
     n = i1 - i0
     K = np.empty(N_WORK)
     bits = np.empty(2)
@@ -200,6 +203,10 @@ def points_kernel(
     f_val = f_acc = 0.0
     f_onb = f_unc = False
     n_sp = 0
+    # table elements of the previous point's parameters (none yet) and its critical_point
+    l_b = l_k = l_e = l_v = -1
+    k = m = fl = 0
+    v0 = a = 0.0
     j = 0
     while j < n:
         run = n - j
@@ -211,18 +218,23 @@ def points_kernel(
         # index of point q of the run in each table: p + q * step
         t_b, t_k, t_e, t_v, t_s = int(d_b), int(d_k), int(d_e), int(d_v), int(d_s)
         for q in range(run):
-            ba = ba_t[p_b + q * t_b]
-            kap = kappa_t[p_k + q * t_k]
+            i_b, i_k, i_e, i_v = p_b + q * t_b, p_k + q * t_k, p_e + q * t_e, p_v + q * t_v
+            ba = ba_t[i_b]
+            kap = kappa_t[i_k]
             kappa = kap * (ba - 1.0) if kappa_is_ratio else kap
-            eps = eps_t[p_e + q * t_e]
-            vo = vo_t[p_v + q * t_v]
+            eps = eps_t[i_e]
+            vo = vo_t[i_v]
             sz = size_t[p_s + q * t_s]
-            k, v, a, m, fl, _ = critical_point(
-                ba, kappa, eps, 1.0 if vo > 0.0 else 0.0, pert, rtol, K
-            )
-            if fl & FLAG_LOG_VALUE:
-                v = math.inf  # finite, beyond the double range
-            v, ob, oc, unc = finish_point(k, v, a, fl, sz, vo, has_size)
+            if i_b != l_b or i_k != l_k or i_e != l_e or i_v != l_v:
+                # a new parameter point (the previous one's table elements repeat where
+                # only the size changed: its critical size is reused, the same bits)
+                k, v0, a, m, fl, _ = critical_point(
+                    ba, kappa, eps, 1.0 if vo > 0.0 else 0.0, pert, rtol, K
+                )
+                if fl & FLAG_LOG_VALUE:
+                    v0 = math.inf  # finite, beyond the double range
+                l_b, l_k, l_e, l_v = i_b, i_k, i_e, i_v
+            v, ob, oc, unc = finish_point(k, v0, a, fl, sz, vo, has_size)
             i = j + q
             if fl & FLAG_FALLBACK or (has_size and sz < 0.0):
                 sp_idx[n_sp] = i

@@ -7,11 +7,17 @@ at (x[i], y[j]): 0 where every perturbation grows (kind zero), inf where none ru
 (kind infinite).  With ``size`` given (or a ``size`` axis) the outcome of that
 perturbation is decided from the critical size: unstable iff size > critical size.
 
-The whole grid runs in one compiled loop (rsfcore.critical.critical_batch: exact
-zero/infinite decisions, compiled closed forms at kappa = kappa_crit, the separatrix
-method elsewhere); the rare points where the separatrix method does not apply are
-recomputed by bisection on classify().  Points on x = eps kappa/kappa_crit = 1 or kappa
-= kappa_crit up to rounding (critical.BOUNDARY_RTOL) are flagged in ``on_boundary``.
+The whole grid is one call of rsfcore.batch.critical_grid (its parameters generated from
+the axes' values, never laid out): each point goes through the per-point kernel of every
+batch (rsfcore.critical.critical_point: exact zero/infinite decisions, compiled closed
+forms at kappa = kappa_crit, the separatrix method elsewhere) and the one definition of
+the stored value, the boundary flag and the outcome (rsfcore.batchloop.finish_point), so
+the diagram is, bit for bit, rsfcore.batch.critical_points on the same points
+(tests/core/test_diagram.py).  A size axis is laid innermost, so each parameter point is
+computed once for all its sizes.  The rare points where the separatrix method does not
+apply are recomputed by bisection on classify() (a bisection that raises raises here).
+Points on x = eps kappa/kappa_crit = 1 or kappa = kappa_crit up to rounding
+(critical.BOUNDARY_RTOL) are flagged in ``on_boundary``.
 """
 
 from __future__ import annotations
@@ -19,7 +25,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,21 +34,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import limits as lim
 from ._version import NUMERICS_VERSION
+from .batch import AxisTable, critical_grid
 from .critical import (
     DEFAULT_RTOL,
-    FLAG_FALLBACK,
-    FLAG_ON_KCRIT,
-    FLAG_ON_X1,
     KIND_FINITE,
-    KIND_INFINITE,
-    KIND_ZERO,
     KINDS,
-    M_BISECTION,
     METHODS,
     PERTURBATIONS,
     bisect_critical,
-    critical_batch,
 )
+from .errors import UndecidedError
 from .jsonsafe import finite_list
 from .params import KAPPA_MAX, ParameterError, Params
 
@@ -73,6 +73,7 @@ class DiagramResult:
             or kappa = kappa_crit up to rounding with v_o > 0 (zero and finite touch there).
         fixed: the fixed parameters (ba, kappa_ratio, eps, vo, size where not an axis).
         perturbation, rtol: as requested.
+        n_fallback: parameter points recomputed by bisection (once for all their sizes).
     """
 
     x_name: str
@@ -294,74 +295,85 @@ def stability_diagram(
             "vo", vo, "> 0 for a load-point jump (relative jump of a moving load point)"
         )
 
-    # parameter grid (nx, ny), broadcast along a size axis
+    # kappa = kappa_ratio (b/a - 1) <= KAPPA_MAX at every point (the first bad one in
+    # C order of the grid named)
     vals = {"ba": p_fixed.ba, "kappa_ratio": float(kappa_ratio), "eps": p_fixed.eps}
-    shape = (nx, ny)
-    grids: dict[str, NDArray[np.float64]] = {}
-    for name in ("ba", "kappa_ratio", "eps"):
+
+    def along(name: str) -> NDArray[np.float64]:
         if name == x_name:
-            grids[name] = np.broadcast_to(xv[:, None], shape)
-        elif name == y_name:
-            grids[name] = np.broadcast_to(yv[None, :], shape)
-        else:
-            grids[name] = np.broadcast_to(np.float64(vals[name]), shape)
-    if size_axis:
-        # parameters vary along the other axis only: compute once per parameter point
-        other = 0 if y_name == "size" else 1
-        sl = (slice(None), 0) if other == 0 else (0, slice(None))
-        ba_a = np.ascontiguousarray(grids["ba"][sl])
-        r_a = np.ascontiguousarray(grids["kappa_ratio"][sl])
-        eps_a = np.ascontiguousarray(grids["eps"][sl])
-    else:
-        ba_a = np.ascontiguousarray(grids["ba"]).ravel()
-        r_a = np.ascontiguousarray(grids["kappa_ratio"]).ravel()
-        eps_a = np.ascontiguousarray(grids["eps"]).ravel()
-    kappa_a = r_a * (ba_a - 1.0)
-    if np.any(kappa_a > KAPPA_MAX):
-        first = int(np.argmax(kappa_a > KAPPA_MAX))
+            return xv[:, None]
+        if name == y_name:
+            return yv[None, :]
+        return np.asarray(vals[name])
+
+    r_g, ba_g = np.broadcast_arrays(along("kappa_ratio"), along("ba"))
+    bad = r_g * (ba_g - 1.0) > KAPPA_MAX
+    if np.any(bad):
         raise ParameterError(
-            "kappa_ratio", float(r_a[first]), f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}"
+            "kappa_ratio",
+            float(r_g.ravel()[np.argmax(bad)]),
+            f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}",
         )
 
-    n = ba_a.size
-    kind = np.empty(n, dtype=np.int64)
-    value = np.empty(n)
-    acc = np.empty(n)
-    meth = np.empty(n, dtype=np.int64)
-    flags = np.empty(n, dtype=np.int64)
-    critical_batch(ba_a, kappa_a, eps_a, p_fixed.vo, pert, rtol, kind, value, acc, meth, flags)
+    # The grid in C order with a size axis innermost (x = size: laid out as (y, x) and
+    # transposed), so the compiled loop computes each parameter point once and decides
+    # its outcome at every size (rsfcore.batch.critical_grid: the loop and the finishing
+    # rules of every batch, rsfcore.batchloop.finish_point).
+    swap = x_name == "size"
+    (o_name, o_v), (i_name, i_v) = (
+        ((y_name, yv), (x_name, xv)) if swap else ((x_name, xv), (y_name, yv))
+    )
+    tab: dict[str, float | AxisTable] = {
+        name: AxisTable(o_v, i_v.size)
+        if name == o_name
+        else AxisTable(i_v, 1)
+        if name == i_name
+        else v
+        for name, v in vals.items()
+    }
+    size_t: float | AxisTable | None = size
+    if size_axis:
+        size_t = AxisTable(o_v, i_v.size) if o_name == "size" else AxisTable(i_v, 1)
+    g = critical_grid(
+        tab["ba"],
+        tab["kappa_ratio"],
+        tab["eps"],
+        p_fixed.vo,
+        0,
+        nx * ny,
+        kappa_is_ratio=True,
+        perturbation=perturbation,
+        rtol=rtol,
+        size=size_t,
+        sizes_from_critical=True,
+    )
+    if g.errors:
+        # a bisection that raised: rerun it at the first such point, so its exception
+        # reaches the caller as it is
+        first = min(g.errors)
+        at = {o_name: o_v[first // i_v.size], i_name: i_v[first % i_v.size]}
+        q = {k: float(at.get(k, v)) for k, v in vals.items()}
+        bisect_critical(
+            Params(q["ba"], q["kappa_ratio"] * (q["ba"] - 1.0), q["eps"], p_fixed.vo),
+            perturbation,
+            rtol=rtol,
+        )
+        raise UndecidedError(f"({x_name}, {y_name}) point {first}: {g.errors[first]}")
 
-    fb = np.flatnonzero(flags & FLAG_FALLBACK)
-    for i in fb:
-        p = Params(float(ba_a[i]), float(kappa_a[i]), float(eps_a[i]), p_fixed.vo)
-        bis = bisect_critical(p, perturbation, rtol=rtol)
-        kind[i] = KINDS.index(bis.kind)
-        value[i] = math.inf if bis.critical_size is None else bis.critical_size
-        acc[i] = bis.rel_accuracy
-        meth[i] = M_BISECTION
-    value[kind == KIND_ZERO] = 0.0
-    value[kind == KIND_INFINITE] = math.inf
-    on_b = (flags & (FLAG_ON_X1 | FLAG_ON_KCRIT)) != 0
-    on_kc = (flags & FLAG_ON_KCRIT) != 0
+    def grid(name: str) -> NDArray[Any]:
+        a = g.array(name).reshape(o_v.size, i_v.size)
+        return np.ascontiguousarray(a.T) if swap else a
 
-    def shape2(a: NDArray[Any]) -> NDArray[Any]:
-        if size_axis:
-            return np.ascontiguousarray(
-                np.broadcast_to(a[:, None] if y_name == "size" else a[None, :], shape)
-            )
-        return a.reshape(shape)
-
-    cs = shape2(value)
     res = DiagramResult(
         x_name=x_name,
         x=xv,
         y_name=y_name,
         y=yv,
-        critical_size=cs,
-        kind=shape2(kind).astype(np.int8),
-        on_boundary=shape2(on_b),
-        rel_accuracy=shape2(acc),
-        method=shape2(meth).astype(np.int8),
+        critical_size=grid("critical_size"),
+        kind=grid("kind"),
+        on_boundary=grid("on_boundary"),
+        rel_accuracy=grid("rel_accuracy"),
+        method=grid("method"),
         perturbation=perturbation,
         rtol=rtol,
         fixed={
@@ -374,24 +386,10 @@ def stability_diagram(
                 "size": size,
             }.items()
         },
-        n_fallback=int(fb.size),
+        # parameter points bisected (a size axis lists each of them once per size)
+        n_fallback=g.n_fallback // (i_v.size if size_axis else 1),
     )
     if size_axis or size is not None:
-        if size_axis:
-            sz = (
-                np.broadcast_to(xv[:, None], shape)
-                if x_name == "size"
-                else np.broadcast_to(yv[None, :], shape)
-            )
-        else:
-            sz = np.full(shape, float(size))  # type: ignore[arg-type]
-        k2 = res.kind
-        unstable = ((k2 == KIND_ZERO) & (sz > 0.0)) | ((k2 == KIND_FINITE) & (sz > cs))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            near = (k2 == KIND_FINITE) & (
-                np.abs(sz / cs - 1.0) <= np.maximum(res.rel_accuracy, 4e-16)
-            )
-        uncertain = near | (shape2(on_kc) & (p_fixed.vo > 0.0))
-        res.outcome = unstable.astype(np.int8)
-        res.outcome_uncertain = uncertain
+        res.outcome = grid("outcome")
+        res.outcome_uncertain = grid("outcome_uncertain")
     return res

@@ -10,7 +10,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from rsfcore import ParameterError, Params, classify
+from rsfcore import ParameterError, Params, batch, classify
 from rsfcore.critical import critical_perturbation
 from rsfcore.diagram import stability_diagram
 
@@ -145,3 +145,115 @@ def test_invalid_arguments():
         stability_diagram("eps", [0.1], "ba", [2.0], vo=0.0, perturbation="load-point-jump")
     with pytest.raises(ParameterError):
         stability_diagram("eps", [0.1, math.nan], "ba", [2.0])
+
+
+# Boundary values of each axis: b/a -> 1, kappa = 0, kappa = kappa_crit (ratio 1 and its
+# neighbouring doubles), x = eps kappa/kappa_crit = 1 (ratio 4 at eps 0.25, 2 at 0.5),
+# eps 0 and 1, size 0 and the smallest double.
+_PIN_AXES = {
+    "ba": [1.0 + 2.0**-52, 1.0000000017765576, 1.5, 2.0, 1e4],
+    "kappa_ratio": [0.0, 0.5, 1.0 - 2.0**-53, 1.0, 1.0 + 2.0**-52, 2.0, 4.0, 50.0],
+    "eps": [0.0, 0.25, 0.5, 0.9518881218377987, 1.0],
+    "size": [0.0, 5e-324, 0.5, 1.0, 3.0, 12.6842, 1e4],
+}
+_PIN_FIXED = {"ba": 2.0, "kappa_ratio": 4.0, "eps": 0.25}
+
+
+@pytest.mark.parametrize(
+    "x_name, y_name, size",
+    [
+        ("kappa_ratio", "eps", None),
+        ("eps", "ba", 1.0),
+        ("ba", "kappa_ratio", 0.0),
+        ("kappa_ratio", "size", None),
+        ("size", "eps", None),
+    ],
+)
+@pytest.mark.parametrize(
+    "pert, vo", [("velocity-jump", 0.0), ("velocity-jump", 1.0), ("load-point-jump", 1e-3)]
+)
+def test_diagram_is_the_batch_point_by_point(
+    x_name: str, y_name: str, size: float | None, pert: str, vo: float
+) -> None:
+    """Every output of the diagram is, bit for bit, what rsfcore.batch.critical_points
+    gives at the same points laid out independently (numpy meshgrid, kappa = ratio (b/a -
+    1) formed by numpy): the diagram has no finishing rule of its own (zero/infinite
+    values, boundary flag, outcome: rsfcore.batchloop.finish_point), also where a size
+    axis reuses one critical size for every size, and on the boundaries."""
+    xv, yv = np.array(_PIN_AXES[x_name]), np.array(_PIN_AXES[y_name])
+    if "ba" in (x_name, y_name) and "kappa_ratio" in (x_name, y_name):
+        xv = xv[xv <= 1e3] if x_name == "ba" else xv  # kappa <= 1e6
+        yv = yv[yv <= 1e3] if y_name == "ba" else yv
+    d = stability_diagram(x_name, xv, y_name, yv, perturbation=pert, vo=vo, size=size, **_PIN_FIXED)
+    X, Y = np.meshgrid(xv, yv, indexing="ij")
+    at = {k: np.full(X.shape, v) for k, v in _PIN_FIXED.items()}
+    at[x_name], at[y_name] = X, Y
+    ba = at["ba"].ravel()
+    sz = at["size"].ravel() if "size" in at else (None if size is None else np.full(ba.size, size))
+    ref = batch.critical_points(
+        ba,
+        at["kappa_ratio"].ravel() * (ba - 1.0),
+        at["eps"].ravel(),
+        vo,
+        perturbation=pert,
+        size=sz,
+    )
+    assert not ref.failed.any()
+    shape = X.shape
+    for name in ("kind", "critical_size", "rel_accuracy", "method", "on_boundary"):
+        got, want = getattr(d, name), getattr(ref, name).reshape(shape)
+        assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=True), name
+    assert np.array_equal(np.signbit(d.critical_size), np.signbit(ref.critical_size.reshape(shape)))
+    if sz is None:
+        assert d.outcome is None and d.outcome_uncertain is None
+    else:
+        assert d.outcome is not None and ref.outcome is not None
+        assert np.array_equal(d.outcome, ref.outcome.reshape(shape))
+        assert np.array_equal(d.outcome_uncertain, ref.outcome_uncertain.reshape(shape))
+    # the grid spans what it is meant to: every kind, and boundary points
+    # (zero needs kappa < kappa_crit with v_o > 0: a kappa_ratio axis)
+    zero = vo > 0.0 and "kappa_ratio" in (x_name, y_name)
+    assert set(np.unique(d.kind).tolist()) >= ({0, 1, 2} if zero else {1, 2})
+    assert d.on_boundary.any()
+
+
+def test_fallback_runs_once_per_parameter_point_and_a_failure_raises(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Points the kernel lists for bisection (forced here at eps = 0.3) are bisected once
+    per parameter point whatever the number of sizes on a size axis, and finished like
+    the others; a bisection that raises reaches the caller with its own exception."""
+    from rsfcore import batchloop
+    from rsfcore import critical as crit
+    from rsfcore import diagram as dg
+    from tests.e2e.test_worker_faultplugin import list_as_fallback
+
+    orig = batchloop.points_kernel
+    monkeypatch.setattr(
+        batchloop, "points_kernel", lambda *a: list_as_fallback(orig, a, orig(*a), 0.3)
+    )
+    real = crit.bisect_critical
+    calls: list[Params] = []
+
+    def counting(p: Params, *a: object, **kw: object) -> object:
+        calls.append(p)
+        return real(p, *a, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(crit, "bisect_critical", counting)
+    sizes = [0.0, 1.0, 5.0, 50.0]
+    d = stability_diagram("size", sizes, "eps", [0.1, 0.3], kappa_ratio=3.0, rtol=1e-8)
+    assert len(calls) == 1 and d.n_fallback == 1
+    bis = real(Params(2.0, 3.0, 0.3, 1.0), rtol=1e-8)
+    assert bis.critical_size is not None and 1.0 < bis.critical_size < 50.0
+    assert (d.critical_size[:, 1] == bis.critical_size).all()
+    assert (d.method[:, 1] == crit.M_BISECTION).all() and (d.kind[:, 1] == 1).all()
+    assert d.outcome is not None
+    assert d.outcome[:, 1].tolist() == [int(s > bis.critical_size) for s in sizes]
+
+    def failing(p: Params, *a: object, **kw: object) -> object:
+        raise FloatingPointError(f"boom at {p.eps}")
+
+    monkeypatch.setattr(crit, "bisect_critical", failing)
+    monkeypatch.setattr(dg, "bisect_critical", failing)
+    with pytest.raises(FloatingPointError, match="boom at 0.3"):
+        stability_diagram("kappa_ratio", [2.0, 3.0], "eps", [0.1, 0.3], rtol=1e-8)
