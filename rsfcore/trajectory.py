@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal, ParamSpec
@@ -1593,6 +1594,33 @@ def _simulate(
         why = "the start lies within the integration's resolution of L* (|L0 - L*| <= rtol"
         why += " (|L*| + 1)): the outcome is certain, its times and peak are not resolved"
 
+    beyond_double = [
+        name
+        for name, t in (
+            ("blowup_time", blowup_time),
+            ("return_time", return_time),
+            ("peak_time", peak_T),
+        )
+        if t is not None and not math.isfinite(t)
+    ]
+    if beyond_double:
+        # times come back from the v_o = 1 frame as T'/v_o: at v_o = 1.2e-260, kappa =
+        # 1.1e-125 a blow-up at T' ~ 1e125 is T ~ 1e385, beyond the largest double (it
+        # was reported as inf with complete True)
+        blowup_time = None if "blowup_time" in beyond_double else blowup_time
+        return_time = None if "return_time" in beyond_double else return_time
+        peak_T = None if "peak_time" in beyond_double else peak_T
+        complete = False
+        why = "; ".join(
+            r
+            for r in (
+                why,
+                f"{', '.join(beyond_double)} beyond the largest double ({sys.float_info.max:.3g})"
+                f" in T (T = T'/v_o from the v_o = 1 frame, v_o = {p_run.vo:.6g}): not reported",
+            )
+            if r
+        )
+
     integration_decided = (
         res is not None
         and plan.outcome is None
@@ -1840,7 +1868,19 @@ def _sample(
         s = s.copy()
         s[:, 0] += shift
         s[:, 1] -= shift
-        s[:, 2] *= math.exp(-shift)
+        with np.errstate(over="ignore"):
+            s[:, 2] *= math.exp(-shift)
+        finite = np.isfinite(s[:, 2])
+        if not finite.all():
+            # T = T'/v_o beyond the largest double (v_o ~ 1e-260 and T' ~ 1e125): the
+            # samples end before the first such time
+            n_ok = int(np.argmin(finite))
+            beyond = (
+                f"the samples end after {n_ok} of {len(s)}: later times T = T'/v_o exceed the"
+                f" largest double ({sys.float_info.max:.3g})"
+            )
+            s = s[:n_ok]
+            cut = "; ".join(r for r in (cut, beyond) if r)
     phi, lth = s[:, 0], s[:, 1]
     tr = Trajectory(
         # T >= 0: the dense output of c T near T = 0 (subnormal c T, e.g. -5e-323 after a

@@ -528,3 +528,30 @@ def test_t_end_beyond_a_stop_reuses_the_classification_run(
     for name in ("T", "phi", "psi", "ln_theta", "slip", "load_point"):
         np.testing.assert_array_equal(getattr(new.trajectory, name), getattr(old.trajectory, name))
     assert (new.certificate, new.reason) == (old.certificate, old.reason)
+
+
+def test_times_beyond_the_largest_double_are_not_reported() -> None:
+    """Times come back from the v_o = 1 frame as T = T'/v_o.  At v_o = 1.2e-260, kappa =
+    1.1e-125 the blow-up is at T' ~ 8e127 in that frame, so T ~ 7e387: no double holds it.
+    It was reported as inf with complete True (found by a scan at v_o < 1e-150).  The
+    independent check is the run at v_o = 1 itself (the invariance T' = v_o T): its time is
+    finite and its quotient by v_o is beyond the double range."""
+    ba, kappa, eps, vo, d = (
+        4.152705849506562,
+        1.0875951519272588e-125,
+        0.28040875798604,
+        1.2153118312144947e-260,
+        -0.1480902556836492,
+    )
+    frame = classify(Params(ba=ba, kappa=kappa, eps=eps, vo=1.0), "velocity-jump", d, rtol=1e-8)
+    assert frame.blowup_time is not None and frame.complete
+    assert math.log(frame.blowup_time) - math.log(vo) > math.log(1.7976931348623157e308)
+    p = Params(ba=ba, kappa=kappa, eps=eps, vo=vo)
+    res = classify(p, "velocity-jump", d, rtol=1e-8)
+    assert (res.outcome, res.certificate) == (frame.outcome, frame.certificate)
+    assert res.blowup_time is None and res.peak_time is None
+    assert not res.complete and "largest double" in res.reason
+    traj = simulate(p, "velocity-jump", d, rtol=1e-8, n_points=50)
+    assert traj.trajectory is not None and not traj.complete
+    assert np.isfinite(traj.trajectory.T).all() and len(traj.trajectory.T) >= 1
+    assert "largest double" in traj.reason
