@@ -569,7 +569,10 @@ def test_huge_jump_peak_time_referee() -> None:
     assert _huge_jump_peak_time_referee() == pytest.approx(HUGE_JUMP_PEAK_T, rel=1e-15)
 
 
-@pytest.mark.parametrize("rtol", [1e-13, 2e-13, 1e-12, 1e-11, 1e-10, 1e-8])
+@pytest.mark.parametrize(
+    "rtol",
+    [1e-13, 2e-13, 1e-12, 1e-11, 1e-10, 1e-8, 1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 1e-4, 3e-4, 1e-3],
+)
 def test_huge_jump_peak_time_within_its_claim(rtol: float) -> None:
     """After a load-point jump to v_o (1 + dv) = 5e298 the peak time is 1.4e-302 (7.1e-4 in
     the frame of the integration): times below 1e-290 were not compared between runs (as if
@@ -578,7 +581,12 @@ def test_huge_jump_peak_time_within_its_claim(rtol: float) -> None:
     rtol 1e-12 its check (1e-13) stopped at DECIDED_OUTCOME_BUDGET (15x).  Times are now
     compared by their size in that frame, and a check at 10 rtol takes the place of one at
     rtol/10 that does not fit.  (The peak is flat: ~1e3 x the relative error of L at the
-    peak, so double-precision integrators scatter by ~1e-9 at rtol 1e-13.)"""
+    peak, so double-precision integrators scatter by ~1e-9 at rtol 1e-13.)  Looser: the
+    peak (6.9e-4 above ln v_o) is found on the dense output of stiff steps, 4 - 12 % off at
+    every rtol from 1e-4 to 1e-7 (0.119 at both 1e-6 and 1e-7): the pair (1e-6, 1e-7)
+    claimed 2.3e-3 (51x short), and at 1e-4 the probe at 1e-13 stopped at its budget and a
+    claim of 0.012 stood (3.1x short); such peaks are now probed at rtol/1e3
+    (STIFF_FLAT_PEAK), and a probe that cannot finish is replaced by that one."""
     p = Params(1.000001, 1e6, 0.0, 1.0)
     lg = math.log1p(5e298)
     for res in (
