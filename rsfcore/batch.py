@@ -49,7 +49,7 @@ from . import batchloop as _loop
 from . import critical as _crit
 from . import limits as lim
 from .batchloop import OUTCOME_NONE, OUTCOME_STABLE, OUTCOME_UNSTABLE
-from .params import BA_MAX, KAPPA_MAX, ParameterError, Params, check_range
+from .params import ParameterError, Params
 
 __all__ = [
     "AxisTable",
@@ -117,6 +117,11 @@ def _check(name: str, a: NDArray[np.float64], bad: NDArray[np.bool_], valid: str
         raise ParameterError(f"{name}[{i}]", float(a[i]), valid)
 
 
+def _check_limit(limit: lim.Limit, a: NDArray[np.float64]) -> None:
+    """ParameterError naming the first element of ``a`` outside ``limit`` and its range."""
+    _check(limit.name, a, limit.bad_mask(a), limit.text)
+
+
 def _check_inputs(
     ba: NDArray[np.float64],
     kappa: NDArray[np.float64] | None,
@@ -124,24 +129,22 @@ def _check_inputs(
     vo: NDArray[np.float64],
     pert: int,
 ) -> None:
-    """The valid ranges of the parameters (ParameterError naming the first bad element;
-    ``kappa`` None: checked by the caller)."""
-    _check("ba", ba, ~((ba > 1.0) & (ba <= BA_MAX)), f"(1, {BA_MAX:g}]")
+    """The valid ranges of the parameters (rsfcore.limits: ParameterError naming the first
+    bad element; ``kappa`` None: checked by the caller)."""
+    _check_limit(lim.BA, ba)
     if kappa is not None:
-        _check("kappa", kappa, ~((kappa >= 0.0) & (kappa <= KAPPA_MAX)), f"[0, {KAPPA_MAX:g}]")
-    _check("eps", eps, ~((eps >= 0.0) & (eps <= 1.0)), "[0, 1]")
-    _check("vo", vo, ~((vo >= 0.0) & (vo <= 1e300)), "0 or (0, 1e300]")
+        _check_limit(lim.KAPPA, kappa)
+    _check_limit(lim.EPS, eps)
+    _check_limit(lim.VO, vo)
     if pert == 1:
         _check("vo", vo, vo == 0.0, "> 0 for a load-point jump")
 
 
 def _check_size(sz: NDArray[np.float64] | None, pert: int) -> None:
-    """The valid range of perturbation sizes (ParameterError naming the first bad one)."""
+    """The valid range of perturbation sizes (rsfcore.limits; ParameterError naming the
+    first bad one)."""
     if sz is not None:
-        if pert == 0:
-            _check("size", sz, ~((sz >= -1e4) & (sz <= 1e4)), "[-1e4, 1e4]")
-        else:
-            _check("size", sz, ~((sz > -1.0) & (sz <= 1e300)), "(-1, 1e300]")
+        _check_limit(lim.VELOCITY_JUMP_SIZE if pert == 0 else lim.LOAD_POINT_JUMP_SIZE, sz)
 
 
 def _perturbation(perturbation: str, rtol: float) -> tuple[int, float]:
@@ -149,9 +152,7 @@ def _perturbation(perturbation: str, rtol: float) -> tuple[int, float]:
         raise ParameterError(
             "perturbation", perturbation, "one of " + ", ".join(_crit.PERTURBATIONS)
         )
-    return _crit.PERTURBATIONS.index(perturbation), check_range(
-        "rtol", rtol, _crit.RTOL_RANGE[0], _crit.RTOL_RANGE[1]
-    )
+    return _crit.PERTURBATIONS.index(perturbation), lim.RTOL.check(rtol)
 
 
 def critical_points(
@@ -309,11 +310,11 @@ def critical_grid(
     tv, sv = _table("vo", vo)
     _check_inputs(tb, None if kappa_is_ratio else tk, te, tv, pert)
     if kappa_is_ratio:
-        _check("kappa_ratio", tk, ~(tk >= 0.0), ">= 0")
+        _check_limit(lim.KAPPA_RATIO, tk)
         top = float(tk.max()) * (float(tb.max()) - 1.0)
-        if not top <= KAPPA_MAX:
+        if not top <= lim.KAPPA_MAX:
             raise ParameterError(
-                "kappa_ratio", float(tk.max()), f"kappa_ratio*(b/a - 1) <= {KAPPA_MAX:g}"
+                "kappa_ratio", float(tk.max()), f"kappa_ratio*(b/a - 1) <= {lim.KAPPA_MAX:g}"
             )
     ts: NDArray[np.float64] | None = None
     ss = 1
@@ -490,7 +491,7 @@ def _finish_listed(
             n_fb += 1
             try:
                 r = classify(p, perturbation, sz, rtol=crtol, check_accuracy=False)
-                outcome[i] = OUTCOME_UNSTABLE if r.outcome == "unstable" else OUTCOME_STABLE
+                outcome[i] = _loop.OUTCOMES.index(r.outcome)
                 unc[i] = False
             except Exception as exc:  # noqa: BLE001 - recorded per point, the batch goes on
                 failed[i] = True

@@ -27,6 +27,7 @@ alike writes nothing but its first element.
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 
 import numba as nb
 import numpy as np
@@ -55,13 +56,38 @@ __all__ = [
     "OUTCOME_STABLE",
     "OUTCOME_UNSTABLE",
     "OUTCOME_NONE",
+    "OUTCOMES",
+    "BatchOutcome",
     "OUTCOME_NEAR_FLOOR",
     "finish_point",
     "points_kernel",
+    "stored_value",
 ]
 
 #: outcome codes (``BatchResult.outcome``); OUTCOME_NONE where not computed or failed
+#: (plain ints: the compiled loop writes them; :class:`BatchOutcome` names them)
 OUTCOME_STABLE, OUTCOME_UNSTABLE, OUTCOME_NONE = 0, 1, -1
+#: names of the decided outcome codes, indexed by the code (OUTCOMES[OUTCOME_STABLE] =
+#: "stable"; the ``outcome_legend`` of a stability diagram)
+OUTCOMES: tuple[str, ...] = ("stable", "unstable")
+
+
+class BatchOutcome(IntEnum):
+    """Outcome code of a batch / grid / diagram point (the ``outcome`` arrays)."""
+
+    STABLE = OUTCOME_STABLE
+    UNSTABLE = OUTCOME_UNSTABLE
+    #: not computed (no size) or the point failed
+    NONE = OUTCOME_NONE
+
+    @property
+    def text(self) -> str:
+        """ "stable" | "unstable" (ValueError for NONE, which has no name in OUTCOMES)."""
+        if self is BatchOutcome.NONE:
+            raise ValueError("OUTCOME_NONE has no outcome name")
+        return OUTCOMES[int(self)]
+
+
 #: Smallest relative band |size/critical - 1| within which an outcome is uncertain
 #: (a few ulp: exact decisions report accuracy 0).
 OUTCOME_NEAR_FLOOR = 4e-16
@@ -69,6 +95,14 @@ OUTCOME_NEAR_FLOOR = 4e-16
 #: outcome, outcome_uncertain).
 OUT_KIND, OUT_VALUE, OUT_ACC, OUT_METHOD, OUT_ON_BOUNDARY, OUT_OUTCOME, OUT_UNCERTAIN = range(7)
 N_OUT = 7
+
+
+@nb.njit(cache=True, nogil=True)
+def stored_value(value: float, flags: int) -> float:
+    """The critical size a batch stores for :func:`rsfcore.critical.critical_point`'s
+    ``value``: inf where ``flags`` has FLAG_LOG_VALUE (the kernel's value is then
+    l = ln(1 + dv) of a finite load-point jump dv beyond the double range), else ``value``."""
+    return math.inf if flags & FLAG_LOG_VALUE else value
 
 
 @nb.njit(cache=True, nogil=True)
@@ -231,8 +265,7 @@ def points_kernel(
                 k, v0, a, m, fl, _ = critical_point(
                     ba, kappa, eps, 1.0 if vo > 0.0 else 0.0, pert, rtol, K
                 )
-                if fl & FLAG_LOG_VALUE:
-                    v0 = math.inf  # finite, beyond the double range
+                v0 = stored_value(v0, fl)
                 l_b, l_k, l_e, l_v = i_b, i_k, i_e, i_v
             v, ob, oc, unc = finish_point(k, v0, a, fl, sz, vo, has_size)
             i = j + q

@@ -75,6 +75,7 @@ asymptotic start is ~1e-3 rtol (z0 chosen from rtol; measured to scale as z0^3).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -89,6 +90,7 @@ from .asymptote import (
     ASYM_R_MIN,
     load_jump_asymptote,
 )
+from .batchloop import stored_value
 from .decision import (
     BOUNDARY_RTOL,
     FLAG_FALLBACK,
@@ -172,18 +174,36 @@ __all__ = [
 ]
 
 
-@nb.njit(cache=True, nogil=True)
-def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method, flags):
-    """Compiled loop over 1-D arrays ba, kappa, eps (same length): fills the outputs.
+def critical_batch(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method, flags):  # type: ignore[no-untyped-def]
+    """Deprecated (to be removed): use :func:`rsfcore.batch.critical_points`, the one batch
+    path (it also finishes the FLAG_FALLBACK points by bisection and checks its inputs).
 
-    Points with FLAG_FALLBACK set in ``flags`` need :func:`bisect_critical`.
+    Compiled loop over 1-D arrays ba, kappa, eps (same length) at one v_o and one
+    perturbation code: fills the outputs kind, value, rel_acc, method, flags per point
+    (no input check) and returns the number of right-hand-side evaluations.  Points with
+    FLAG_FALLBACK set in ``flags`` need :func:`bisect_critical`.
     """
+    warnings.warn(
+        "rsfcore.critical.critical_batch is deprecated and will be removed; use"
+        " rsfcore.batch.critical_points",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return int(
+        _critical_batch_loop(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method, flags)
+    )
+
+
+@nb.njit(cache=True, nogil=True)
+def _critical_batch_loop(ba, kappa, eps, vo, pert, rtol, kind, value, rel_acc, method, flags):
+    """The loop of the deprecated :func:`critical_batch` (the kernel and stored value of
+    rsfcore.batchloop)."""
     K = np.empty(N_WORK)
     n_total = 0
     for i in range(ba.shape[0]):
         k, v, a, m, fl, nr = critical_point(ba[i], kappa[i], eps[i], vo, pert, rtol, K)
         kind[i] = k
-        value[i] = math.inf if fl & FLAG_LOG_VALUE else v  # finite, beyond the double range
+        value[i] = stored_value(v, fl)
         rel_acc[i] = a
         method[i] = m
         flags[i] = fl

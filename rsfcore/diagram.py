@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import limits as lim
 from ._version import NUMERICS_VERSION
 from .batch import AxisTable, critical_grid
+from .batchloop import OUTCOMES
 from .critical import (
     DEFAULT_RTOL,
     KIND_FINITE,
@@ -50,7 +51,6 @@ from .params import KAPPA_MAX, ParameterError, Params
 __all__ = ["AXIS_NAMES", "DiagramResult", "stability_diagram", "OUTCOMES", "MAX_POINTS"]
 
 AXIS_NAMES: tuple[str, ...] = ("kappa_ratio", "eps", "ba", "size")
-OUTCOMES: tuple[str, ...] = ("stable", "unstable")
 #: largest number of grid points accepted in one call
 MAX_POINTS = 4_000_000
 

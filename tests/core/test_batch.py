@@ -250,3 +250,83 @@ def test_bad_input_names_element(kw: dict, field: str) -> None:
     with pytest.raises(ParameterError) as e:
         batch.critical_points(**kw)
     assert e.value.field == field
+
+
+@pytest.mark.parametrize(
+    "kw, limit, bad",
+    [
+        (dict(ba=[2.0, 1.0]), "BA", 1.0),
+        (dict(kappa=[1.0, 2e6]), "KAPPA", 2e6),
+        (dict(eps=[0.1, -0.5]), "EPS", -0.5),
+        (dict(vo=[1.0, 2e300]), "VO", 2e300),
+        (dict(size=[1.0, 1.5e4]), "VELOCITY_JUMP_SIZE", 1.5e4),
+        (dict(size=[1.0, -1.0], perturbation="load-point-jump"), "LOAD_POINT_JUMP_SIZE", -1.0),
+        (dict(rtol=1e-14), "RTOL", 1e-14),
+    ],
+)
+def test_bad_input_states_the_limits_range(kw: dict, limit: str, bad: float) -> None:
+    """The batch checks are the ranges of rsfcore.limits (one definition): the error names
+    the element, the value given and the Limit's own range text."""
+    from rsfcore import limits
+
+    args: dict = dict(ba=2.0, kappa=1.0, eps=0.1, vo=1.0)
+    args.update(kw)
+    lim = limits.LIMITS[limit]
+    with pytest.raises(ParameterError) as e:
+        batch.critical_points(**args)
+    assert e.value.field == (lim.name if limit == "RTOL" else f"{lim.name}[1]")
+    assert e.value.valid == lim.text and e.value.value == bad
+    # the in-range end of each limit is accepted (the ranges are not narrower than stated)
+    ok = dict(args, **{k: v for k, v in kw.items() if k == "perturbation"})
+    edge = lim.lo if limit in ("EPS", "RTOL") else lim.hi
+    ok[lim.name] = edge
+    if limit == "KAPPA":
+        ok["ba"] = 1e6
+    batch.critical_points(**ok)
+
+
+def test_outcome_names_are_indexed_by_the_codes() -> None:
+    """One definition: the diagram's legend is batchloop's, each name at its code."""
+    from rsfcore import diagram
+
+    assert diagram.OUTCOMES is batchloop.OUTCOMES
+    assert batchloop.OUTCOMES[batchloop.OUTCOME_STABLE] == "stable"
+    assert batchloop.OUTCOMES[batchloop.OUTCOME_UNSTABLE] == "unstable"
+    assert [o.text for o in batchloop.BatchOutcome if o is not batchloop.BatchOutcome.NONE] == [
+        "stable",
+        "unstable",
+    ]
+    assert batchloop.BatchOutcome.NONE == batchloop.OUTCOME_NONE
+    # the compiled loop writes the plain codes
+    r = batch.critical_points([2.0, 2.0], [3.0, 3.0], [0.25, 0.25], 1.0, size=[0.5, 1e3])
+    assert r.outcome is not None
+    assert [batchloop.BatchOutcome(int(o)).text for o in r.outcome] == ["stable", "unstable"]
+
+
+def test_deprecated_critical_batch_is_the_batch_kernel() -> None:
+    """rsfcore.critical.critical_batch (deprecated) warns and gives the bits of
+    critical_points (the one batch path) wherever no fallback is needed, boundaries
+    x = 1 and kappa = kappa_crit (up to rounding) included."""
+    ba, kap, eps = [], [], []
+    for b in (1.0 + 2.0**-40, 1.5, 2.0, 1e4):
+        kc = b - 1.0
+        for r in (0.0, 0.5, 1.0 - 2.0**-52, 1.0, 1.0 + 2.0**-52, 2.0, 50.0):
+            k = r * kc
+            for e in (0.0, 0.25, 1.0) + ((kc / k, np.nextafter(kc / k, 0.0)) if k else ()):
+                if 0.0 <= e <= 1.0:
+                    ba.append(b), kap.append(k), eps.append(e)
+    B, K, E = np.array(ba), np.array(kap), np.array(eps)
+    n = B.size
+    for pert, name in enumerate(crit.PERTURBATIONS):
+        kind, val = np.empty(n, np.int8), np.empty(n)
+        acc, meth, fl = np.empty(n), np.empty(n, np.int8), np.empty(n, np.int64)
+        with pytest.warns(DeprecationWarning, match="critical_points"):
+            crit.critical_batch(B, K, E, 1.0, pert, 1e-10, kind, val, acc, meth, fl)
+        ok = (fl & crit.FLAG_FALLBACK) == 0
+        assert ok.sum() > 0.9 * n
+        r = batch.critical_points(B, K, E, 1.0, perturbation=name)
+        assert np.array_equal(kind[ok], r.kind[ok])
+        assert np.array_equal(meth[ok], r.method[ok])
+        assert np.array_equal(acc[ok], r.rel_accuracy[ok])
+        fin = ok & (kind == crit.KIND_FINITE)  # zero/infinite: the batch stores 0 / inf
+        assert val[fin].tobytes() == r.critical_size[fin].tobytes()
