@@ -832,9 +832,11 @@ def simulate(
     region (1/distance; the sum of local errors cannot see that: 280x optimistic at
     d = d_crit (1 + 1e-7)), so the difference of the two runs, scaled by tolerance
     proportionality, raises it where needed (:data:`SECOND_RUN_FACTOR`).  Where errors
-    need not scale with rtol (rtol < 1e-11, a peak above phi - ln v_o = 50, or a claim
-    above CERTIFIED_ACCURACY), a third run 1e3x tighter (the tightest for such a claim;
-    3x looser near the floor) checks it too (:data:`NOISE_PROBE_TIGHTEN`).  Where the
+    need not scale with rtol (rtol < 1e-11, a peak above phi - ln v_o = 50, a peak less
+    than STIFF_FLAT_PEAK above it after stiff steps, or a claim above CERTIFIED_ACCURACY),
+    a third run 1e3x tighter (the tightest for such a claim; 3x looser near the floor)
+    checks it too (:data:`NOISE_PROBE_TIGHTEN`; where it cannot finish, the first 10x
+    looser one that does).  Where the
     outcome rests on the integration alone and the two runs differ in it (or in the
     return/blow-up time or peak by more than :data:`CERTIFIED_ACCURACY`), the tolerance is
     tightened 10x at a time down to 1e-13 until two runs agree; if the two tightest still
