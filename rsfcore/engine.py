@@ -82,6 +82,7 @@ __all__ = [
     "run",
     "integrate",
     "replay_samples",
+    "replay_samples_T",
     "LOG_TAU",
     "LOG_H",
     "LOG_STIFF",
@@ -1279,6 +1280,38 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _replay_step(steplog, k, ba, kappa, eps, vo, c, lnc, K, F, R, J, y, ynew, f, fnew,
+                 tmp, ftmp, rbuf, Z, FZ, sc):  # fmt: skip
+    """Take logged step k of a step log again from its logged start (the same state, step
+    and method give the same stages): y <- its start, ynew <- its end, F <- the dense
+    output's coefficients (as :func:`integrate` forms them)."""
+    n = y.shape[0]
+    args = (ba, kappa, eps, vo, c, lnc)
+    h = steplog[k, LOG_H]
+    for j in range(n):
+        y[j] = steplog[k, LOG_Y + j]
+    _rhs(y, f, ba, kappa, eps, vo, c, lnc)
+    if steplog[k, LOG_STIFF] == 3.0:
+        # Radau IIA: the same Newton iterations from the same start give the same stages
+        _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+        radau5.step(
+            _rhs, args, y, f, h, J, sc, Z, FZ, tmp, ftmp, ynew, fnew,
+            int(steplog[k, LOG_NEWTON]),
+        )  # fmt: skip
+        radau5.dense_coeffs(Z, F)
+    elif steplog[k, LOG_STIFF] != 0.0:
+        _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
+        if steplog[k, LOG_STIFF] == 2.0:
+            rodasp.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
+        else:
+            rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
+        rodas4.hermite_coeffs(y, ynew, f, fnew, h, F)
+    else:
+        _dop853_step(K, y, f, h, ynew, fnew, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
+        _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
     """Samples at the hybrid times ``sample_tau`` (sorted) from the step log of a finished
     :func:`integrate` run from y0 (its rows [0, n_log), LOG_* columns), without a second
@@ -1295,7 +1328,6 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
     n = y0.shape[0]
     c = vo if vo > 0.0 else 1.0
     lnc = math.log(c)
-    args = (ba, kappa, eps, vo, c, lnc)
     K = np.empty((_NSE, n))
     F = np.empty((7, n))
     R = np.empty((rodas4.N_STAGES, n))
@@ -1330,33 +1362,118 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
         tau_lim = tau + steplog[k, LOG_XLIM] * h
         if not sample_tau[i_tau] <= tau_lim:
             continue
-        for j in range(n):
-            y[j] = steplog[k, LOG_Y + j]
-        _rhs(y, f, ba, kappa, eps, vo, c, lnc)
-        if steplog[k, LOG_STIFF] == 3.0:
-            # Radau IIA: the same Newton iterations from the same start give the same stages
-            _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
-            radau5.step(
-                _rhs, args, y, f, h, J, sc, Z, FZ, tmp, ftmp, ynew, fnew,
-                int(steplog[k, LOG_NEWTON]),
-            )  # fmt: skip
-            radau5.dense_coeffs(Z, F)
-        elif steplog[k, LOG_STIFF] != 0.0:
-            _jacobian(y, J, ba, kappa, eps, vo, c, lnc)
-            if steplog[k, LOG_STIFF] == 2.0:
-                rodasp.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
-            else:
-                rodas4.step(_rhs, args, y, f, h, J, R, tmp, ftmp, rbuf, ynew, fnew)
-            rodas4.hermite_coeffs(y, ynew, f, fnew, h, F)
-        else:
-            _dop853_step(K, y, f, h, ynew, fnew, tmp, ftmp, ba, kappa, eps, vo, c, lnc)
-            _dense_coeffs(K, y, ynew, f, fnew, h, F, ba, kappa, eps, vo, c, lnc, tmp, ftmp)
+        _replay_step(steplog, k, ba, kappa, eps, vo, c, lnc, K, F, R, J, y, ynew, f, fnew,
+                     tmp, ftmp, rbuf, Z, FZ, sc)  # fmt: skip
         while i_tau < n_tau and sample_tau[i_tau] <= tau_lim:
             rk.dense_eval(F, y, (sample_tau[i_tau] - tau) / h, tmp)
             for j in range(n):
                 samples[n_filled, j] = tmp[j]
             n_filled += 1
             i_tau += 1
+    for i in range(n_filled):
+        samples[i, 2] /= c
+        samples[i, 1] -= samples[i, 0]
+    return n_filled
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def replay_samples_T(steplog, n_log, y0, ba, kappa, eps, vo, sample_T_in, stopped, samples):
+    """Samples at the times ``sample_T_in`` (T, sorted ascending) from the step log of a
+    finished :func:`integrate` run from y0 (its rows [0, n_log)), without a second run:
+    c T increases along the run, so each sample lies in the logged step whose c T range
+    holds it; that step is taken again from its logged start (:func:`_replay_step`, as
+    :func:`replay_samples`) and the sample's point in it is found by the same safeguarded
+    Newton on the T component of its dense output (rk.dense_invert), with the same start
+    and bracket, as :func:`integrate` does, so the samples are bit-identical to those of a
+    run with ``sample_T`` given that takes the same steps (tests/core/test_replay_time.py).
+    ``stopped``: the run ended at a stop located inside its last step (T_END, RUNAWAY,
+    RETURNED, PEAK_PASSED, CONVERGED): samples up to 1e-12 past the stop's c T are the
+    stop state, as in :func:`integrate`.
+
+    A closed-form leg (fast slip, descent) advances c T between two logged steps without a
+    step: a sample inside it is not in the log (a run with that sample integrates the
+    leg instead), and the function returns -1; the caller then takes a second run.
+    Otherwise fills ``samples`` (len(sample_T_in), len(y0)) in the output form (phi,
+    ln theta, T[, s, s_o]) and returns the rows filled (fewer than asked where the run
+    ended before the last time).
+    """
+    n = y0.shape[0]
+    c = vo if vo > 0.0 else 1.0
+    lnc = math.log(c)
+    sample_T = sample_T_in * c
+    K = np.empty((_NSE, n))
+    F = np.empty((7, n))
+    R = np.empty((rodas4.N_STAGES, n))
+    J = np.empty((n, 2))
+    y = np.empty(n)
+    ynew = np.empty(n)
+    f = np.empty(n)
+    fnew = np.empty(n)
+    tmp = np.empty(n)
+    ftmp = np.empty(n)
+    rbuf = np.empty(n)
+    Z = np.empty((radau5.N_STAGES, n))
+    FZ = np.empty((radau5.N_STAGES, n))
+    sc = np.ones(2)  # (Newton's weights: unused with a fixed number of iterations)
+    n_T = sample_T.shape[0]
+    i_T = 0
+    n_filled = 0
+    # samples at the start (internal form: L = phi + ln theta, c T)
+    while i_T < n_T and sample_T[i_T] <= y0[2] * c:
+        samples[n_filled, 0] = y0[0]
+        samples[n_filled, 1] = y0[0] + y0[1]
+        samples[n_filled, 2] = y0[2] * c
+        for j in range(3, n):
+            samples[n_filled, j] = y0[j]
+        n_filled += 1
+        i_T += 1
+    for k in range(n_log):
+        if i_T >= n_T:
+            break
+        # c T where the next logged step starts: the end of this one, unless a leg
+        # follows it (then beyond it)
+        T_next = steplog[k + 1, LOG_Y + 2] if k + 1 < n_log else math.inf
+        if sample_T[i_T] > T_next:
+            continue
+        _replay_step(steplog, k, ba, kappa, eps, vo, c, lnc, K, F, R, J, y, ynew, f, fnew,
+                     tmp, ftmp, rbuf, Z, FZ, sc)  # fmt: skip
+        x_lim = steplog[k, LOG_XLIM]
+        T_lim = ynew[2]
+        if x_lim < 1.0:
+            rk.dense_eval(F, y, x_lim, ftmp)
+            T_lim = ftmp[2]
+        # (integrate's inversion, step for step)
+        x_lo = 0.0
+        T_lo = y[2]
+        slope = 0.0
+        while i_T < n_T and sample_T[i_T] <= T_lim:
+            tgt = sample_T[i_T]
+            if slope > 0.0:
+                xg = x_lo + (tgt - T_lo) / slope
+            elif T_lim > T_lo:
+                xg = x_lo + (x_lim - x_lo) * (tgt - T_lo) / (T_lim - T_lo)
+            else:
+                xg = 0.5 * (x_lo + x_lim)
+            xs, slope = rk.dense_invert(F, y[2], 2, tgt, x_lo, x_lim, T_lo - tgt, T_lim - tgt, xg)
+            rk.dense_eval(F, y, xs, tmp)
+            for j in range(n):
+                samples[n_filled, j] = tmp[j]
+            n_filled += 1
+            i_T += 1
+            x_lo = xs
+            T_lo = tgt
+        if k + 1 == n_log and stopped and i_T < n_T:
+            # samples at the stop time itself (lost to rounding of the located stop)
+            if x_lim >= 1.0:
+                for j in range(n):
+                    ftmp[j] = ynew[j]
+            while i_T < n_T and sample_T[i_T] <= ftmp[2] * (1.0 + 1e-12):
+                for j in range(n):
+                    samples[n_filled, j] = ftmp[j]
+                n_filled += 1
+                i_T += 1
+        if i_T < n_T and sample_T[i_T] < T_next:
+            return -1  # inside a closed-form leg after this step
     for i in range(n_filled):
         samples[i, 2] /= c
         samples[i, 1] -= samples[i, 0]

@@ -55,6 +55,7 @@ from .engine import (
     Status,
     blowup_tail,
     replay_samples,
+    replay_samples_T,
     run,
 )
 from .errors import BudgetExceeded, UndecidedError
@@ -615,6 +616,12 @@ _EMPTY_LOG = np.empty((0, LOG_Y + NSTATE))
 #: most): its samples are then read from the logged steps (engine.replay_samples) instead
 #: of a second run; a longer run (> 2e5 steps, > ~0.3 s) is sampled by a second run.
 STEP_LOG_ROWS = 200_000
+#: Statuses of a run that ends at a located stop inside its last step (engine.integrate's
+#: stop_status; a budget's RUNAWAY is not one, and replay_samples_T then only admits
+#: samples up to 1e-12 of T past its end, within the run's accuracy)
+_LOCATED_STOPS = frozenset(
+    {Status.T_END, Status.RUNAWAY, Status.RETURNED, Status.PEAK_PASSED, Status.CONVERGED}
+)
 
 
 def _run(
@@ -1503,9 +1510,9 @@ def _simulate(
                 phi_i, psi_i = lg_named, lg_named
             else:
                 phi_i, psi_i = -lg_named, (p_run.ba - 1.0) * lg_named
-        if n_points > 0 and sampling == "tau" and (times is None or len(times) == 0):
-            # samples evenly in hybrid time up to where this run ends: it logs its steps
-            # and the samples are read from them (_sample), instead of a second run
+        if n_points > 0 and (times is None or len(times) == 0):
+            # samples evenly in hybrid time or in T up to where this run ends: it logs its
+            # steps and the samples are read from them (_sample), instead of a second run
             steplog = np.empty((min(budget, STEP_LOG_ROWS), LOG_Y + NSTATE))
         res, _ = _run(
             p_int,
@@ -1870,11 +1877,8 @@ def _sample(
             n_filled = res0.n_filled
             done = res0.status in (Status.T_END, Status.BUDGET)
         elif res0 is None:
-            # (logging its steps when the samples are in hybrid time up to its end)
-            if sampling == "tau":
-                steplog = np.empty((min(STEP_LOG_ROWS, max_steps), LOG_Y + NSTATE))
-            else:
-                steplog = _EMPTY_LOG
+            # (logging its steps: the samples up to its end are read from them)
+            steplog = np.empty((min(STEP_LOG_ROWS, max_steps), LOG_Y + NSTATE))
             res0, _ = run(t_end=te, stop_on_return=sor, steplog=steplog)
         tau_end, T_end = res0.tau_end, float(res0.y_end[2])
         if res0.status == Status.BUDGET:
@@ -1888,8 +1892,30 @@ def _sample(
                 cut += f" ({n_filled} of {n_points} samples, evenly spaced in T up to t_end)"
         if not done and sampling == "time":
             sT = np.linspace(0.0, T_end, n_points)
-            res, samples = run(t_end=te, stop_on_return=sor, sample_T=sT)
-            n_filled = res.n_filled
+            n_filled = -1
+            if res0.n_logged > 0 and steplog.shape[0] > 0:
+                # read from the logged steps (engine.replay_samples_T: bit-identical to a
+                # second run with the samples where that run takes the same steps; -1
+                # where a sample falls inside a closed-form leg, which that run integrates)
+                samples = np.empty((n_points, NSTATE))
+                y0 = np.array([phi0, (psi0 - phi0) / p.ba, 0.0, 0.0, 0.0])
+                n_filled = int(
+                    replay_samples_T(
+                        steplog,
+                        res0.n_logged,
+                        y0,
+                        p.ba,
+                        p.kappa,
+                        p.eps,
+                        p.vo,
+                        sT,
+                        res0.status in _LOCATED_STOPS,
+                        samples,
+                    )
+                )
+            if n_filled < n_points:
+                res, samples = run(t_end=te, stop_on_return=sor, sample_T=sT)
+                n_filled = res.n_filled
         elif not done:
             sTau = np.linspace(0.0, tau_end, n_points)
             if res0.n_logged > 0 and steplog.shape[0] > 0:
