@@ -106,6 +106,8 @@ def _bad_mask(name: str, v: F64, perturbation: str) -> NDArray[np.bool_]:
         bad |= v <= -1.0
     if name == "vo" and perturbation == "load-point-jump":
         bad |= v <= 0.0
+    if name == "vo":
+        bad |= (v > 0.0) & (v < limits.VO_MIN)  # as rsfcore.Params: times leave the doubles
     return bad
 
 
@@ -670,6 +672,13 @@ def expand(req: SweepRequest, max_points: int, max_scattered: int | None = None)
     if phys is not None:  # the one conversion SI -> dimensionless (rsfcore.units)
         fixed.update(ba=phys.ba, kappa=phys.kappa, vo=phys.vo)
     fixed.update(si_fixed)  # a fixed SI size and its conversion
+    vo_fixed = fixed.get("vo")
+    if "vo" not in where and vo_fixed is not None and 0.0 < vo_fixed < limits.VO_MIN:
+        raise SpecError(
+            "fixed.physical" if phys is not None else "fixed.vo",
+            f"{vo_fixed!r} out of range for vo",
+            limits.VO_VALID_TEXT,
+        )
     for name in where:
         fixed.pop(name, None)
     sized = "size" in where or any(f in where for f in SI_SIZE_FIELDS)

@@ -93,6 +93,7 @@ __all__ = [
     "KAPPA_MAX",
     "VO_MAX",
     "VO_MIN",
+    "VO_VALID_TEXT",
     "SIZE_MAX",
     "STEP_BUDGET",
     "LIMITS",
@@ -233,6 +234,11 @@ VO_MAX: float = 1.0e300
 #: scale as 1/v_o, stay finite (at v_o = 5e-324 they overflow and v_o (1 + dv) rounds
 #: to a denormal that loses the jump); v_o = 0 (stationary load point) stays valid
 VO_MIN: float = 1.0e-300
+#: The valid values of v_o in words, (0, VO_MIN) excluded (Params, sweep axes and fixed v_o)
+VO_VALID_TEXT: str = (
+    f"0 (stationary load point) or [{VO_MIN:g}, {VO_MAX:g}]: below {VO_MIN:g} the times,"
+    " which scale as 1/v_o, leave the double range"
+)
 SIZE_MAX: float = 1.0e4
 #: largest step budget of one integration
 STEP_BUDGET: int = 10_000_000

@@ -62,12 +62,7 @@ class Params:
         object.__setattr__(self, "eps", lim.EPS.check(self.eps))
         object.__setattr__(self, "vo", lim.VO.check(self.vo))
         if 0.0 < self.vo < lim.VO_MIN:
-            raise ParameterError(
-                "vo",
-                self.vo,
-                f"0 (stationary load point) or [{lim.VO_MIN:g}, {VO_MAX:g}]: below"
-                f" {lim.VO_MIN:g} the times, which scale as 1/v_o, leave the double range",
-            )
+            raise ParameterError("vo", self.vo, lim.VO_VALID_TEXT)
 
     @classmethod
     def from_ratio(cls, ba: float, kappa_ratio: float, eps: float, vo: float = 1.0) -> Params:

@@ -85,7 +85,7 @@ AXIS_RANGES: dict[str, tuple[float, float, str]] = {
         f"kappa_ratio*(ba-1) <= {limits.format_number(limits.KAPPA_MAX)})",
     ),
     "eps": (0.0, 1.0, limits.EPS.text),
-    "vo": (0.0, limits.VO_MAX, limits.VO.text),
+    "vo": (0.0, limits.VO_MAX, limits.VO_VALID_TEXT),
     "size": (
         -limits.SIZE_MAX,
         limits.SIZE_MAX,

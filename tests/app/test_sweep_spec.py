@@ -10,6 +10,7 @@ from rsfapp.grid import (
     _COST_S,
     MAX_CHUNK,
     Axis,
+    SpecError,
     SweepSpec,
     aligned_chunk,
     cost_per_point,
@@ -18,7 +19,7 @@ from rsfapp.grid import (
 )
 from rsfapp.requests import SweepRequest
 from rsfapp.sweepdata import compute_chunk
-from rsfcore import batch, critical
+from rsfcore import ParameterError, batch, critical
 from rsfcore.params import Params
 
 
@@ -289,3 +290,30 @@ def test_xy_form_is_the_same_sweep_as_two_axes(body: dict) -> None:
             {"axes": [{"name": "eps", "values": [0.1]}, {"name": "ba", "values": [2.0]}]}
         ).to_json()
     )
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        (
+            {"axes": [{"name": "ba", "start": 2, "stop": 3, "n": 3}], "fixed": {"vo": 1e-310}},
+            "fixed.vo",
+        ),
+        ({"axes": [{"name": "vo", "values": [1e-300, 5e-324]}]}, "axes[0].values[1]"),
+        ({"points": {"vo": [1.0, 1e-301]}}, "points.vo[1]"),
+    ],
+)
+def test_vo_below_its_minimum_is_refused_as_by_params(body: dict, field: str) -> None:
+    """A sweep takes v_o as a single query does (rsfcore.Params): 0 or [1e-300, 1e300].
+    It accepted 0 < v_o < 1e-300, which every single query refuses."""
+    with pytest.raises(ParameterError, match="vo"):
+        Params(ba=2.0, kappa=0.5, eps=0.5, vo=body.get("fixed", {}).get("vo", 5e-324))
+    body = {"fixed": {"ba": 2.0, "kappa": 0.5, "eps": 0.5} | body.pop("fixed", {}), **body}
+    with pytest.raises(SpecError) as err:
+        spec_of(body)
+    assert err.value.field == field and "1e-300" in str(err.value)
+    ok = {
+        "fixed": {"ba": 2.0, "kappa": 0.5, "eps": 0.5},
+        "axes": [{"name": "vo", "values": [0.0, 1e-300]}],
+    }
+    assert spec_of(ok).n_total == 2
