@@ -149,4 +149,24 @@ __all__ = ["NUMERICS_VERSION"]
 #:    DECIDED_CERTIFY_BUDGET 8,000 -> 7,000 steps (such runs cost ~1.25 us per step, not
 #:    the ~0.7 it was sized for: checks that ran to its end took 10.0 - 12.3 ms); a few
 #:    decided outcomes whose checks needed 7,000 - 8,000 steps lose their times.
-NUMERICS_VERSION = "9"
+#: 10: runs of a linear instability (kappa < kappa_crit, v_o > 0) stop where phi - ln v_o
+#:    falls below engine.PHI_SUBNORMAL (-708.4, e^(phi - ln v_o) subnormal; the steps there
+#:    cost 3x and stalled at T ~ 1e56), with times None and complete false; such starts
+#:    within the integration's resolution of L* are not integrated (certificate
+#:    linear_instability, was L_above_Lstar where the run reached it; their times were
+#:    never reported).  Times erratic there (a blow-up time of -6.2e240) are gone.
+#:    A trajectory of an outcome certain before integrating has classify's budgets and its
+#:    samples end where that run stopped (DECIDED_BUDGET 5e5 removed; slow spirals took
+#:    6 - 25 s); runs to a caller's t_end or times take at most SAMPLE_BUDGET steps; samples
+#:    evenly in T come from the classification run's step log (bit-identical to the second
+#:    run they replace).  Check runs that their budget would cut are not started (steps
+#:    predicted per method), a check at 10 rtol replaces one at rtol/10 that does not fit,
+#:    times are compared between runs in the frame of the integration (a peak time of
+#:    1.4e-302 had been skipped), a flat peak reached by stiff steps is probed
+#:    (STIFF_FLAT_PEAK), and a probe that cannot finish is replaced by the first 10x looser
+#:    one that does: claims rise where they were short (a peak time 51x outside its claim
+#:    at rtol 1e-6 after a load-point jump to 5e298), values unchanged there.  Times beyond
+#:    the largest double in T (T'/v_o at v_o ~ 1e-260) are None with complete false (were
+#:    inf with complete true).  Certificates on bench/bench_certificates.py seeds 4242,
+#:    4343, 4545, 4646: 0 violations.
+NUMERICS_VERSION = "10"

@@ -26,7 +26,7 @@ def test_old_import_paths_are_the_same_classes() -> None:
     assert params.ParameterError is errors.ParameterError is rsfcore.ParameterError
     assert trajectory.UndecidedError is errors.UndecidedError is rsfcore.UndecidedError
     assert protocols.IntegrationBudgetError is errors.IntegrationBudgetError
-    assert rsfcore.NUMERICS_VERSION == NUMERICS_VERSION == "9"
+    assert rsfcore.NUMERICS_VERSION == NUMERICS_VERSION == "10"
 
 
 def test_budget_exhaustion_raises_budget_exceeded() -> None:
