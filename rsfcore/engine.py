@@ -1279,6 +1279,37 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
     )
 
 
+@nb.njit(cache=True, nogil=True)
+def _replay_workspace(n):
+    """The arrays :func:`_replay_step` works in, for a state of n components."""
+    return (
+        np.empty((_NSE, n)),  # K
+        np.empty((7, n)),  # F
+        np.empty((rodas4.N_STAGES, n)),  # R
+        np.empty((n, 2)),  # J
+        np.empty(n),  # y
+        np.empty(n),  # ynew
+        np.empty(n),  # f
+        np.empty(n),  # fnew
+        np.empty(n),  # tmp
+        np.empty(n),  # ftmp
+        np.empty(n),  # rbuf
+        np.empty((radau5.N_STAGES, n)),  # Z
+        np.empty((radau5.N_STAGES, n)),  # FZ
+        np.ones(2),  # sc (Newton's weights: unused with a fixed number of iterations)
+    )
+
+
+@nb.njit(cache=True, nogil=True)
+def _start_row(samples, row, y0, c):
+    """samples[row] <- the start y0 in the internal form (L = phi + ln theta, c T)."""
+    samples[row, 0] = y0[0]
+    samples[row, 1] = y0[0] + y0[1]
+    samples[row, 2] = y0[2] * c
+    for j in range(3, y0.shape[0]):
+        samples[row, j] = y0[j]
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _replay_step(steplog, k, ba, kappa, eps, vo, c, lnc, K, F, R, J, y, ynew, f, fnew,
                  tmp, ftmp, rbuf, Z, FZ, sc):  # fmt: skip
@@ -1328,30 +1359,13 @@ def replay_samples(steplog, n_log, y0, ba, kappa, eps, vo, sample_tau, samples):
     n = y0.shape[0]
     c = vo if vo > 0.0 else 1.0
     lnc = math.log(c)
-    K = np.empty((_NSE, n))
-    F = np.empty((7, n))
-    R = np.empty((rodas4.N_STAGES, n))
-    J = np.empty((n, 2))
-    y = np.empty(n)
-    ynew = np.empty(n)
-    f = np.empty(n)
-    fnew = np.empty(n)
-    tmp = np.empty(n)
-    ftmp = np.empty(n)
-    rbuf = np.empty(n)
-    Z = np.empty((radau5.N_STAGES, n))
-    FZ = np.empty((radau5.N_STAGES, n))
-    sc = np.ones(2)  # (Newton's weights: unused with a fixed number of iterations)
+    K, F, R, J, y, ynew, f, fnew, tmp, ftmp, rbuf, Z, FZ, sc = _replay_workspace(n)
     n_tau = sample_tau.shape[0]
     i_tau = 0
     n_filled = 0
     # samples at tau = 0: the start (internal form: L = phi + ln theta, c T)
     while i_tau < n_tau and sample_tau[i_tau] <= 0.0:
-        samples[n_filled, 0] = y0[0]
-        samples[n_filled, 1] = y0[0] + y0[1]
-        samples[n_filled, 2] = y0[2] * c
-        for j in range(3, n):
-            samples[n_filled, j] = y0[j]
+        _start_row(samples, n_filled, y0, c)
         n_filled += 1
         i_tau += 1
     for k in range(n_log):
@@ -1401,30 +1415,13 @@ def replay_samples_T(steplog, n_log, y0, ba, kappa, eps, vo, sample_T_in, stoppe
     c = vo if vo > 0.0 else 1.0
     lnc = math.log(c)
     sample_T = sample_T_in * c
-    K = np.empty((_NSE, n))
-    F = np.empty((7, n))
-    R = np.empty((rodas4.N_STAGES, n))
-    J = np.empty((n, 2))
-    y = np.empty(n)
-    ynew = np.empty(n)
-    f = np.empty(n)
-    fnew = np.empty(n)
-    tmp = np.empty(n)
-    ftmp = np.empty(n)
-    rbuf = np.empty(n)
-    Z = np.empty((radau5.N_STAGES, n))
-    FZ = np.empty((radau5.N_STAGES, n))
-    sc = np.ones(2)  # (Newton's weights: unused with a fixed number of iterations)
+    K, F, R, J, y, ynew, f, fnew, tmp, ftmp, rbuf, Z, FZ, sc = _replay_workspace(n)
     n_T = sample_T.shape[0]
     i_T = 0
     n_filled = 0
     # samples at the start (internal form: L = phi + ln theta, c T)
     while i_T < n_T and sample_T[i_T] <= y0[2] * c:
-        samples[n_filled, 0] = y0[0]
-        samples[n_filled, 1] = y0[0] + y0[1]
-        samples[n_filled, 2] = y0[2] * c
-        for j in range(3, n):
-            samples[n_filled, j] = y0[j]
+        _start_row(samples, n_filled, y0, c)
         n_filled += 1
         i_T += 1
     for k in range(n_log):
