@@ -1590,6 +1590,7 @@ def _simulate(
         # budget reached; the outcome is certain, the times and the peak are not final
         outcome, cert = plan.outcome, plan.certificate
         complete = False
+        peak_T = None  # (no time of this answer is checked: as _unchecked)
         if res is None and beyond:
             why = "decided in closed form from a start beyond what the integration takes: no"
             why += " times, peak_phi is the start's"
@@ -1635,9 +1636,10 @@ def _simulate(
         plan = _SEPARATRIX_PLANS[sep_side]
         outcome, cert = plan.outcome, plan.certificate  # type: ignore[assignment]
         blowup_time = return_time = None
-        peak_phi, peak_T, complete = phi0, 0.0, False
+        peak_phi, peak_T, complete = phi0, None, False
         why = "decided by the side of the traced separatrix (the critical size), while the"
-        why += " integration ended on the other side: its times and peak are not reported"
+        why += " integration ended on the other side: its times are not reported, peak_phi"
+        why += " is the start's (a lower bound)"
 
     if complete and cert != "at_equilibrium" and _times_unresolved(p_run, phi0, psi0, rtol):
         # the start is within the integration's resolution of L* (L0 - L* below rtol,

@@ -555,3 +555,16 @@ def test_times_beyond_the_largest_double_are_not_reported() -> None:
     assert traj.trajectory is not None and not traj.complete
     assert np.isfinite(traj.trajectory.T).all() and len(traj.trajectory.T) >= 1
     assert "largest double" in traj.reason
+
+
+def test_an_answer_without_times_has_no_peak_time() -> None:
+    """Decided by the side of the traced separatrix while the integration ended on the
+    other side (b/a = 1 + 1e-6, kappa = 1e6, a load-point jump to 5e298 at rtol 1e-13): the
+    integrated times belong to the wrong side, so none is reported; peak_time was 0.0
+    there while the reason said the peak was not reported.  peak_phi is the start's, a
+    lower bound of the peak."""
+    p = Params(ba=1.000001, kappa=1e6, eps=0.0, vo=1.0)
+    res = classify(p, "load-point-jump", 5e298, rtol=1e-13)
+    assert res.certificate == "below_separatrix" and not res.complete
+    assert res.blowup_time is None and res.return_time is None and res.peak_time is None
+    assert res.peak_phi == res.start[0] and "lower bound" in res.reason
