@@ -167,6 +167,7 @@ __all__ = ["NUMERICS_VERSION"]
 #:    one that does: claims rise where they were short (a peak time 51x outside its claim
 #:    at rtol 1e-6 after a load-point jump to 5e298), values unchanged there.  Times beyond
 #:    the largest double in T (T'/v_o at v_o ~ 1e-260) are None with complete false (were
-#:    inf with complete true).  Certificates on bench/bench_certificates.py seeds 4242,
+#:    inf with complete true); answers without checked times have no peak_time (the
+#:    separatrix side overruling the integration gave 0.0).  Certificates on bench/bench_certificates.py seeds 4242,
 #:    4343, 4545, 4646: 0 violations.
 NUMERICS_VERSION = "10"
