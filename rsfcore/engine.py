@@ -1101,30 +1101,9 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
                 if x_lim < 1.0:
                     rk.dense_eval(F, y, x_lim, ftmp)
                     T_lim = ftmp[2]
-                # c T increases along the step: each sample time by safeguarded Newton on
-                # the T component, bracketed below by the previous sample and started from
-                # the previous sample's slope (or the secant across the step)
-                x_lo = 0.0
-                T_lo = y[2]
-                slope = 0.0
-                while i_T < n_T and sample_T[i_T] <= T_lim:
-                    tgt = sample_T[i_T]
-                    if slope > 0.0:
-                        xg = x_lo + (tgt - T_lo) / slope
-                    elif T_lim > T_lo:
-                        xg = x_lo + (x_lim - x_lo) * (tgt - T_lo) / (T_lim - T_lo)
-                    else:
-                        xg = 0.5 * (x_lo + x_lim)
-                    xs, slope = rk.dense_invert(
-                        F, y[2], 2, tgt, x_lo, x_lim, T_lo - tgt, T_lim - tgt, xg
-                    )
-                    rk.dense_eval(F, y, xs, tmp)
-                    for j in range(n):
-                        samples[n_filled, j] = tmp[j]
-                    n_filled += 1
-                    i_T += 1
-                    x_lo = xs
-                    T_lo = tgt
+                i_T, n_filled = _samples_in_step_T(
+                    F, y, x_lim, T_lim, sample_T, i_T, samples, n_filled, tmp
+                )
 
         if stop_status >= 0:
             # samples at the stop time itself (lost to rounding of the located stop)
@@ -1277,6 +1256,39 @@ def integrate(y0, ba, kappa, eps, vo, opts, sample_tau, sample_T_in, samples, st
         n_legs,
         n_log,
     )
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _samples_in_step_T(F, y, x_lim, T_lim, sample_T, i_T, samples, n_filled, tmp):
+    """Samples at the times sample_T[i_T:] (internal c T, sorted) that lie in one step, up
+    to its c T at x_lim (T_lim), from its dense output (coefficients F, start y): c T
+    increases along the step, so each is found by safeguarded Newton on the T component,
+    bracketed below by the previous sample and started from the previous sample's slope
+    (or the secant across the step).  Used by :func:`integrate` and
+    :func:`replay_samples_T` (the same inversion, so their samples are the same bits).
+    Returns the next (i_T, n_filled)."""
+    n = y.shape[0]
+    n_T = sample_T.shape[0]
+    x_lo = 0.0
+    T_lo = y[2]
+    slope = 0.0
+    while i_T < n_T and sample_T[i_T] <= T_lim:
+        tgt = sample_T[i_T]
+        if slope > 0.0:
+            xg = x_lo + (tgt - T_lo) / slope
+        elif T_lim > T_lo:
+            xg = x_lo + (x_lim - x_lo) * (tgt - T_lo) / (T_lim - T_lo)
+        else:
+            xg = 0.5 * (x_lo + x_lim)
+        xs, slope = rk.dense_invert(F, y[2], 2, tgt, x_lo, x_lim, T_lo - tgt, T_lim - tgt, xg)
+        rk.dense_eval(F, y, xs, tmp)
+        for j in range(n):
+            samples[n_filled, j] = tmp[j]
+        n_filled += 1
+        i_T += 1
+        x_lo = xs
+        T_lo = tgt
+    return i_T, n_filled
 
 
 @nb.njit(cache=True, nogil=True)
@@ -1440,25 +1452,9 @@ def replay_samples_T(steplog, n_log, y0, ba, kappa, eps, vo, sample_T_in, stoppe
             rk.dense_eval(F, y, x_lim, ftmp)
             T_lim = ftmp[2]
         # (integrate's inversion, step for step)
-        x_lo = 0.0
-        T_lo = y[2]
-        slope = 0.0
-        while i_T < n_T and sample_T[i_T] <= T_lim:
-            tgt = sample_T[i_T]
-            if slope > 0.0:
-                xg = x_lo + (tgt - T_lo) / slope
-            elif T_lim > T_lo:
-                xg = x_lo + (x_lim - x_lo) * (tgt - T_lo) / (T_lim - T_lo)
-            else:
-                xg = 0.5 * (x_lo + x_lim)
-            xs, slope = rk.dense_invert(F, y[2], 2, tgt, x_lo, x_lim, T_lo - tgt, T_lim - tgt, xg)
-            rk.dense_eval(F, y, xs, tmp)
-            for j in range(n):
-                samples[n_filled, j] = tmp[j]
-            n_filled += 1
-            i_T += 1
-            x_lo = xs
-            T_lo = tgt
+        i_T, n_filled = _samples_in_step_T(
+            F, y, x_lim, T_lim, sample_T, i_T, samples, n_filled, tmp
+        )
         if k + 1 == n_log and stopped and i_T < n_T:
             # samples at the stop time itself (lost to rounding of the located stop)
             if x_lim >= 1.0:
